@@ -5,6 +5,8 @@
 //! `identifier-core` code the firmware runs.
 
 pub mod gyro;
+pub mod paper;
 pub mod plot;
+pub mod reference;
 pub mod replay;
 pub mod rigid_body;

@@ -21,7 +21,7 @@ impl InertiaRatios {
     pub fn from_a(a: [f32; 3]) -> Option<Self> {
         let [a1, a2, _] = a;
         let den = 1.0 - a2;
-        if !(den.abs() > 1e-6) {
+        if den.is_nan() || den.abs() <= 1e-6 {
             return None;
         }
         let r = InertiaRatios {
