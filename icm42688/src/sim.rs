@@ -1,0 +1,311 @@
+//! A simulated ICM-42688-P behind `SpiDevice`, fed from a [`SampleSource`].
+//!
+//! It models what the driver relies on, from the datasheet: the `WHO_AM_I` value, soft reset
+//! to reset values with `RESET_DONE_INT`, clear-on-read `INT_STATUS`, the full-scale field of
+//! `GYRO_CONFIG0`, `PWR_MGMT0` gyro mode, big-endian data registers that read -32768 while the
+//! gyro is off, address auto-increment on burst reads, bit 7 of the address byte as the read
+//! flag. Bank selection is stored; only bank 0 holds registers.
+//!
+//! Time is not simulated: the part is always one sample ahead of the reader. Each read of
+//! `INT_STATUS` with the gyro on latches the next sample of the source into the data registers
+//! and reports `DATA_RDY_INT`, as a real part does when the loop polls slower than the ODR
+//! with a fresh sample waiting. When the source is exhausted `DATA_RDY_INT` stays clear, so
+//! the driver times out, and [`SimIcm42688::exhausted`] tells the caller the log has ended.
+//!
+//! Samples are encoded at the configured full scale by [`crate::config::rad_s_to_raw`]:
+//! rounding to the nearest count and clipping at +-32767, the quantisation of the real part.
+//! A bus error can be injected on every n-th transaction to exercise error paths.
+
+use embedded_hal::spi::{self, ErrorKind, ErrorType, Operation, SpiDevice};
+
+use crate::config::{rad_s_to_raw, GyroFullScale};
+use crate::registers as reg;
+
+/// Where the simulated gyro's samples come from (rad/s, sensor axes): a recorded log, a
+/// simulator, a test vector. `None` ends the stream.
+pub trait SampleSource {
+    /// The next sample, or `None` at the end.
+    fn next_sample(&mut self) -> Option<[f32; 3]>;
+}
+
+impl<F: FnMut() -> Option<[f32; 3]>> SampleSource for F {
+    fn next_sample(&mut self) -> Option<[f32; 3]> {
+        self()
+    }
+}
+
+/// The simulated bus error.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SimBusError;
+
+impl spi::Error for SimBusError {
+    fn kind(&self) -> ErrorKind {
+        ErrorKind::Other
+    }
+}
+
+/// Register values after reset that the driver reads (datasheet, section 14).
+fn reset_registers() -> [u8; 128] {
+    let mut r = [0u8; 128];
+    let set = |r: &mut [u8; 128], a: u8, v: u8| {
+        if let Some(x) = r.get_mut(usize::from(a)) {
+            *x = v;
+        }
+    };
+    set(&mut r, reg::WHO_AM_I, reg::WHO_AM_I_VALUE);
+    set(&mut r, reg::INT_STATUS, reg::INT_STATUS_RESET_DONE);
+    set(&mut r, reg::GYRO_CONFIG0, 0x06);
+    set(&mut r, reg::INT_CONFIG1, reg::INT_CONFIG1_ASYNC_RESET);
+    set(&mut r, reg::INT_SOURCE0, 0x10);
+    set(&mut r, reg::FIFO_CONFIG1, 0x00);
+    set(&mut r, 0x4C, 0x30); // INTF_CONFIG0: big-endian data and FIFO count
+    r
+}
+
+/// Registers whose value the simulated part keeps as written (the others are read-only or
+/// have side effects handled separately).
+const WRITABLE: [u8; 8] = [
+    reg::INT_CONFIG,
+    reg::FIFO_CONFIG,
+    reg::PWR_MGMT0,
+    reg::GYRO_CONFIG0,
+    reg::FIFO_CONFIG1,
+    reg::INT_CONFIG1,
+    reg::INT_SOURCE0,
+    0x4C,
+];
+
+/// Counts of what the simulated part saw.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SimStats {
+    /// SPI transactions, failed ones included.
+    pub transactions: u32,
+    /// Samples latched from the source.
+    pub samples: u32,
+    /// Injected bus errors.
+    pub injected_errors: u32,
+}
+
+/// A simulated ICM-42688-P on SPI.
+#[derive(Debug)]
+pub struct SimIcm42688<S> {
+    regs: [u8; 128],
+    bank: u8,
+    source: S,
+    exhausted: bool,
+    fail_every: u32,
+    stats: SimStats,
+}
+
+impl<S: SampleSource> SimIcm42688<S> {
+    /// A part just powered up, streaming from `source`.
+    pub fn new(source: S) -> Self {
+        SimIcm42688 {
+            regs: reset_registers(),
+            bank: 0,
+            source,
+            exhausted: false,
+            fail_every: 0,
+            stats: SimStats::default(),
+        }
+    }
+
+    /// Fails every `n`-th SPI transaction with [`SimBusError`] (0: never).
+    pub fn with_bus_error_every(mut self, n: u32) -> Self {
+        self.fail_every = n;
+        self
+    }
+
+    /// True once the source has returned `None`.
+    pub fn exhausted(&self) -> bool {
+        self.exhausted
+    }
+
+    /// What the part has seen so far.
+    pub fn stats(&self) -> SimStats {
+        self.stats
+    }
+
+    /// The sample source.
+    pub fn source(&self) -> &S {
+        &self.source
+    }
+
+    fn get(&self, a: u8) -> u8 {
+        self.regs.get(usize::from(a)).copied().unwrap_or(0)
+    }
+
+    fn set(&mut self, a: u8, v: u8) {
+        if let Some(x) = self.regs.get_mut(usize::from(a)) {
+            *x = v;
+        }
+    }
+
+    fn gyro_on(&self) -> bool {
+        self.get(reg::PWR_MGMT0) & reg::PWR_MGMT0_GYRO_MASK != 0
+    }
+
+    fn full_scale(&self) -> GyroFullScale {
+        GyroFullScale::from_bits(self.get(reg::GYRO_CONFIG0) >> 5)
+    }
+
+    fn latch(&mut self, raw: [i16; 3]) {
+        for (i, v) in raw.iter().enumerate() {
+            let [hi, lo] = v.to_be_bytes();
+            let a = reg::GYRO_DATA_X1 + 2 * i as u8;
+            self.set(a, hi);
+            self.set(a + 1, lo);
+        }
+    }
+
+    fn read_register(&mut self, a: u8) -> u8 {
+        if a == reg::REG_BANK_SEL {
+            return self.bank;
+        }
+        if self.bank != 0 {
+            return 0;
+        }
+        match a {
+            reg::INT_STATUS => {
+                let mut status = self.get(reg::INT_STATUS);
+                self.set(reg::INT_STATUS, 0);
+                if self.gyro_on() && !self.exhausted {
+                    match self.source.next_sample() {
+                        Some(w) => {
+                            let fs = self.full_scale();
+                            self.latch(w.map(|x| rad_s_to_raw(x, fs)));
+                            self.stats.samples = self.stats.samples.saturating_add(1);
+                            status |= reg::INT_STATUS_DATA_RDY;
+                        }
+                        None => self.exhausted = true,
+                    }
+                }
+                status
+            }
+            a if (reg::GYRO_DATA_X1..reg::GYRO_DATA_X1 + 6).contains(&a) && !self.gyro_on() => {
+                let [hi, lo] = reg::INVALID_SAMPLE.to_be_bytes();
+                if (a - reg::GYRO_DATA_X1).is_multiple_of(2) {
+                    hi
+                } else {
+                    lo
+                }
+            }
+            // Gyro-only FIFO is not simulated: it stays empty.
+            reg::FIFO_COUNTH | 0x2F => 0,
+            reg::FIFO_DATA => reg::FIFO_HEADER_EMPTY,
+            a => self.get(a),
+        }
+    }
+
+    fn write_register(&mut self, a: u8, v: u8) {
+        if a == reg::REG_BANK_SEL {
+            self.bank = v & 0b111;
+            return;
+        }
+        if self.bank != 0 {
+            return;
+        }
+        if a == reg::DEVICE_CONFIG && v & reg::DEVICE_CONFIG_SOFT_RESET != 0 {
+            self.regs = reset_registers();
+            self.bank = 0;
+        } else if WRITABLE.contains(&a) {
+            self.set(a, v);
+        }
+    }
+}
+
+impl<S> ErrorType for SimIcm42688<S> {
+    type Error = SimBusError;
+}
+
+impl<S: SampleSource> SpiDevice for SimIcm42688<S> {
+    /// One chip-select-framed transfer: the first byte written is the address byte (bit 7 =
+    /// read); further written bytes are data for consecutive registers, reads return
+    /// consecutive registers (auto-increment, except `FIFO_DATA`).
+    fn transaction(&mut self, operations: &mut [Operation<'_, u8>]) -> Result<(), SimBusError> {
+        self.stats.transactions = self.stats.transactions.wrapping_add(1);
+        if self.fail_every != 0 && self.stats.transactions.is_multiple_of(self.fail_every) {
+            self.stats.injected_errors = self.stats.injected_errors.saturating_add(1);
+            return Err(SimBusError);
+        }
+        let mut address: Option<(u8, bool)> = None;
+        for op in operations.iter_mut() {
+            match op {
+                Operation::Write(bytes) => {
+                    for &b in bytes.iter() {
+                        match address {
+                            None => address = Some((b & 0x7F, b & reg::SPI_READ != 0)),
+                            Some((a, false)) => {
+                                self.write_register(a, b);
+                                address = Some((a.wrapping_add(1) & 0x7F, false));
+                            }
+                            // Bytes clocked out during a read are ignored by the part.
+                            Some((_, true)) => {}
+                        }
+                    }
+                }
+                Operation::Read(buf) => {
+                    for b in buf.iter_mut() {
+                        *b = match address {
+                            Some((a, true)) => {
+                                let v = self.read_register(a);
+                                if a != reg::FIFO_DATA {
+                                    address = Some((a.wrapping_add(1) & 0x7F, true));
+                                }
+                                v
+                            }
+                            _ => 0,
+                        };
+                    }
+                }
+                Operation::Transfer(rx, tx) => {
+                    // Full duplex: the first tx byte is the address, rx mirrors reads.
+                    for (i, r) in rx.iter_mut().enumerate() {
+                        let t = tx.get(i).copied().unwrap_or(0);
+                        *r = match address {
+                            None => {
+                                address = Some((t & 0x7F, t & reg::SPI_READ != 0));
+                                0
+                            }
+                            Some((a, true)) => {
+                                let v = self.read_register(a);
+                                address = Some((a.wrapping_add(1) & 0x7F, true));
+                                v
+                            }
+                            Some((a, false)) => {
+                                self.write_register(a, t);
+                                address = Some((a.wrapping_add(1) & 0x7F, false));
+                                0
+                            }
+                        };
+                    }
+                }
+                Operation::TransferInPlace(buf) => {
+                    for b in buf.iter_mut() {
+                        let t = *b;
+                        *b = match address {
+                            None => {
+                                address = Some((t & 0x7F, t & reg::SPI_READ != 0));
+                                0
+                            }
+                            Some((a, true)) => {
+                                let v = self.read_register(a);
+                                address = Some((a.wrapping_add(1) & 0x7F, true));
+                                v
+                            }
+                            Some((a, false)) => {
+                                self.write_register(a, t);
+                                address = Some((a.wrapping_add(1) & 0x7F, false));
+                                0
+                            }
+                        };
+                    }
+                }
+                Operation::DelayNs(_) => {}
+            }
+        }
+        Ok(())
+    }
+}
