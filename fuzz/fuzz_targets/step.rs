@@ -1,0 +1,216 @@
+//! Fuzz target for `Identifier::step`: arbitrary bytes become settings and a sequence of
+//! `(omega, dt)` samples, mixing plausible rates (so that the integration is reached) with raw
+//! bit patterns and special values. After every step the documented invariants are checked;
+//! a violation aborts, and libFuzzer reports the input.
+//!
+//! Layout: a 12-byte header for the settings, then records of 8 bytes
+//! `[tag, w1 (i16), w2 (i16), w3 (i16), dt code]`, where some tags read 4 to 16 more bytes of raw
+//! `f32` bits.
+#![no_main]
+
+use identifier_core::invariant::control;
+use identifier_core::{
+    consistency, GainMatrix, Identifier, InertiaRatios, SampleStatus, Settings,
+    SignChangeCorrection,
+};
+use libfuzzer_sys::fuzz_target;
+
+struct Bytes<'a>(&'a [u8]);
+
+impl Bytes<'_> {
+    fn u8(&mut self) -> Option<u8> {
+        let (&b, rest) = self.0.split_first()?;
+        self.0 = rest;
+        Some(b)
+    }
+    fn i16(&mut self) -> Option<i16> {
+        Some(i16::from_le_bytes([self.u8()?, self.u8()?]))
+    }
+    fn f32(&mut self) -> Option<f32> {
+        Some(f32::from_le_bytes([
+            self.u8()?,
+            self.u8()?,
+            self.u8()?,
+            self.u8()?,
+        ]))
+    }
+}
+
+const SPECIAL: [f32; 16] = [
+    f32::NAN,
+    f32::INFINITY,
+    f32::NEG_INFINITY,
+    f32::MAX,
+    -f32::MAX,
+    0.0,
+    -0.0,
+    1e-40,
+    f32::MIN_POSITIVE,
+    1e20,
+    -3e19,
+    34.906_586,
+    -34.906_586,
+    1e-3,
+    1e6,
+    -1.0,
+];
+
+const FULL_SCALE: [f32; 4] = [f32::INFINITY, 34.906_586, 1.0, 1e30];
+
+fn settings(b: &mut Bytes) -> Option<Settings> {
+    let g = b.u8()?;
+    let gain = match g % 4 {
+        0 => GainMatrix::scalar(0.01 + f32::from(g / 4) * 0.5),
+        1 => GainMatrix::scalar(b.f32()?), // raw: mostly refused, which is checked too
+        2 => {
+            // Gershgorin-shifted matrix: Hurwitz by construction.
+            let mut m = [[0.0f32; 3]; 3];
+            for row in m.iter_mut() {
+                for x in row.iter_mut() {
+                    *x = f32::from(b.u8()? as i8) / 16.0;
+                }
+            }
+            let r = m
+                .iter()
+                .map(|row| row.iter().map(|x| x.abs()).sum::<f32>())
+                .fold(0.0, f32::max);
+            for (i, row) in m.iter_mut().enumerate() {
+                row[i] -= r + 0.1;
+            }
+            GainMatrix(m)
+        }
+        _ => GainMatrix::scalar([1e-12, 1e12, 3.0, 1e-3][usize::from(g / 4 % 4)]),
+    };
+    let f = b.u8()?;
+    let w_min = [0.0, 1e-3, 0.5, f32::MAX][usize::from(f % 4)];
+    let full_scale = FULL_SCALE[usize::from(f / 4 % 4)];
+    let max_dt = [0.1, 1e-4, 10.0, f32::MAX][usize::from(f / 16 % 4)];
+    let sign_change = if f & 0x40 == 0 {
+        SignChangeCorrection::Enabled
+    } else {
+        SignChangeCorrection::Disabled
+    };
+    let c = b.u8()?;
+    let eps = [1e-3, 1e-6, 0.1, 10.0][usize::from(c % 4)];
+    let h = [1.0, 1e-3, 0.01, 100.0][usize::from(c / 4 % 4)];
+    let initial_estimate = [
+        f32::from(b.i16()?) / 100.0,
+        f32::from(b.i16()?) / 100.0,
+        f32::from(b.i16()?) / 100.0,
+    ];
+    Some(Settings {
+        gain,
+        w_min,
+        sign_change,
+        full_scale,
+        max_dt,
+        eps,
+        h,
+        initial_estimate,
+    })
+}
+
+fn sample(b: &mut Bytes, full_scale: f32) -> Option<([f32; 3], f32, u8)> {
+    let tag = b.u8()?;
+    let raw = [b.i16()?, b.i16()?, b.i16()?];
+    let omega = match tag % 5 {
+        0 | 1 => raw.map(|x| f32::from(x) / 1000.0),
+        2 => raw.map(|x| f32::from(x) * 1e-6),
+        3 => raw.map(|x| {
+            if x & 1 == 0 {
+                f32::from(x) / 1000.0
+            } else if x & 2 == 0 {
+                full_scale.copysign(f32::from(x))
+            } else {
+                SPECIAL[usize::from((x as u16 >> 2) % 16)]
+            }
+        }),
+        _ => [b.f32()?, b.f32()?, b.f32()?],
+    };
+    let code = b.u8()?;
+    let dt = match code {
+        0..=199 => 1e-3 * (0.5 + f32::from(code) / 200.0),
+        200..=215 => SPECIAL[usize::from(code - 200)],
+        216 => 0.05,
+        217 => 0.2,
+        218 => 10.0,
+        219..=239 => 1e-3 * f32::from(code - 218),
+        _ => b.f32()?,
+    };
+    Some((omega, dt, tag))
+}
+
+fn check(data: &[u8]) {
+    let mut b = Bytes(data);
+    let Some(s) = settings(&mut b) else { return };
+    let mut id = match Identifier::new(s) {
+        Ok(id) => id,
+        Err(e) => {
+            assert_eq!(s.validate(), Err(e));
+            return;
+        }
+    };
+    assert_eq!(id.estimate(), s.initial_estimate);
+    let mut steps: u32 = 0;
+    let mut anchored: u32 = 0;
+    while let Some((omega, dt, tag)) = sample(&mut b, s.full_scale) {
+        // Now and then, the other entry points.
+        match tag >> 5 {
+            6 => id.restart(),
+            7 if tag & 16 != 0 => {
+                id.reset();
+                steps = 0;
+                anchored = 0;
+                assert_eq!(id.estimate(), s.initial_estimate);
+            }
+            _ => {}
+        }
+        let before = id.estimate();
+        let e = id.step(omega, dt);
+        steps += 1;
+        // The state stays finite.
+        assert!(e.a.iter().all(|x| x.is_finite()), "{omega:?} {dt} {e:?}");
+        assert_eq!(e.a, id.estimate());
+        assert!(id.monitor().span().is_finite());
+        // Refusals follow the documented order of checks.
+        let want = if !(dt.is_finite() && dt > 0.0) {
+            Some(SampleStatus::InvalidTimeStep)
+        } else if omega.iter().any(|w| !w.is_finite()) {
+            Some(SampleStatus::NonFinite)
+        } else if omega.iter().any(|w| w.abs() >= s.full_scale) {
+            Some(SampleStatus::Saturated)
+        } else {
+            None
+        };
+        match want {
+            Some(w) => assert_eq!(e.status, w, "{omega:?} {dt}"),
+            None => assert!(!e.status.rejected(), "{omega:?} {dt} {e:?}"),
+        }
+        // Only an integrated sample moves the estimate.
+        if !e.status.integrated() {
+            assert_eq!(before.map(f32::to_bits), e.a.map(f32::to_bits), "{e:?}");
+        }
+        if e.status == SampleStatus::Anchored {
+            anchored += 1;
+        }
+        // Counters add up.
+        let c = id.counters();
+        assert_eq!(c.samples, steps);
+        assert_eq!(
+            c.integrated + c.unidentifiable + c.rejected + c.gaps + c.numerical_faults + anchored,
+            steps
+        );
+        assert!(c.sign_changes <= c.integrated);
+        // The derived quantities never panic, and are finite when they claim to be.
+        let _ = id.alpha();
+        let _ = consistency(e.a);
+        if let Some(r) = e.ratios() {
+            assert!(r.a2_over_a1.is_finite() && r.a3_over_a1.is_finite());
+            let _ = r.to_a();
+        }
+        let _ = InertiaRatios::from_a(omega);
+        let _ = control(&s.gain, e.a, omega);
+    }
+}
+
+fuzz_target!(|data: &[u8]| check(data));
