@@ -4,7 +4,9 @@
 //! Everything here is `f64` and `std`; the identifier under test is the very same
 //! `identifier-core` code the firmware runs.
 
+pub mod close_loop;
 pub mod gyro;
+pub mod log_input;
 pub mod paper;
 pub mod plot;
 pub mod reference;

@@ -34,6 +34,7 @@
 )]
 
 pub mod convergence;
+pub mod extended;
 pub mod identifier;
 pub mod inertia;
 pub mod invariant;
@@ -42,6 +43,9 @@ pub mod settings;
 pub mod status;
 
 pub use convergence::{Convergence, ConvergenceMonitor};
+pub use extended::{
+    ExtendedEstimate, ExtendedIdentifier, ExtendedSettings, ExtendedStatus, ExtraEffect,
+};
 pub use identifier::Identifier;
 pub use inertia::{consistency, InertiaRatios};
 pub use settings::{GainMatrix, Settings, SettingsError, SignChangeCorrection};
