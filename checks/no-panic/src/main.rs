@@ -1,0 +1,126 @@
+//! No-panic proof for identifier-core on the flight target.
+//!
+//! This program calls every public entry of `identifier-core` on inputs the optimiser cannot
+//! see (`black_box`), so no call is folded away, and links for thumbv7em-none-eabihf with the
+//! firmware's release options (fat LTO, one codegen unit, `panic = "abort"`).
+//!
+//! Its panic handler calls a function that exists nowhere. If any panic path (an index out of
+//! bounds, an overflow check, an `unwrap`, a division by an integer zero, `unreachable!`...) is
+//! still reachable from these entries after optimisation, the handler is kept and the link fails
+//! with an undefined reference to `identifier_core_has_a_panic_path`. scripts/check-no-panic.sh
+//! also lists the linked symbols and fails on any `panic` among them.
+#![no_std]
+#![no_main]
+
+use core::fmt::Write;
+use core::hint::black_box;
+
+use identifier_core::invariant::{control, phi, phi_of_squares, sign, squares, triple_product};
+use identifier_core::{
+    consistency, ConvergenceMonitor, GainMatrix, Identifier, InertiaRatios, Settings,
+    SignChangeCorrection,
+};
+
+extern "C" {
+    /// Deliberately undefined: referencing it makes the link fail.
+    fn identifier_core_has_a_panic_path() -> !;
+}
+
+#[panic_handler]
+fn panic(_: &core::panic::PanicInfo) -> ! {
+    // SAFETY: never executed; its only purpose is to make a reachable panic unlinkable.
+    unsafe { identifier_core_has_a_panic_path() }
+}
+
+/// A `fmt::Write` sink that keeps only a byte count.
+struct Sink(usize);
+
+impl Write for Sink {
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        self.0 = self.0.wrapping_add(s.len());
+        Ok(())
+    }
+}
+
+fn opaque_settings() -> Settings {
+    let mut s = black_box(Settings::with_lambda(black_box(3.0)));
+    s.gain = black_box(GainMatrix(black_box([[-1.0, 0.5, 0.0], [0.0, -2.0, 0.1], [0.0, 0.0, -3.0]])));
+    s.w_min = black_box(1e-3);
+    s.full_scale = black_box(34.9);
+    s.max_dt = black_box(0.1);
+    s.sign_change = if black_box(true) {
+        SignChangeCorrection::Enabled
+    } else {
+        SignChangeCorrection::Disabled
+    };
+    s.eps = black_box(1e-3);
+    s.h = black_box(1.0);
+    s.initial_estimate = black_box([0.0; 3]);
+    s
+}
+
+fn exercise() {
+    let s = opaque_settings();
+    let _ = black_box(Settings::default());
+    let _ = black_box(s.validate());
+    let _ = black_box(s.gain.is_hurwitz());
+    let _ = black_box(GainMatrix::scalar(black_box(2.0)).rows());
+
+    match Identifier::new(s) {
+        Ok(mut id) => {
+            for _ in 0..black_box(1000usize) {
+                let e = id.step(black_box([1.0, -0.5, 0.25]), black_box(1e-3));
+                black_box(e);
+                black_box(e.status.integrated());
+                black_box(e.status.rejected());
+                black_box(e.ratios());
+                black_box(e.consistency());
+            }
+            black_box(id.estimate());
+            black_box(id.alpha());
+            black_box(id.convergence());
+            black_box(id.monitor().span());
+            black_box(id.counters());
+            black_box(id.settings());
+            if black_box(false) {
+                id.restart();
+            }
+            if black_box(false) {
+                id.reset();
+            }
+            black_box(&id);
+        }
+        Err(e) => {
+            // Display of the refusal, as a firmware would log it.
+            let mut sink = Sink(0);
+            let _ = write!(sink, "{e}");
+            black_box(sink.0);
+        }
+    }
+
+    let w = black_box([0.3, 1.2, -0.7]);
+    let a = black_box([0.9, 0.26, -0.94]);
+    black_box(triple_product(w));
+    black_box(sign(black_box(-0.5)));
+    black_box(squares(w));
+    black_box(phi(&s.gain, black_box(1.0), w));
+    black_box(phi_of_squares(s.gain.rows(), black_box(-1.0), w));
+    black_box(control(&s.gain, a, w));
+    black_box(consistency(a));
+    if let Some(r) = InertiaRatios::from_a(a) {
+        black_box(r.to_a());
+    }
+    let mut m = black_box(ConvergenceMonitor::new());
+    black_box(m.observe(a, black_box(1e-3), black_box(1e-3), black_box(1.0)));
+    black_box(m.verdict(black_box(1.0)));
+    black_box(m.span());
+    black_box(ConvergenceMonitor::default());
+}
+
+/// Entry point of the image (the linker's default entry symbol).
+#[no_mangle]
+pub extern "C" fn _start() -> ! {
+    loop {
+        exercise();
+    }
+}
