@@ -5,6 +5,8 @@
 //! `identifier-core` code the firmware runs.
 
 pub mod close_loop;
+pub mod crb;
+pub mod estimators;
 pub mod gyro;
 pub mod log_input;
 pub mod paper;

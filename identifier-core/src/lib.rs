@@ -39,6 +39,7 @@ pub mod identifier;
 pub mod inertia;
 pub mod invariant;
 mod linalg;
+pub mod refined;
 pub mod settings;
 pub mod status;
 
@@ -48,5 +49,6 @@ pub use extended::{
 };
 pub use identifier::Identifier;
 pub use inertia::{consistency, InertiaRatios};
+pub use refined::{Refined, RefinedSettings};
 pub use settings::{GainMatrix, Settings, SettingsError, SignChangeCorrection};
 pub use status::{Counters, Estimate, SampleStatus};

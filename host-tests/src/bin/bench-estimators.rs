@@ -1,0 +1,514 @@
+//! Accuracy and cost of the paper's identifier, the refined on-board identifier and the peers
+//! (batch LS, RLS, EKF, output-error ML) against the Cramer-Rao bound, all on the same seeds in
+//! one run. Writes `BENCHMARKS.md` and `docs/bench/*.svg`.
+//!
+//! ```text
+//! cargo run --release -p host-tests --bin bench-estimators            # 100 seeds, writes files
+//! cargo run --release -p host-tests --bin bench-estimators -- --quick # 8 seeds, no files
+//! options: --seeds N  --scenario NAME  --no-write  --no-racquet
+//! ```
+
+// Index loops read closest to the equations they implement.
+#![allow(clippy::needless_range_loop)]
+
+use anyhow::{Context, Result};
+use host_tests::crb;
+use host_tests::estimators::{all_methods, batch_ls, onboard, Method, Scenario};
+use host_tests::plot::{write_svg, Chart, Series};
+use rayon::prelude::*;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+struct Args {
+    seeds: u64,
+    scenario: Option<String>,
+    write: bool,
+    racquet: bool,
+    diagnose: bool,
+}
+
+fn args() -> Result<Args> {
+    let mut a = Args {
+        seeds: 100,
+        scenario: None,
+        write: true,
+        racquet: true,
+        diagnose: false,
+    };
+    let mut it = std::env::args().skip(1);
+    while let Some(x) = it.next() {
+        match x.as_str() {
+            "--quick" => {
+                a.seeds = 8;
+                a.write = false;
+            }
+            "--seeds" => a.seeds = it.next().context("--seeds N")?.parse()?,
+            "--scenario" => a.scenario = Some(it.next().context("--scenario NAME")?),
+            "--no-write" => a.write = false,
+            "--no-racquet" => a.racquet = false,
+            "--diagnose" => a.diagnose = true,
+            other => anyhow::bail!("unknown argument {other}"),
+        }
+    }
+    Ok(a)
+}
+
+/// Per-method results on one scenario.
+struct MethodResult {
+    name: &'static str,
+    onboard: bool,
+    rms: [f64; 3],
+    curve_rms: Vec<f64>,
+    ns_per_sample: f64,
+}
+
+struct ScenarioResult {
+    scenario: Scenario,
+    a: [f64; 3],
+    crb: [f64; 3],
+    times: Vec<f64>,
+    crb_curve: Vec<f64>,
+    methods: Vec<MethodResult>,
+    seeds: u64,
+}
+
+fn checkpoints(n: usize) -> Vec<usize> {
+    let k = 10;
+    (1..=k).map(|j| (j * (n - 1)) / k).collect()
+}
+
+fn rms3(errs: &[[f64; 3]]) -> [f64; 3] {
+    let n = errs.len().max(1) as f64;
+    std::array::from_fn(|i| (errs.iter().map(|e| e[i] * e[i]).sum::<f64>() / n).sqrt())
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+fn run_scenario(sc: &Scenario, seeds: u64, methods: &[Box<dyn Method>]) -> ScenarioResult {
+    let truth = sc.truth();
+    let a = sc.a();
+    let n = truth.0.len();
+    let cps = checkpoints(n);
+    let sub = if sc.rate_hz < 500.0 { 20 } else { 2 };
+    let sens = crb::sensitivities(a, sc.omega0, n, 1.0 / sc.rate_hz, sub);
+    let crb_full = crb::bound_from(&sens, n, sc.sigma).unwrap_or([f64::INFINITY; 3]);
+    let crb_curve: Vec<f64> = cps
+        .iter()
+        .map(|&k| {
+            crb::bound_from(&sens, k + 1, sc.sigma)
+                .map(|b| (b.iter().map(|x| x * x).sum::<f64>() / 3.0).sqrt())
+                .unwrap_or(f64::NAN)
+        })
+        .collect();
+    // Per seed: for each method (final error, curve errors, ns per sample).
+    type PerSeed = Vec<([f64; 3], Vec<[f64; 3]>, f64)>;
+    let per_seed: Vec<PerSeed> = (0..seeds)
+        .into_par_iter()
+        .map(|seed| {
+            let y = sc.measure(&truth, 1000 + seed);
+            let t = &truth.0;
+            methods
+                .iter()
+                .map(|m| {
+                    let t0 = Instant::now();
+                    let est = m.estimate(t, &y);
+                    let ns = t0.elapsed().as_nanos() as f64 / n as f64;
+                    let err = std::array::from_fn(|i| est[i] - a[i]);
+                    let curve = m
+                        .curve(t, &y, &cps)
+                        .into_iter()
+                        .map(|e| std::array::from_fn(|i| e[i] - a[i]))
+                        .collect();
+                    (err, curve, ns)
+                })
+                .collect()
+        })
+        .collect();
+    let results = methods
+        .iter()
+        .enumerate()
+        .map(|(mi, m)| {
+            let finals: Vec<[f64; 3]> = per_seed.iter().map(|s| s[mi].0).collect();
+            let curve_rms = (0..cps.len())
+                .map(|c| {
+                    let e: Vec<[f64; 3]> = per_seed.iter().map(|s| s[mi].1[c]).collect();
+                    let r = rms3(&e);
+                    (r.iter().map(|x| x * x).sum::<f64>() / 3.0).sqrt()
+                })
+                .collect();
+            MethodResult {
+                name: m.name(),
+                onboard: m.onboard(),
+                rms: rms3(&finals),
+                curve_rms,
+                ns_per_sample: median(per_seed.iter().map(|s| s[mi].2).collect()),
+            }
+        })
+        .collect();
+    ScenarioResult {
+        scenario: sc.clone(),
+        a,
+        crb: crb_full,
+        times: cps.iter().map(|&k| truth.0[k]).collect(),
+        crb_curve,
+        methods: results,
+        seeds,
+    }
+}
+
+/// Instructions per step from `docs/bench/instructions.csv` (`method,instructions,how`), if
+/// the instruction-count script has produced it.
+fn instructions(root: &Path) -> Vec<(String, f64, String)> {
+    let Ok(text) = std::fs::read_to_string(root.join("docs/bench/instructions.csv")) else {
+        return Vec::new();
+    };
+    text.lines()
+        .skip(1)
+        .filter_map(|l| {
+            let mut f = l.splitn(3, ',');
+            let name = f.next()?.trim().to_string();
+            let n = f.next()?.trim().parse().ok()?;
+            let how = f.next().unwrap_or("").trim().to_string();
+            Some((name, n, how))
+        })
+        .collect()
+}
+
+fn key(name: &str) -> &'static str {
+    match name {
+        n if n.starts_with("paper") => "paper",
+        n if n.starts_with("refined") => "refined",
+        n if n.starts_with("batch") => "batch-ls",
+        n if n.starts_with("recursive") => "rls",
+        n if n.starts_with("EKF") => "ekf",
+        _ => "ml",
+    }
+}
+
+fn table(results: &[ScenarioResult], instr: &[(String, f64, String)]) -> String {
+    let mut s = String::new();
+    for r in results {
+        let sc = &r.scenario;
+        let _ = writeln!(
+            s,
+            "\n### {} — {}\n\ntrue a = ({:.4}, {:.4}, {:.4}); Cramer-Rao bound on std(a) = ({:.2e}, {:.2e}, {:.2e}); {} seeds\n",
+            sc.name, sc.description, r.a[0], r.a[1], r.a[2], r.crb[0], r.crb[1], r.crb[2], r.seeds
+        );
+        let _ = writeln!(
+            s,
+            "| method | RMS error a1, a2, a3 | ratio to CRB a1, a2, a3 | worst ratio | vs paper | ns/sample (host) | instructions/step |"
+        );
+        let _ = writeln!(s, "|---|---|---|---|---|---|---|");
+        let base = r
+            .methods
+            .first()
+            .map(|m| worst(&m.rms, &r.crb))
+            .unwrap_or(1.0);
+        for m in &r.methods {
+            let ratio: [f64; 3] = std::array::from_fn(|i| m.rms[i] / r.crb[i]);
+            let w = worst(&m.rms, &r.crb);
+            let ins = instr
+                .iter()
+                .find(|(k, _, _)| k == key(m.name))
+                .map(|(_, n, how)| format!("{n:.0} ({how})"))
+                .unwrap_or_else(|| "-".into());
+            let _ = writeln!(
+                s,
+                "| {}{} | {:.2e}, {:.2e}, {:.2e} | {:.2}, {:.2}, {:.2} | {:.2} | {:.3} | {:.0} | {} |",
+                m.name,
+                if m.onboard { " (on-board, f32)" } else { "" },
+                m.rms[0],
+                m.rms[1],
+                m.rms[2],
+                ratio[0],
+                ratio[1],
+                ratio[2],
+                w,
+                w / base,
+                m.ns_per_sample,
+                ins
+            );
+        }
+    }
+    s
+}
+
+fn worst(rms: &[f64; 3], crb: &[f64; 3]) -> f64 {
+    (0..3).map(|i| rms[i] / crb[i]).fold(0.0, f64::max)
+}
+
+fn plot(dir: &Path, r: &ScenarioResult) -> Result<()> {
+    let mut series: Vec<Series> = r
+        .methods
+        .iter()
+        .map(|m| Series {
+            name: m.name.to_string(),
+            points: r
+                .times
+                .iter()
+                .zip(&m.curve_rms)
+                .map(|(t, e)| (*t, e.max(1e-12).log10()))
+                .collect(),
+        })
+        .collect();
+    series.push(Series {
+        name: "Cramer-Rao bound".into(),
+        points: r
+            .times
+            .iter()
+            .zip(&r.crb_curve)
+            .map(|(t, e)| (*t, e.max(1e-12).log10()))
+            .collect(),
+    });
+    let title = format!(
+        "{}: RMS error of a (mean over axes) vs time",
+        r.scenario.name
+    );
+    write_svg(
+        &dir.join(format!("error-{}.svg", r.scenario.name)),
+        &[Chart {
+            title: &title,
+            x_label: "time, s",
+            y_label: "log10 RMS error of a",
+            y_range: None,
+            series,
+        }],
+    )
+}
+
+// ---------------------------------------------------------------------------------------
+// Racquet data: per-toss spread of a.
+
+/// One free-flight segment: times and rates.
+struct Toss {
+    label: String,
+    t: Vec<f64>,
+    y: Vec<[f64; 3]>,
+}
+
+fn num(s: &str) -> Option<f64> {
+    s.trim().trim_matches('"').trim().parse().ok()
+}
+
+fn read_round(dir: &Path, label: &str) -> Result<Vec<Toss>> {
+    let raw = std::fs::read_to_string(dir.join("Raw Data.csv"))
+        .with_context(|| format!("reading {}", dir.display()))?;
+    let rows: Vec<[f64; 4]> = raw
+        .lines()
+        .skip(1)
+        .filter_map(|l| {
+            let f: Vec<f64> = l.split(',').filter_map(num).collect();
+            (f.len() >= 4).then(|| [f[0], f[1], f[2], f[3]])
+        })
+        .collect();
+    let seg = std::fs::read_to_string(dir.join("meta/segments.csv"))?;
+    let mut out = Vec::new();
+    for l in seg.lines().skip(1) {
+        let f: Vec<&str> = l.split(',').collect();
+        if f.len() < 3 {
+            continue;
+        }
+        if f.get(3).is_some_and(|k| k.trim() == "false") {
+            continue;
+        }
+        let (Some(s), Some(e)) = (num(f[1]), num(f[2])) else {
+            continue;
+        };
+        let sel: Vec<&[f64; 4]> = rows.iter().filter(|r| r[0] >= s && r[0] <= e).collect();
+        out.push(Toss {
+            label: format!("{label}/{}", f[0].trim()),
+            t: sel.iter().map(|r| r[0]).collect(),
+            y: sel.iter().map(|r| [r[1], r[2], r[3]]).collect(),
+        });
+    }
+    Ok(out)
+}
+
+fn racquet(root: &Path) -> Result<String> {
+    let base = root.join("../shared/data/racquet");
+    let mut tosses = Vec::new();
+    for round in ["round2", "round4"] {
+        let d = base.join(round);
+        let Some(sub) = std::fs::read_dir(&d)
+            .with_context(|| format!("{}", d.display()))?
+            .filter_map(|e| e.ok())
+            .map(|e| e.path())
+            .find(|p| p.is_dir())
+        else {
+            continue;
+        };
+        tosses.extend(read_round(&sub, round)?);
+    }
+    let methods: Vec<Box<dyn Method>> = vec![
+        Box::new(onboard::Paper::default()),
+        Box::new(onboard::RefinedMethod::default()),
+        Box::new(batch_ls::BatchLs),
+        Box::new(host_tests::estimators::ml::Ml),
+    ];
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "\n## Racquet data: per-toss spread of a (rounds 2 and 4, {} tosses)\n",
+        tosses.len()
+    );
+    let _ = writeln!(
+        s,
+        "Spread = std / |mean| across tosses, each toss estimated on its own (axes x, y, z of the phone).\n"
+    );
+    let _ = writeln!(
+        s,
+        "| method | mean a (x, y, z) | spread x, y, z | worst spread | per-toss a |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|---|");
+    for m in &methods {
+        let est: Vec<[f64; 3]> = tosses.iter().map(|ts| m.estimate(&ts.t, &ts.y)).collect();
+        let n = est.len() as f64;
+        let mean: [f64; 3] = std::array::from_fn(|i| est.iter().map(|e| e[i]).sum::<f64>() / n);
+        let sd: [f64; 3] = std::array::from_fn(|i| {
+            (est.iter().map(|e| (e[i] - mean[i]).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
+        });
+        let spread: [f64; 3] = std::array::from_fn(|i| sd[i] / mean[i].abs());
+        let per: Vec<String> = est
+            .iter()
+            .zip(&tosses)
+            .map(|(e, ts)| format!("{}: ({:.3}, {:.3}, {:.3})", ts.label, e[0], e[1], e[2]))
+            .collect();
+        let _ = writeln!(
+            s,
+            "| {} | ({:.4}, {:.4}, {:.4}) | {:.2} %, {:.2} %, {:.2} % | {:.2} % | {} |",
+            m.name(),
+            mean[0],
+            mean[1],
+            mean[2],
+            100.0 * spread[0],
+            100.0 * spread[1],
+            100.0 * spread[2],
+            100.0 * spread.iter().fold(0.0f64, |a, b| a.max(*b)),
+            per.join("; ")
+        );
+    }
+    Ok(s)
+}
+
+/// What limits a per-axis equation-error fit of the integrated (1): its bound with the true
+/// regressors, for several window lengths, beside the Cramer-Rao bound.
+fn diagnose(sc: &Scenario) {
+    let (t, w) = sc.truth();
+    let n = t.len();
+    let dt = 1.0 / sc.rate_hz;
+    let sens = crb::sensitivities(sc.a(), sc.omega0, n, dt, 4);
+    let crb6 = crb::bound_from(&sens, n, sc.sigma).unwrap_or([f64::NAN; 3]);
+    let g = crb::gram(&sens);
+    let g3 = g.fixed_view::<3, 3>(0, 0).into_owned();
+    let crb3: Vec<f64> = g3
+        .try_inverse()
+        .map(|m| (0..3).map(|i| sc.sigma * m[(i, i)].sqrt()).collect())
+        .unwrap_or_default();
+    println!(
+        "{}: CRB(a, w0) {:?}  CRB(a | w0 known) {:?}",
+        sc.name, crb6, crb3
+    );
+    for win in [0.25, 0.5, 1.0, 2.0, 4.0, 10.0, 1e9] {
+        let per = (win / dt).round().max(2.0) as usize;
+        let mut info = [0.0f64; 3];
+        let mut k0 = 0;
+        while k0 < n {
+            let k1 = (k0 + per).min(n - 1);
+            let mut gsum = [0.0f64; 3];
+            let mut g = [0.0f64; 3];
+            let mut gg = [0.0f64; 3];
+            let mut cnt = 0.0;
+            for k in k0..=k1 {
+                if k > k0 {
+                    let (f0, f1) = (
+                        host_tests::estimators::products(w[k - 1]),
+                        host_tests::estimators::products(w[k]),
+                    );
+                    for i in 0..3 {
+                        g[i] += 0.5 * dt * (f0[i] + f1[i]);
+                    }
+                }
+                for i in 0..3 {
+                    gsum[i] += g[i];
+                    gg[i] += g[i] * g[i];
+                }
+                cnt += 1.0;
+            }
+            for i in 0..3 {
+                info[i] += gg[i] - gsum[i] * gsum[i] / cnt;
+            }
+            if k1 == n - 1 {
+                break;
+            }
+            k0 = k1;
+        }
+        let b: [f64; 3] = std::array::from_fn(|i| sc.sigma / info[i].sqrt());
+        println!(
+            "  window {win:>6}: per-axis bound {:?}  ratio {:.2?}",
+            b,
+            [b[0] / crb6[0], b[1] / crb6[1], b[2] / crb6[2]]
+        );
+    }
+}
+
+fn repo_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| PathBuf::from("."))
+}
+
+fn main() -> Result<()> {
+    let a = args()?;
+    let root = repo_root();
+    let methods = all_methods();
+    if a.diagnose {
+        for sc in Scenario::all() {
+            diagnose(&sc);
+        }
+        return Ok(());
+    }
+    let t0 = Instant::now();
+    let mut results = Vec::new();
+    for sc in Scenario::all() {
+        if a.scenario.as_deref().is_some_and(|n| n != sc.name) {
+            continue;
+        }
+        let r = run_scenario(&sc, a.seeds, &methods);
+        eprintln!(
+            "{}: done after {:.1} s",
+            sc.name,
+            t0.elapsed().as_secs_f64()
+        );
+        results.push(r);
+    }
+    let instr = instructions(&root);
+    let mut out = table(&results, &instr);
+    if a.racquet {
+        match racquet(&root) {
+            Ok(s) => out.push_str(&s),
+            Err(e) => {
+                let _ = writeln!(out, "\nracquet data not read: {e:#}");
+            }
+        }
+    }
+    println!("{out}");
+    if a.write {
+        let dir = root.join("docs/bench");
+        for r in &results {
+            plot(&dir, r)?;
+        }
+        let head = std::fs::read_to_string(dir.join("header.md")).unwrap_or_default();
+        let doc = format!(
+            "{head}\n## Results (generated by `scripts/bench-estimators.sh`; {} seeds per scenario)\n{out}",
+            a.seeds
+        );
+        std::fs::write(root.join("BENCHMARKS.md"), doc)?;
+        eprintln!("wrote BENCHMARKS.md and docs/bench/*.svg");
+    }
+    Ok(())
+}

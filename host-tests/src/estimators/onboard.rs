@@ -1,0 +1,101 @@
+//! The two on-board identifiers from `identifier-core`, driven exactly as the firmware drives
+//! them: one `step` per sample, `f32` in, `dt` from consecutive timestamps.
+
+// Index loops read closest to the equations they implement.
+#![allow(clippy::needless_range_loop)]
+
+use super::Method;
+use identifier_core::{Identifier, Refined, RefinedSettings, Settings};
+
+/// `dt` for sample `k` (the nominal period for the first sample).
+fn dt_at(t: &[f64], k: usize) -> f32 {
+    let nominal = if t.len() > 1 { t[1] - t[0] } else { 1e-3 };
+    if k == 0 {
+        nominal as f32
+    } else {
+        (t[k] - t[k - 1]) as f32
+    }
+}
+
+/// The paper's identifier as published: `C = -lambda E`, sign-change correction, the
+/// estimate (14) at the last sample.
+pub struct Paper {
+    /// Settings (default `Settings::with_lambda(3.0)`).
+    pub settings: Settings,
+}
+
+impl Default for Paper {
+    fn default() -> Self {
+        Paper {
+            settings: Settings::with_lambda(3.0),
+        }
+    }
+}
+
+impl Method for Paper {
+    fn name(&self) -> &'static str {
+        "paper identifier (C=-3E)"
+    }
+    fn onboard(&self) -> bool {
+        true
+    }
+    fn estimate(&self, t: &[f64], y: &[[f64; 3]]) -> [f64; 3] {
+        self.curve(t, y, &[t.len() - 1])[0]
+    }
+    fn curve(&self, t: &[f64], y: &[[f64; 3]], checkpoints: &[usize]) -> Vec<[f64; 3]> {
+        let Ok(mut id) = Identifier::new(self.settings) else {
+            return vec![[f64::NAN; 3]; checkpoints.len()];
+        };
+        let mut out = Vec::with_capacity(checkpoints.len());
+        let mut next = checkpoints.iter().peekable();
+        for (k, w) in y.iter().enumerate() {
+            let e = id.step(w.map(|x| x as f32), dt_at(t, k));
+            while next.peek().is_some_and(|&&c| c == k) {
+                out.push(e.a.map(f64::from));
+                next.next();
+            }
+        }
+        out
+    }
+}
+
+/// The refined on-board identifier ([`identifier_core::Refined`]).
+pub struct RefinedMethod {
+    /// Settings (default [`RefinedSettings::new`]).
+    pub settings: RefinedSettings,
+}
+
+impl Default for RefinedMethod {
+    fn default() -> Self {
+        RefinedMethod {
+            settings: RefinedSettings::new(),
+        }
+    }
+}
+
+impl Method for RefinedMethod {
+    fn name(&self) -> &'static str {
+        "refined identifier"
+    }
+    fn onboard(&self) -> bool {
+        true
+    }
+    fn estimate(&self, t: &[f64], y: &[[f64; 3]]) -> [f64; 3] {
+        self.curve(t, y, &[t.len() - 1])[0]
+    }
+    fn curve(&self, t: &[f64], y: &[[f64; 3]], checkpoints: &[usize]) -> Vec<[f64; 3]> {
+        let Some(mut id) = Refined::new(self.settings) else {
+            return vec![[f64::NAN; 3]; checkpoints.len()];
+        };
+        let mut out = Vec::with_capacity(checkpoints.len());
+        let mut next = checkpoints.iter().peekable();
+        for (k, w) in y.iter().enumerate() {
+            let e = id.step(w.map(|x| x as f32), dt_at(t, k));
+            while next.peek().is_some_and(|&&c| c == k) {
+                out.push(e.a.map(f64::from));
+                next.next();
+            }
+        }
+        out
+    }
+}
