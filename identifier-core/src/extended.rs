@@ -18,7 +18,7 @@
 //!
 //! with `f` the right-hand side of (1) and `J_f` its Jacobian, both at the current estimate of
 //! `a` (a pseudo-linear regression: the bilinear columns use the latest `a`), and
-//! `A2/A1 = (1 + a1)/(1 - a2)`, `A3/A1 = (1 + a1 a2)/(1 - a2)`.
+//! the ratios from `a` as in [`inverse_ratios`].
 //!
 //! # Why not the invariant-relation construction
 //!
@@ -458,16 +458,31 @@ fn ej_dot(e: &[f32; 3], w: [f32; 3]) -> f32 {
     e[0] * w[0] + e[1] * w[1] + e[2] * w[2]
 }
 
-/// `(1, A1/A2, A1/A3)` from `a`: `A1/A2 = (1 - a2)/(1 + a1)`, `A1/A3 = (1 - a2)/(1 + a1 a2)`;
-/// a ratio that is not finite and positive is replaced by 1.
+/// `(1, A1/A2, A1/A3)` from `a`. Any two of the `a_i` give the ratios (with `A1 = 1`):
+/// `(a1, a2)`: `A2 = (1+a1)/(1-a2)`, `A3 = (1+a1 a2)/(1-a2)`;
+/// `(a3, a1)`: `A2 = (1+a1 a3)/(1+a3)`, `A3 = (1-a1)/(1+a3)`;
+/// `(a2, a3)`: `A2 = (1-a3)/(1+a2 a3)`, `A3 = (1+a2)/(1+a2 a3)`.
+/// The pair whose denominator is farthest from zero is used (the others amplify errors of
+/// `a`, e.g. `1 - a2 = 0.14` for a racquet); a ratio that is not finite and positive is
+/// replaced by 1.
 pub fn inverse_ratios(a: [f32; 3]) -> [f32; 3] {
-    let [a1, a2, _] = a;
+    let [a1, a2, a3] = a;
+    let cands = [
+        (1.0 - a2, 1.0 + a1, 1.0 + a1 * a2),
+        (1.0 + a3, 1.0 + a1 * a3, 1.0 - a1),
+        (1.0 + a2 * a3, 1.0 - a3, 1.0 + a2),
+    ];
+    let mut best = (1.0f32, 1.0f32, 1.0f32);
+    let mut best_abs = -1.0f32;
+    for c in cands {
+        if c.0.abs() > best_abs {
+            best_abs = c.0.abs();
+            best = c;
+        }
+    }
+    let (d, n2, n3) = best;
     let ok = |r: f32| if r.is_finite() && r > 0.0 { r } else { 1.0 };
-    [
-        1.0,
-        ok((1.0 - a2) / (1.0 + a1)),
-        ok((1.0 - a2) / (1.0 + a1 * a2)),
-    ]
+    [1.0, ok(d / n2), ok(d / n3)]
 }
 
 /// The common gyro scale factor `s` that makes `s a` a rigid body:

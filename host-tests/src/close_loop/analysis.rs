@@ -35,6 +35,7 @@
 //! added and the search repeats; when no residual candidate is significant, the consistency
 //! value `c = a1 + a2 + a3 + a1 a2 a3` is tested against its standard deviation from the fit's
 //! covariance (`z = c / sigma_c`) for a gyro scale factor. "None" when nothing passes.
+#![allow(clippy::needless_range_loop)]
 
 use super::model::{self, Block, Effect};
 use super::stats::{self, LsFit};

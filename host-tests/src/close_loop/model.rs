@@ -23,6 +23,7 @@
 //!
 //! The bilinear columns are evaluated at a linearisation point `a_lin` (Gauss-Newton: refit,
 //! move `a_lin`, refit).
+#![allow(clippy::needless_range_loop)]
 
 use serde::Serialize;
 
@@ -101,13 +102,26 @@ fn unit(j: usize) -> [f64; 3] {
     std::array::from_fn(|i| if i == j { 1.0 } else { 0.0 })
 }
 
-/// `(1, A1/A2, A1/A3)` from `a` (`A2/A1 = (1+a1)/(1-a2)`, `A3/A1 = (1+a1 a2)/(1-a2)`);
-/// ones where that is undefined.
+/// `(1, A1/A2, A1/A3)` from `a`. Any two of the `a_i` give the ratios (with `A1 = 1`):
+/// `(a1, a2)`: `A2 = (1+a1)/(1-a2)`, `A3 = (1+a1 a2)/(1-a2)`;
+/// `(a3, a1)`: `A2 = (1+a1 a3)/(1+a3)`, `A3 = (1-a1)/(1+a3)`;
+/// `(a2, a3)`: `A2 = (1-a3)/(1+a2 a3)`, `A3 = (1+a2)/(1+a2 a3)`.
+/// The pair with the denominator farthest from zero is used (the others amplify errors of
+/// `a`, e.g. `1 - a2 = 0.14` for a racquet); ones where the result is not positive.
 pub fn inverse_ratios(a: [f64; 3]) -> [f64; 3] {
-    let r2 = (1.0 - a[1]) / (1.0 + a[0]);
-    let r3 = (1.0 - a[1]) / (1.0 + a[0] * a[1]);
+    let [a1, a2, a3] = a;
+    let cands = [
+        (1.0 - a2, 1.0 + a1, 1.0 + a1 * a2),
+        (1.0 + a3, 1.0 + a1 * a3, 1.0 - a1),
+        (1.0 + a2 * a3, 1.0 - a3, 1.0 + a2),
+    ];
+    let (d, n2, n3) = cands
+        .iter()
+        .copied()
+        .max_by(|x, y| x.0.abs().total_cmp(&y.0.abs()))
+        .unwrap_or((1.0, 1.0, 1.0));
     let ok = |r: f64| if r.is_finite() && r > 0.0 { r } else { 1.0 };
-    [1.0, ok(r2), ok(r3)]
+    [1.0, ok(d / n2), ok(d / n3)]
 }
 
 /// The regressor columns `phi_p(w)` of (M) for the residual effects `effects` (scale factor
@@ -198,7 +212,7 @@ pub fn quadrature(x: [f64; 5]) -> Option<[f64; 5]> {
     // Work in u = (x - x0) / span on [0, 1].
     let u: [f64; 5] = std::array::from_fn(|m| (x[m] - x[0]) / span);
     let rows: Vec<Vec<f64>> = (0..5)
-        .map(|p| (0..5).map(|m| u[m].powi(p as i32)).collect())
+        .map(|p| (0..5).map(|m| u[m].powi(p)).collect())
         .collect();
     let inv = super::stats::invert(&rows)?;
     let mom: Vec<f64> = (0..5).map(|p| 1.0 / (p as f64 + 1.0)).collect();
@@ -294,6 +308,13 @@ pub fn free_run_rms(
     theta: &[f64],
 ) -> f64 {
     let f = |w: [f64; 3]| rhs(effects, a_lin, theta, w);
+    // A prediction that leaves 10x the measured range has diverged: it is held there, so the
+    // RMS stays a finite measure of "lost".
+    let bound = 10.0
+        * omega[i0..i1]
+            .iter()
+            .flat_map(|w| w.iter())
+            .fold(1.0f64, |m, v| m.max(v.abs()));
     let mut w = omega[i0];
     let mut sum = 0.0;
     let mut n = 0usize;
@@ -301,12 +322,15 @@ pub fn free_run_rms(
         if k > i0 {
             let h = (t[k] - t[k - 1]) / 8.0;
             for _ in 0..8 {
-                w = crate::rigid_body::rk4(f, w, h);
+                let next = crate::rigid_body::rk4(f, w, h);
+                if next.iter().all(|v| v.is_finite() && v.abs() <= bound) {
+                    w = next;
+                }
             }
         }
         for i in 0..3 {
             let e = omega[k][i] - w[i];
-            sum += if e.is_finite() { e * e } else { 1e12 };
+            sum += e * e;
         }
         n += 3;
     }

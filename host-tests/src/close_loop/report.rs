@@ -1,4 +1,5 @@
 //! The human-readable outputs of the loop: a markdown table and SVG plots.
+#![allow(clippy::needless_range_loop)]
 
 use super::analysis::Analysis;
 use crate::plot::{write_svg, Chart, Series};

@@ -1,6 +1,7 @@
 //! The statistics the effect search needs: least squares with covariance, the F-test (via
 //! Paulson's normal approximation of the F distribution), BIC, Ljung-Box and the normal
 //! distribution. All `f64`, written out here so the numbers are reproducible and inspectable.
+#![allow(clippy::needless_range_loop)]
 
 /// A least-squares fit `y ~ X theta`.
 #[derive(Clone, Debug)]
@@ -49,7 +50,7 @@ pub fn lstsq(rows: &[Vec<f64>], y: &[f64]) -> Option<LsFit> {
         .iter()
         .map(|s| if *s > 0.0 { 1.0 / s.sqrt() } else { 0.0 })
         .collect();
-    if scale.iter().any(|s| *s == 0.0) {
+    if scale.contains(&0.0) {
         return None;
     }
     let mut a = vec![vec![0.0; k]; k];
