@@ -1,0 +1,558 @@
+//! Reliability of the host tools under bad files: the log readers (phyphox, CSV, segments) and
+//! the `close-loop` command. Malformed, truncated, empty, non-UTF-8, huge and unsorted-time files
+//! must give an error that names the file and, where one line is to blame, that line; nothing
+//! may panic. Hand-written cases, then property tests over mutated and random files, then the
+//! `close-loop` binary itself.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use host_tests::log_input::{detect, read_csv, read_log, read_phyphox, read_segments, Format};
+use proptest::prelude::*;
+use proptest::test_runner::Config;
+
+fn dir() -> PathBuf {
+    let d = std::env::temp_dir().join(format!("readers_robustness_{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Removes one test's files (best effort; the folder is per process).
+fn cleanup(sub: &str) {
+    let _ = std::fs::remove_dir_all(dir().join(sub));
+}
+
+fn write(name: &str, bytes: &[u8]) -> PathBuf {
+    let p = dir().join(name);
+    if let Some(parent) = p.parent() {
+        std::fs::create_dir_all(parent).unwrap();
+    }
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+const PHYPHOX_HEADER: &str =
+    "\"Time (s)\",\"Gyroscope x (rad/s)\",\"Gyroscope y (rad/s)\",\"Gyroscope z (rad/s)\"\n";
+const CSV_HEADER: &str = "t,wx,wy,wz\n";
+
+/// A valid CSV body of `n` rows at 100 Hz.
+fn csv_rows(n: usize) -> String {
+    (0..n)
+        .map(|k| {
+            let t = k as f64 * 0.01;
+            format!("{t},{},{},{}\n", 1.0 + t.sin(), 0.5 * t.cos(), -0.3)
+        })
+        .collect()
+}
+
+struct Bad {
+    name: &'static str,
+    bytes: Vec<u8>,
+    /// The line the error must name (`None`: the whole file is to blame).
+    line: Option<usize>,
+}
+
+fn bad(name: &'static str, bytes: impl Into<Vec<u8>>, line: Option<usize>) -> Bad {
+    Bad {
+        name,
+        bytes: bytes.into(),
+        line,
+    }
+}
+
+/// Malformed files for a reader whose header is `header`.
+fn malformed(header: &str) -> Vec<Bad> {
+    let h = header;
+    let ok2 = format!("{h}0,1,2,3\n0.01,1,2,3\n");
+    let mut non_utf8 = format!("{h}0,1,2,3\n").into_bytes();
+    non_utf8.extend_from_slice(b"0.01,1,\xC3\x28,3\n");
+    let mut latin1 = format!("{h}0,1,2,3\n0.01,1,2,3\n").into_bytes();
+    latin1.extend_from_slice(b"0.02,1,2,3 \xB0\n");
+    let mut huge_field = format!("{h}0,1,2,3\n0.01,").into_bytes();
+    huge_field.extend(std::iter::repeat_n(b'9', 5_000_000));
+    huge_field.extend_from_slice(b",2,3\n");
+    let long_ok: String = format!("{h}{}", csv_rows(200_000));
+    let mut long_then_bad = long_ok.clone().into_bytes();
+    long_then_bad.extend_from_slice(b"2000,1,2\n");
+    vec![
+        bad("empty", "", None),
+        bad("only_newlines", "\n\n\n", Some(1)),
+        bad("header_only", h, None),
+        bad("one_row", format!("{h}0,1,2,3\n"), None),
+        bad(
+            "truncated_mid_row",
+            &ok2.as_bytes()[..ok2.len() - 4],
+            Some(3),
+        ),
+        bad(
+            "short_row",
+            format!("{h}0,1,2,3\n0.01,1,2\n0.02,1,2,3\n"),
+            Some(3),
+        ),
+        bad("empty_fields", format!("{h}0,1,2,3\n0.01,,,\n"), Some(3)),
+        bad("text_field", format!("{h}0,1,2,3\n0.01,x,2,3\n"), Some(3)),
+        bad("nan_field", format!("{h}0,1,2,3\n0.01,1,NaN,3\n"), Some(3)),
+        bad("inf_field", format!("{h}0,1,2,3\n0.01,1,2,inf\n"), Some(3)),
+        bad(
+            "overflow_field",
+            format!("{h}0,1,2,3\n0.01,1e999,2,3\n"),
+            Some(3),
+        ),
+        bad("huge_field", huge_field, Some(3)),
+        bad("non_utf8", non_utf8, Some(3)),
+        bad("latin1_degree", latin1, Some(4)),
+        bad(
+            "unsorted_time",
+            format!("{h}0,1,2,3\n0.02,1,2,3\n0.01,1,2,3\n"),
+            Some(4),
+        ),
+        bad(
+            "repeated_time",
+            format!("{h}0,1,2,3\n0.01,1,2,3\n0.01,1,2,3\n"),
+            Some(4),
+        ),
+        bad("nan_time", format!("{h}0,1,2,3\nnan,1,2,3\n"), Some(3)),
+        bad(
+            "negative_then_back",
+            format!("{h}-1,1,2,3\n5,1,2,3\n-2,1,2,3\n"),
+            Some(4),
+        ),
+        bad("long_then_truncated", long_then_bad, Some(200_002)),
+        bad(
+            // Bytes 0..=9 make a valid (if odd) first line; 0x80 on line 2 is not UTF-8.
+            "binary",
+            (0u8..=255).cycle().take(10_000).collect::<Vec<u8>>(),
+            Some(2),
+        ),
+        bad("nul_bytes", vec![0u8; 1000], Some(1)),
+    ]
+}
+
+fn check(
+    reader: &str,
+    name: &str,
+    path: &Path,
+    got: Result<(), host_tests::log_input::InputError>,
+    line: Option<usize>,
+) {
+    let e = got.expect_err(&format!("{reader} {name}: accepted a malformed file"));
+    let msg = e.to_string();
+    let file = path.file_name().unwrap().to_string_lossy().to_string();
+    assert!(
+        msg.contains(&file),
+        "{reader} {name}: error does not name the file: {msg}"
+    );
+    assert_eq!(e.line, line, "{reader} {name}: wrong line in {msg}");
+    if let Some(l) = line {
+        assert!(msg.contains(&format!(":{l}:")), "{reader} {name}: {msg}");
+    }
+}
+
+#[test]
+fn csv_reader_names_file_and_line_for_every_malformed_file() {
+    for b in malformed(CSV_HEADER) {
+        let p = write(&format!("csv/{}.csv", b.name), &b.bytes);
+        // The header line is to blame in the cases without a valid header.
+        let line = match b.name {
+            "only_newlines" | "nul_bytes" => Some(1),
+            _ => b.line,
+        };
+        check("read_csv", b.name, &p, read_csv(&p).map(|_| ()), line);
+        check(
+            "read_log(csv)",
+            b.name,
+            &p,
+            read_log(&p, Some(Format::Csv), None).map(|_| ()),
+            line,
+        );
+        if b.bytes.is_empty() {
+            check("detect", b.name, &p, detect(&p).map(|_| ()), None);
+        }
+    }
+    cleanup("csv");
+}
+
+#[test]
+fn phyphox_reader_names_file_and_line_for_every_malformed_file() {
+    for b in malformed(PHYPHOX_HEADER) {
+        let p = write(&format!("phyphox/{}/Raw Data.csv", b.name), &b.bytes);
+        check(
+            "read_phyphox",
+            b.name,
+            &p,
+            read_phyphox(&p).map(|_| ()),
+            b.line,
+        );
+        // Given as its folder, the error still names the data file.
+        let folder = p.parent().unwrap().to_path_buf();
+        check(
+            "read_phyphox(dir)",
+            b.name,
+            &p,
+            read_phyphox(&folder).map(|_| ()),
+            b.line,
+        );
+        check(
+            "read_log(detect)",
+            b.name,
+            &p,
+            read_log(&folder, None, None).map(|_| ()),
+            b.line,
+        );
+    }
+    cleanup("phyphox");
+}
+
+#[test]
+fn segments_reader_names_file_and_line() {
+    let h = "segment,start,end,keep,comment\n";
+    let cases = vec![
+        bad("empty", "", None),
+        bad("no_columns", "a,b,c\n1,2,3\n", Some(1)),
+        bad("truncated", format!("{h}0,1.0,2.0,,x\n1,3.0"), Some(3)),
+        bad("reversed", format!("{h}0,2.0,1.0,,\n"), Some(2)),
+        bad("nan", format!("{h}0,NaN,1.0,,\n"), Some(2)),
+        bad("keep_garbage", format!("{h}0,1.0,2.0,maybe,\n"), Some(2)),
+        bad(
+            "non_utf8",
+            [h.as_bytes(), b"0,1.0,2.0,,\xFF\n"].concat(),
+            Some(2),
+        ),
+    ];
+    for b in cases {
+        let p = write(&format!("segments/{}.csv", b.name), &b.bytes);
+        check(
+            "read_segments",
+            b.name,
+            &p,
+            read_segments(&p).map(|_| ()),
+            b.line,
+        );
+    }
+    // A log whose segments file is bad: the error names the segments file, not the log.
+    let log = write(
+        "segments/log.csv",
+        format!("{CSV_HEADER}{}", csv_rows(100)).as_bytes(),
+    );
+    let seg = write(
+        "segments/bad_for_log.csv",
+        format!("{h}0,2.0,1.0,,\n").as_bytes(),
+    );
+    check(
+        "read_log(segments)",
+        "bad_for_log",
+        &seg,
+        read_log(&log, None, Some(&seg)).map(|_| ()),
+        Some(2),
+    );
+    // Every segment dropped: an error naming the file.
+    let none = write(
+        "segments/none_kept.csv",
+        format!("{h}0,0.1,0.2,false,\n").as_bytes(),
+    );
+    check(
+        "read_log(no kept segment)",
+        "none_kept",
+        &none,
+        read_log(&log, None, Some(&none)).map(|_| ()),
+        None,
+    );
+}
+
+#[test]
+fn missing_and_unreadable_inputs_are_errors_naming_the_path() {
+    let p = dir().join("does_not_exist.csv");
+    check("read_csv", "missing", &p, read_csv(&p).map(|_| ()), None);
+    check(
+        "read_log",
+        "missing",
+        &p,
+        read_log(&p, None, None).map(|_| ()),
+        None,
+    );
+    // A folder without "Raw Data.csv".
+    let d = dir().join("empty_export");
+    std::fs::create_dir_all(&d).unwrap();
+    let e = read_log(&d, None, None).unwrap_err();
+    assert!(e.to_string().contains("Raw Data.csv"), "{e}");
+}
+
+#[test]
+fn tolerated_variations_still_read() {
+    // BOM, CRLF, no final newline, blank lines, spaces and quotes.
+    let body = "\u{FEFF}t,wx,wy,wz\r\n0, 1,2,3\r\n\r\n\"0.01\",1,2,3";
+    let p = write("ok/variations.csv", body.as_bytes());
+    let (t, w) = read_csv(&p).unwrap();
+    assert_eq!(t, vec![0.0, 0.01]);
+    assert_eq!(w[0], [1.0, 2.0, 3.0]);
+    // A long valid file reads completely.
+    let p = write(
+        "ok/long.csv",
+        format!("{CSV_HEADER}{}", csv_rows(200_000)).as_bytes(),
+    );
+    assert_eq!(read_csv(&p).unwrap().0.len(), 200_000);
+    cleanup("ok");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Properties: mutated valid files and random bytes.
+
+#[derive(Clone, Debug)]
+enum Mutation {
+    Truncate(usize),
+    Flip(usize, u8),
+    Insert(usize, Vec<u8>),
+    SwapLines(usize, usize),
+    DeleteLine(usize),
+}
+
+fn mutation() -> impl Strategy<Value = Mutation> {
+    prop_oneof![
+        any::<usize>().prop_map(Mutation::Truncate),
+        (any::<usize>(), any::<u8>()).prop_map(|(i, b)| Mutation::Flip(i, b)),
+        (
+            any::<usize>(),
+            prop_oneof![
+                Just(b",".to_vec()),
+                Just(b"\n".to_vec()),
+                Just(b"\xFF".to_vec()),
+                Just(b"NaN".to_vec()),
+                Just(b"-".to_vec()),
+                Just(b"e999".to_vec()),
+                Just(b"\"".to_vec()),
+                Just(b"\r".to_vec()),
+                prop::collection::vec(any::<u8>(), 0..8),
+            ]
+        )
+            .prop_map(|(i, v)| Mutation::Insert(i, v)),
+        (any::<usize>(), any::<usize>()).prop_map(|(a, b)| Mutation::SwapLines(a, b)),
+        any::<usize>().prop_map(Mutation::DeleteLine),
+    ]
+}
+
+fn apply(mut bytes: Vec<u8>, muts: &[Mutation]) -> Vec<u8> {
+    for m in muts {
+        let n = bytes.len().max(1);
+        match m {
+            Mutation::Truncate(i) => bytes.truncate(i % n),
+            Mutation::Flip(i, b) => {
+                if let Some(x) = bytes.get_mut(i % n) {
+                    *x = *b;
+                }
+            }
+            Mutation::Insert(i, v) => {
+                let at = (i % n).min(bytes.len());
+                bytes.splice(at..at, v.iter().copied());
+            }
+            Mutation::SwapLines(a, b) => {
+                let mut lines: Vec<Vec<u8>> =
+                    bytes.split(|&c| c == b'\n').map(<[u8]>::to_vec).collect();
+                let l = lines.len();
+                lines.swap(a % l, b % l);
+                bytes = lines.join(&b'\n');
+            }
+            Mutation::DeleteLine(a) => {
+                let mut lines: Vec<Vec<u8>> =
+                    bytes.split(|&c| c == b'\n').map(<[u8]>::to_vec).collect();
+                let l = lines.len();
+                lines.remove(a % l);
+                bytes = lines.join(&b'\n');
+            }
+        }
+    }
+    bytes
+}
+
+/// Whatever the bytes: no panic; an accepted file has finite, strictly increasing time and
+/// finite rates; a refused one names the file and a line that exists.
+fn assert_sane(name: &str, bytes: &[u8]) -> Result<(), TestCaseError> {
+    let p = write(name, bytes);
+    let lines = bytes.split(|&c| c == b'\n').count();
+    let file = p.file_name().unwrap().to_string_lossy().to_string();
+    for (which, r) in [
+        ("csv", read_csv(&p)),
+        ("phyphox", read_phyphox(&p)),
+        ("log", read_log(&p, None, None).map(|l| (l.t, l.omega))),
+    ] {
+        match r {
+            Ok((t, w)) => {
+                prop_assert!(t.len() >= 2 && t.len() == w.len(), "{which}");
+                prop_assert!(
+                    t.windows(2).all(|x| x[1] > x[0]),
+                    "{which}: time not increasing"
+                );
+                prop_assert!(t.iter().all(|x| x.is_finite()), "{which}");
+                prop_assert!(w.iter().flatten().all(|x| x.is_finite()), "{which}");
+            }
+            Err(e) => {
+                prop_assert!(e.to_string().contains(&file), "{which}: {e}");
+                if let Some(l) = e.line {
+                    prop_assert!(l >= 1 && l <= lines, "{which}: line {l} of {lines}: {e}");
+                }
+            }
+        }
+    }
+    match read_segments(&p) {
+        Ok(s) => prop_assert!(s.iter().all(|s| s.start.is_finite() && s.end > s.start)),
+        Err(e) => prop_assert!(e.to_string().contains(&file), "segments: {e}"),
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(Config { cases: 300, failure_persistence: None, ..Config::default() })]
+
+    #[test]
+    fn mutated_csv_never_panics(muts in prop::collection::vec(mutation(), 1..6)) {
+        let base = format!("{CSV_HEADER}{}", csv_rows(30)).into_bytes();
+        assert_sane("prop/mutated.csv", &apply(base, &muts))?;
+    }
+
+    #[test]
+    fn mutated_phyphox_never_panics(muts in prop::collection::vec(mutation(), 1..6)) {
+        let base = format!("{PHYPHOX_HEADER}{}", csv_rows(30)).into_bytes();
+        assert_sane("prop/Raw Data.csv", &apply(base, &muts))?;
+    }
+
+    #[test]
+    fn random_bytes_never_panic(bytes in prop::collection::vec(any::<u8>(), 0..2000)) {
+        assert_sane("prop/random.csv", &bytes)?;
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The close-loop command on bad files: an error naming file and line, exit code 1, no panic.
+
+fn close_loop(input: &Path, extra: &[&str]) -> (i32, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_close-loop"))
+        .arg("--input")
+        .arg(input)
+        .arg("--json")
+        .arg(dir().join("close_loop_out.json"))
+        .args(extra)
+        .output()
+        .expect("run close-loop");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn close_loop_reports_malformed_files_without_panicking() {
+    for b in malformed(CSV_HEADER) {
+        if b.bytes.len() > 1_000_000 {
+            continue; // the readers' own test covers the huge ones
+        }
+        let p = write(&format!("cl/{}.csv", b.name), &b.bytes);
+        let (code, err) = close_loop(&p, &[]);
+        assert!(!err.contains("panicked"), "{}: {err}", b.name);
+        assert_eq!(code, 1, "{}: exit {code}: {err}", b.name);
+        let file = format!("{}.csv", b.name);
+        assert!(err.contains(&file), "{}: {err}", b.name);
+        let line = match b.name {
+            "only_newlines" | "nul_bytes" => Some(1),
+            _ => b.line,
+        };
+        if let Some(l) = line {
+            assert!(err.contains(&format!("{file}:{l}:")), "{}: {err}", b.name);
+        }
+    }
+}
+
+#[test]
+fn close_loop_survives_degenerate_but_valid_logs() {
+    let n = 2000;
+    let cases: Vec<(&str, String)> = vec![
+        // Noise-free constant spin about one axis: nothing to identify, residual exactly zero.
+        (
+            "constant",
+            (0..n)
+                .map(|k| format!("{},1,0,0\n", k as f64 * 0.01))
+                .collect(),
+        ),
+        // All zero.
+        (
+            "zeros",
+            (0..n)
+                .map(|k| format!("{},0,0,0\n", k as f64 * 0.01))
+                .collect(),
+        ),
+        // Two rows only.
+        ("two_rows", "0,1,2,3\n0.01,1,2,3\n".into()),
+        // A gap in the middle.
+        (
+            "gap",
+            (0..n)
+                .map(|k| {
+                    format!(
+                        "{},1,2,3\n",
+                        k as f64 * 0.01 + if k > n / 2 { 1e6 } else { 0.0 }
+                    )
+                })
+                .collect(),
+        ),
+    ];
+    for (name, body) in cases {
+        let p = write(
+            &format!("cl/degenerate_{name}.csv"),
+            format!("{CSV_HEADER}{body}").as_bytes(),
+        );
+        let (code, err) = close_loop(&p, &[]);
+        assert!(!err.contains("panicked"), "{name}: {err}");
+        assert!(code == 0 || code == 1, "{name}: exit {code}: {err}");
+        if code == 1 {
+            assert!(
+                err.contains(&format!("degenerate_{name}.csv")),
+                "{name}: {err}"
+            );
+        }
+    }
+}
+
+/// Valid logs whose time steps do not fit the identifier's `f32` `max_dt` (median step above
+/// about 1.4e38 s, or below about 1e-45 s): `close-loop` derives `max_dt` from the median step,
+/// `Identifier::new` refuses it and `analysis::run_core` unwraps the refusal with `expect`.
+/// Known failure, reported; run with `--ignored` to see it.
+#[test]
+#[ignore = "close-loop panics (analysis.rs run_core: expect on InvalidMaxDt); reported"]
+fn close_loop_survives_extreme_time_steps() {
+    let n = 2000;
+    let cases: Vec<(&str, String)> = vec![
+        (
+            "huge_dt",
+            (0..n)
+                .map(|k| format!("{:e},1,2,3\n", k as f64 * 1e300))
+                .collect(),
+        ),
+        (
+            "tiny_dt",
+            (0..n)
+                .map(|k| format!("{:e},1,2,3\n", k as f64 * 1e-300))
+                .collect(),
+        ),
+    ];
+    for (name, body) in cases {
+        let p = write(
+            &format!("cl/extreme_{name}.csv"),
+            format!("{CSV_HEADER}{body}").as_bytes(),
+        );
+        let (code, err) = close_loop(&p, &[]);
+        assert!(!err.contains("panicked"), "{name}: {err}");
+        assert!(code == 0 || code == 1, "{name}: exit {code}: {err}");
+    }
+}
+
+/// An error message quotes the offending field in full: a 5 MB field gives a 5 MB message.
+/// Not a crash, but a log line that size is a hazard; reported. Run with `--ignored`.
+#[test]
+#[ignore = "log_input quotes whole fields in errors (5 MB message for a 5 MB field); reported"]
+fn error_messages_are_bounded() {
+    let mut bytes = format!("{CSV_HEADER}0,1,2,3\n0.01,").into_bytes();
+    bytes.extend(std::iter::repeat_n(b'9', 5_000_000));
+    bytes.extend_from_slice(b",2,3\n");
+    let p = write("bounded/huge_field.csv", &bytes);
+    let msg = read_csv(&p).unwrap_err().to_string();
+    assert!(msg.len() < 1000, "message of {} bytes", msg.len());
+    cleanup("bounded");
+}
