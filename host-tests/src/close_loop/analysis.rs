@@ -214,7 +214,8 @@ pub struct Analysis {
     pub segments: Vec<SegmentReport>,
     /// Blocks of (B) used.
     pub blocks: usize,
-    /// Residual series for plots: (segment, block mid-time, before, after).
+    /// Residual series for plots: (segment, block mid-time, torque-free at the least-squares
+    /// `a`, extended model at the extended identifier's estimate).
     #[serde(skip)]
     pub residual_series: Vec<(usize, f64, [f64; 3], [f64; 3])>,
 }
@@ -671,7 +672,7 @@ pub fn analyse(log: &Log, opts: &Options) -> Result<Analysis, String> {
     };
     let residual_series = blocks
         .iter()
-        .zip(r_before.iter().zip(&r_after))
+        .zip(r_ls0.iter().zip(&r_after))
         .map(|(b, (x, y))| (b.segment, b.t_mid, *x, *y))
         .collect();
 

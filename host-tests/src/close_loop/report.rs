@@ -94,6 +94,15 @@ pub fn markdown(an: &Analysis, title: &str) -> String {
         format!("{:+.4}", an.consistency_before),
         format!("{:+.4}", an.consistency_after),
     );
+    if let Some(t) = an.truth {
+        let d = |a: [f64; 3]| v3(std::array::from_fn(|i| a[i] - t[i]));
+        row("a - truth (per component)", d(an.a_before), d(an.a_after));
+        row(
+            "a - truth (least squares)",
+            d(an.ls_before.a),
+            d(an.ls_after.a),
+        );
+    }
     row(
         "parameter error max|a - truth|",
         opt(an.a_error_before),
@@ -209,7 +218,7 @@ pub fn plots(an: &Analysis, dir: &Path, title: &str) -> Result<()> {
             y_range: None,
             series: vec![
                 Series {
-                    name: "before (torque-free, core identifier a)".into(),
+                    name: "before (torque-free model, best-fit a)".into(),
                     points: x
                         .iter()
                         .zip(&an.residual_series)
@@ -265,11 +274,22 @@ pub fn plots(an: &Analysis, dir: &Path, title: &str) -> Result<()> {
                     points: vec![(1.0, t[i]), (an.segments.len().max(2) as f64, t[i])],
                 });
             }
+            // The range follows every series but the core identifier's, which can be far
+            // off on short segments (it is clipped at the border).
+            let (lo, hi) = series
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| *k != 2)
+                .flat_map(|(_, s)| s.points.iter().map(|p| p.1))
+                .filter(|v| v.is_finite())
+                .fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
+            let pad = (0.15 * (hi - lo)).max(0.02);
+            let y_range = (lo <= hi).then_some((lo - pad, hi + pad));
             Chart {
                 title: names[i],
                 x_label: "segment",
-                y_label: "estimate",
-                y_range: None,
+                y_label: "estimate (core identifier clipped to the range)",
+                y_range,
                 series,
             }
         })
