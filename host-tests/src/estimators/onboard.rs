@@ -59,7 +59,9 @@ impl Method for Paper {
     }
 }
 
-/// The refined on-board identifier ([`identifier_core::Refined`]).
+/// The refined on-board identifier ([`identifier_core::Refined`]) with its default settings
+/// except two set from the sample rate: blocks of about 32 ms (32 samples at 1 kHz, 3 at
+/// 100 Hz) and the end correction of the integral below 200 Hz.
 pub struct RefinedMethod {
     /// Settings (default [`RefinedSettings::new`]).
     pub settings: RefinedSettings,
@@ -84,15 +86,22 @@ impl Method for RefinedMethod {
         self.curve(t, y, &[t.len() - 1])[0]
     }
     fn curve(&self, t: &[f64], y: &[[f64; 3]], checkpoints: &[usize]) -> Vec<[f64; 3]> {
-        let Some(mut id) = Refined::new(self.settings) else {
+        // Configured for the sample rate as a deployment would be: blocks of about 32 ms, and
+        // the integral's end correction below 200 Hz (see the settings' docs).
+        let mut settings = self.settings;
+        let dt = if t.len() > 1 { t[1] - t[0] } else { 1e-3 };
+        settings.end_correction = dt > 5e-3;
+        settings.block = ((0.032 / dt).round() as u16).clamp(1, 1024);
+        let Some(mut id) = Refined::new(settings) else {
             return vec![[f64::NAN; 3]; checkpoints.len()];
         };
         let mut out = Vec::with_capacity(checkpoints.len());
         let mut next = checkpoints.iter().peekable();
         for (k, w) in y.iter().enumerate() {
-            let e = id.step(w.map(|x| x as f32), dt_at(t, k));
+            id.step(w.map(|x| x as f32), dt_at(t, k));
             while next.peek().is_some_and(|&&c| c == k) {
-                out.push(e.a.map(f64::from));
+                // The estimate including the open block (`step` reports the last full one).
+                out.push(id.estimate().map(f64::from));
                 next.next();
             }
         }

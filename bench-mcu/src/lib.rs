@@ -1,0 +1,243 @@
+//! Pieces of the Cortex-M4F instruction-count benchmark that are plain `no_std` code: an `f32`
+//! joint state and parameter EKF written the way the host peer is (dense 6x6 covariance), and a
+//! deterministic test signal (the paper's body from `omega0 = (1, 1, 1)` at 1 kHz with
+//! pseudo-random noise).
+#![no_std]
+#![allow(clippy::needless_range_loop)]
+
+/// 6x6 matrix, rows.
+pub type M6 = [[f32; 6]; 6];
+
+/// Joint EKF on `x = (w1, w2, w3, a1, a2, a3)` for (1) with `a' = 0`: RK4 prediction, the
+/// transition `I + hJ + (hJ)^2 / 2`, dense covariance, update with `H = [I 0]`. The same
+/// algorithm as `host_tests::estimators::ekf`, in `f32`.
+#[derive(Clone, Copy, Debug)]
+pub struct Ekf32 {
+    /// State.
+    pub x: [f32; 6],
+    /// Covariance.
+    pub p: M6,
+    r: f32,
+    q: f32,
+}
+
+fn rhs(x: &[f32; 6]) -> [f32; 6] {
+    [
+        x[3] * x[1] * x[2],
+        x[4] * x[2] * x[0],
+        x[5] * x[0] * x[1],
+        0.0,
+        0.0,
+        0.0,
+    ]
+}
+
+fn add(x: &[f32; 6], k: &[f32; 6], h: f32) -> [f32; 6] {
+    let mut y = *x;
+    for i in 0..6 {
+        y[i] += h * k[i];
+    }
+    y
+}
+
+fn mul(a: &M6, b: &M6) -> M6 {
+    let mut c = [[0.0; 6]; 6];
+    for i in 0..6 {
+        for j in 0..6 {
+            let mut s = 0.0;
+            for k in 0..6 {
+                s += a[i][k] * b[k][j];
+            }
+            c[i][j] = s;
+        }
+    }
+    c
+}
+
+fn mul_t(a: &M6, b: &M6) -> M6 {
+    let mut c = [[0.0; 6]; 6];
+    for i in 0..6 {
+        for j in 0..6 {
+            let mut s = 0.0;
+            for k in 0..6 {
+                s += a[i][k] * b[j][k];
+            }
+            c[i][j] = s;
+        }
+    }
+    c
+}
+
+impl Ekf32 {
+    /// Starts at `omega = y0`, `a = 0`, wide prior on `a`.
+    pub fn new(y0: [f32; 3], sigma: f32) -> Self {
+        let mut p = [[0.0; 6]; 6];
+        for i in 0..3 {
+            p[i][i] = sigma * sigma;
+            p[3 + i][3 + i] = 1.0;
+        }
+        Ekf32 {
+            x: [y0[0], y0[1], y0[2], 0.0, 0.0, 0.0],
+            p,
+            r: sigma * sigma,
+            q: (1e-3 * sigma) * (1e-3 * sigma),
+        }
+    }
+
+    /// One predict-update cycle for the sample `y` taken `h` after the previous one.
+    pub fn step(&mut self, y: [f32; 3], h: f32) {
+        let x = self.x;
+        let k1 = rhs(&x);
+        let k2 = rhs(&add(&x, &k1, 0.5 * h));
+        let k3 = rhs(&add(&x, &k2, 0.5 * h));
+        let k4 = rhs(&add(&x, &k3, h));
+        for i in 0..6 {
+            self.x[i] = x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        }
+        let (w, a) = ([x[0], x[1], x[2]], [x[3], x[4], x[5]]);
+        let mut jh = [[0.0f32; 6]; 6];
+        jh[0][1] = h * a[0] * w[2];
+        jh[0][2] = h * a[0] * w[1];
+        jh[1][0] = h * a[1] * w[2];
+        jh[1][2] = h * a[1] * w[0];
+        jh[2][0] = h * a[2] * w[1];
+        jh[2][1] = h * a[2] * w[0];
+        jh[0][3] = h * w[1] * w[2];
+        jh[1][4] = h * w[2] * w[0];
+        jh[2][5] = h * w[0] * w[1];
+        let jj = mul(&jh, &jh);
+        let mut phi = [[0.0f32; 6]; 6];
+        for i in 0..6 {
+            for j in 0..6 {
+                phi[i][j] = jh[i][j] + 0.5 * jj[i][j] + if i == j { 1.0 } else { 0.0 };
+            }
+        }
+        let mut p = mul_t(&mul(&phi, &self.p), &phi);
+        for i in 0..3 {
+            p[i][i] += self.q;
+        }
+        // S = P[0..3, 0..3] + r I, inverted by cofactors.
+        let s = [
+            [p[0][0] + self.r, p[0][1], p[0][2]],
+            [p[1][0], p[1][1] + self.r, p[1][2]],
+            [p[2][0], p[2][1], p[2][2] + self.r],
+        ];
+        let c00 = s[1][1] * s[2][2] - s[1][2] * s[2][1];
+        let c01 = s[1][2] * s[2][0] - s[1][0] * s[2][2];
+        let c02 = s[1][0] * s[2][1] - s[1][1] * s[2][0];
+        let det = s[0][0] * c00 + s[0][1] * c01 + s[0][2] * c02;
+        if !(det.abs() > 0.0) {
+            self.p = p;
+            return;
+        }
+        let id = 1.0 / det;
+        let si = [
+            [
+                c00 * id,
+                (s[0][2] * s[2][1] - s[0][1] * s[2][2]) * id,
+                (s[0][1] * s[1][2] - s[0][2] * s[1][1]) * id,
+            ],
+            [
+                c01 * id,
+                (s[0][0] * s[2][2] - s[0][2] * s[2][0]) * id,
+                (s[0][2] * s[1][0] - s[0][0] * s[1][2]) * id,
+            ],
+            [
+                c02 * id,
+                (s[0][1] * s[2][0] - s[0][0] * s[2][1]) * id,
+                (s[0][0] * s[1][1] - s[0][1] * s[1][0]) * id,
+            ],
+        ];
+        let mut k = [[0.0f32; 3]; 6];
+        for i in 0..6 {
+            for j in 0..3 {
+                k[i][j] = p[i][0] * si[0][j] + p[i][1] * si[1][j] + p[i][2] * si[2][j];
+            }
+        }
+        let e = [y[0] - self.x[0], y[1] - self.x[1], y[2] - self.x[2]];
+        for i in 0..6 {
+            self.x[i] += k[i][0] * e[0] + k[i][1] * e[1] + k[i][2] * e[2];
+        }
+        let mut pn = p;
+        for i in 0..6 {
+            for j in 0..6 {
+                pn[i][j] -= k[i][0] * p[0][j] + k[i][1] * p[1][j] + k[i][2] * p[2][j];
+            }
+        }
+        for i in 0..6 {
+            for j in 0..i {
+                let m = 0.5 * (pn[i][j] + pn[j][i]);
+                pn[i][j] = m;
+                pn[j][i] = m;
+            }
+        }
+        self.p = pn;
+    }
+
+    /// The current `a`.
+    pub fn a(&self) -> [f32; 3] {
+        [self.x[3], self.x[4], self.x[5]]
+    }
+}
+
+/// Deterministic test signal: the paper's body (`a = (0.9, 0.2597, -0.94)`) from
+/// `omega0 = (1, 1, 1)`, sampled every `dt` by RK4 in `f32`, plus uniform pseudo-random noise of
+/// standard deviation `sigma` (a linear congruential generator).
+pub struct Signal {
+    w: [f32; 3],
+    dt: f32,
+    sigma: f32,
+    seed: u32,
+}
+
+impl Signal {
+    /// The signal at 1 kHz with `sigma = 2e-3 rad/s`.
+    pub fn paper() -> Self {
+        Signal {
+            w: [1.0, 1.0, 1.0],
+            dt: 1e-3,
+            sigma: 2e-3,
+            seed: 12345,
+        }
+    }
+
+    /// Sample period.
+    pub fn dt(&self) -> f32 {
+        self.dt
+    }
+
+    fn uniform(&mut self) -> f32 {
+        self.seed = self
+            .seed
+            .wrapping_mul(1_664_525)
+            .wrapping_add(1_013_904_223);
+        (self.seed >> 8) as f32 / 16_777_216.0 - 0.5
+    }
+
+    /// The next noisy sample.
+    pub fn next_sample(&mut self) -> [f32; 3] {
+        const A: [f32; 3] = [0.9, 0.259_740_26, -0.94];
+        let f = |w: [f32; 3]| [A[0] * w[1] * w[2], A[1] * w[2] * w[0], A[2] * w[0] * w[1]];
+        let h = self.dt;
+        let w = self.w;
+        let k1 = f(w);
+        let k2 = f([
+            w[0] + 0.5 * h * k1[0],
+            w[1] + 0.5 * h * k1[1],
+            w[2] + 0.5 * h * k1[2],
+        ]);
+        let k3 = f([
+            w[0] + 0.5 * h * k2[0],
+            w[1] + 0.5 * h * k2[1],
+            w[2] + 0.5 * h * k2[2],
+        ]);
+        let k4 = f([w[0] + h * k3[0], w[1] + h * k3[1], w[2] + h * k3[2]]);
+        for i in 0..3 {
+            self.w[i] = w[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        }
+        // Uniform on [-0.5, 0.5) has std 1/sqrt(12).
+        let s = self.sigma * 3.464_101_6;
+        let n = [self.uniform(), self.uniform(), self.uniform()];
+        [w[0] + s * n[0], w[1] + s * n[1], w[2] + s * n[2]]
+    }
+}

@@ -1,0 +1,135 @@
+//! Instructions per step on the Cortex-M4F under QEMU (`mps2-an386`, `-icount shift=0`: one
+//! instruction per virtual nanosecond). SysTick runs on the 25 MHz core clock of the model, so
+//! one tick is 40 virtual ns; the tick-to-instruction factor is calibrated on a block of a
+//! known number of `nop`s, and the cost of reading SysTick is subtracted. Each method runs
+//! `N` steps on the same test signal (samples generated before timing each step).
+#![no_std]
+#![no_main]
+
+use bench_mcu::{Ekf32, Signal};
+use cortex_m::peripheral::{syst::SystClkSource, Peripherals, SYST};
+use cortex_m_rt::entry;
+use identifier_core::{Identifier, Refined, RefinedSettings, Settings};
+use semihosting::println;
+
+const N: u32 = 4000;
+
+#[inline(always)]
+fn now() -> u32 {
+    SYST::get_current()
+}
+
+#[inline(always)]
+fn elapsed(t0: u32, t1: u32) -> u32 {
+    // SysTick counts down, 24 bits.
+    t0.wrapping_sub(t1) & 0x00FF_FFFF
+}
+
+#[inline(never)]
+fn nops_1000() {
+    // SAFETY: a block of plain `nop` instructions with no operands or side effects.
+    unsafe {
+        core::arch::asm!(
+            ".rept 1000",
+            "nop",
+            ".endr",
+            options(nomem, nostack, preserves_flags)
+        );
+    }
+}
+
+/// Runs `f` on `N` samples and returns the average SysTick ticks per call.
+fn measure<F: FnMut([f32; 3], f32)>(mut f: F) -> f32 {
+    let mut sig = Signal::paper();
+    let dt = sig.dt();
+    let mut ticks: u64 = 0;
+    for _ in 0..N {
+        let w = sig.next_sample();
+        let t0 = now();
+        f(w, dt);
+        let t1 = now();
+        ticks += u64::from(elapsed(t0, t1));
+    }
+    ticks as f32 / N as f32
+}
+
+#[entry]
+fn main() -> ! {
+    let Some(mut p) = Peripherals::take() else {
+        semihosting::process::exit(2)
+    };
+    p.SYST.set_clock_source(SystClkSource::Core);
+    p.SYST.set_reload(0x00FF_FFFF);
+    p.SYST.clear_current();
+    p.SYST.enable_counter();
+
+    // Calibration: ticks for 100 x 1000 nops, and the cost of an empty measurement.
+    let t0 = now();
+    for _ in 0..100 {
+        nops_1000();
+    }
+    let t1 = now();
+    let per_tick = 100_000.0 / elapsed(t0, t1) as f32;
+    let empty = measure(|w, _| {
+        core::hint::black_box(w);
+    });
+
+    let report = |name: &str, ticks: f32| {
+        let instr = (ticks - empty) * per_tick;
+        println!("{},{:.0}", name, instr);
+    };
+
+    let mut paper = match Identifier::new(Settings::with_lambda(3.0)) {
+        Ok(id) => id,
+        Err(_) => semihosting::process::exit(3),
+    };
+    let t = measure(|w, dt| {
+        core::hint::black_box(paper.step(core::hint::black_box(w), dt));
+    });
+    println!(
+        "# instructions per tick {:.2}, empty measurement {:.1} ticks",
+        per_tick, empty
+    );
+    println!("method,instructions");
+    report("paper", t);
+
+    let Some(mut refined) = Refined::new(RefinedSettings::new()) else {
+        semihosting::process::exit(4)
+    };
+    let t = measure(|w, dt| {
+        core::hint::black_box(refined.step(core::hint::black_box(w), dt));
+    });
+    report("refined", t);
+
+    for (name, corr, block) in [
+        ("refined-nocorr-16", false, 16u16),
+        ("refined-nocorr-32", false, 32),
+        ("refined-corr-32", true, 32),
+        ("refined-nocorr-1", false, 1),
+    ] {
+        let mut s = RefinedSettings::new();
+        s.end_correction = corr;
+        s.block = block;
+        let Some(mut r) = Refined::new(s) else {
+            semihosting::process::exit(5)
+        };
+        let t = measure(|w, dt| {
+            core::hint::black_box(r.step(core::hint::black_box(w), dt));
+        });
+        report(name, t);
+    }
+
+    let mut ekf = Ekf32::new([1.0, 1.0, 1.0], 2e-3);
+    let t = measure(|w, dt| {
+        ekf.step(core::hint::black_box(w), dt);
+        core::hint::black_box(&ekf);
+    });
+    report("ekf", t);
+    let a = refined.estimate();
+    let e = ekf.a();
+    println!(
+        "# check: refined a = ({:.4}, {:.4}, {:.4}), ekf a = ({:.4}, {:.4}, {:.4})",
+        a[0], a[1], a[2], e[0], e[1], e[2]
+    );
+    semihosting::process::exit(0)
+}
