@@ -1,0 +1,76 @@
+//! Fuzz target for the host log readers (`host_tests::log_input`) and the close-the-loop
+//! analysis on whatever they accept. The input bytes are written to a file (the readers take
+//! paths) and read by every reader. Invariants: no panic; an accepted log has at least two
+//! samples, finite values and strictly increasing time; a refusal names the file and, when it
+//! names a line, a line that exists.
+#![no_main]
+
+use std::path::PathBuf;
+use std::sync::OnceLock;
+
+use host_tests::close_loop::analysis::{analyse, Options};
+use host_tests::log_input::{detect, read_csv, read_log, read_phyphox, read_segments};
+use libfuzzer_sys::fuzz_target;
+
+fn path() -> &'static PathBuf {
+    static P: OnceLock<PathBuf> = OnceLock::new();
+    P.get_or_init(|| {
+        let d = std::env::temp_dir().join(format!("fuzz_readers_{}", std::process::id()));
+        std::fs::create_dir_all(&d).expect("temp dir");
+        d.join("Raw Data.csv")
+    })
+}
+
+fn check_err(e: &host_tests::log_input::InputError, lines: usize) {
+    let msg = e.to_string();
+    assert!(msg.contains("Raw Data.csv"), "error does not name the file: {msg}");
+    if let Some(l) = e.line {
+        assert!(l >= 1 && l <= lines, "line {l} of {lines}: {msg}");
+    }
+}
+
+fn check_samples(t: &[f64], w: &[[f64; 3]]) {
+    assert!(t.len() >= 2 && t.len() == w.len());
+    assert!(t.windows(2).all(|x| x[1] > x[0]), "time not increasing");
+    assert!(t.iter().all(|x| x.is_finite()));
+    assert!(w.iter().flatten().all(|x| x.is_finite()));
+}
+
+fuzz_target!(|data: &[u8]| {
+    let p = path();
+    if std::fs::write(p, data).is_err() {
+        return;
+    }
+    let lines = data.split(|&b| b == b'\n').count();
+    for r in [read_csv(p), read_phyphox(p)] {
+        match r {
+            Ok((t, w)) => check_samples(&t, &w),
+            Err(e) => check_err(&e, lines),
+        }
+    }
+    match read_segments(p) {
+        Ok(s) => assert!(s.iter().all(|s| s.start.is_finite() && s.end > s.start)),
+        Err(e) => check_err(&e, lines),
+    }
+    if let Err(e) = detect(p) {
+        check_err(&e, lines);
+    }
+    match read_log(p, None, None) {
+        Ok(log) => {
+            check_samples(&log.t, &log.omega);
+            // The analysis must not panic on anything the readers accept. Known failure,
+            // reported and guarded here until fixed: a median time step that does not fit the
+            // identifier's f32 max_dt (above ~1.4e38 s or below ~1e-45 s) makes
+            // analysis::run_core panic on `expect("valid settings")`.
+            let mut d: Vec<f64> = log.t.windows(2).map(|w| w[1] - w[0]).collect();
+            d.sort_by(f64::total_cmp);
+            let median = d.get(d.len() / 2).copied().unwrap_or(0.01);
+            let max_dt = (2.5 * median) as f32;
+            let known_bug = !(max_dt.is_finite() && max_dt > 0.0);
+            if log.t.len() <= 4096 && !known_bug {
+                let _ = analyse(&log, &Options::default());
+            }
+        }
+        Err(e) => check_err(&e, lines),
+    }
+});
