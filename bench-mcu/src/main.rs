@@ -74,10 +74,15 @@ fn main() -> ! {
         core::hint::black_box(w);
     });
 
-    let report = |name: &str, ticks: f32| {
+    let report = |name: &str, ticks: f32, how: &str| {
         let instr = (ticks - empty) * per_tick;
-        println!("{},{:.0}", name, instr);
+        println!("{},{:.0},{}", name, instr, how);
     };
+    println!(
+        "# instructions per SysTick tick {:.2}; empty measurement {:.2} ticks",
+        per_tick, empty
+    );
+    println!("method,instructions,how");
 
     let mut paper = match Identifier::new(Settings::with_lambda(3.0)) {
         Ok(id) => id,
@@ -86,45 +91,46 @@ fn main() -> ! {
     let t = measure(|w, dt| {
         core::hint::black_box(paper.step(core::hint::black_box(w), dt));
     });
-    println!(
-        "# instructions per tick {:.2}, empty measurement {:.1} ticks",
-        per_tick, empty
+    report(
+        "paper",
+        t,
+        "Cortex-M4F QEMU -icount; Settings::with_lambda(3)",
     );
-    println!("method,instructions");
-    report("paper", t);
 
+    // The refined identifier as configured for 1 kHz (defaults: 32-sample blocks, no end
+    // correction), and as configured for 100 Hz (3-sample blocks, end correction).
     let Some(mut refined) = Refined::new(RefinedSettings::new()) else {
         semihosting::process::exit(4)
     };
     let t = measure(|w, dt| {
         core::hint::black_box(refined.step(core::hint::black_box(w), dt));
     });
-    report("refined", t);
-
-    for (name, corr, block) in [
-        ("refined-nocorr-16", false, 16u16),
-        ("refined-nocorr-32", false, 32),
-        ("refined-corr-32", true, 32),
-        ("refined-nocorr-1", false, 1),
-    ] {
-        let mut s = RefinedSettings::new();
-        s.end_correction = corr;
-        s.block = block;
-        let Some(mut r) = Refined::new(s) else {
-            semihosting::process::exit(5)
-        };
-        let t = measure(|w, dt| {
-            core::hint::black_box(r.step(core::hint::black_box(w), dt));
-        });
-        report(name, t);
-    }
+    report("refined", t, "Cortex-M4F QEMU -icount; 1 kHz settings");
+    let mut s = RefinedSettings::new();
+    s.end_correction = true;
+    s.block = 3;
+    let Some(mut r100) = Refined::new(s) else {
+        semihosting::process::exit(5)
+    };
+    let t = measure(|w, dt| {
+        core::hint::black_box(r100.step(core::hint::black_box(w), dt));
+    });
+    report(
+        "refined-100hz",
+        t,
+        "Cortex-M4F QEMU -icount; 100 Hz settings: 3-sample blocks and end correction",
+    );
 
     let mut ekf = Ekf32::new([1.0, 1.0, 1.0], 2e-3);
     let t = measure(|w, dt| {
         ekf.step(core::hint::black_box(w), dt);
         core::hint::black_box(&ekf);
     });
-    report("ekf", t);
+    report(
+        "ekf",
+        t,
+        "Cortex-M4F QEMU -icount; dense f32 EKF (bench-mcu)",
+    );
     let a = refined.estimate();
     let e = ekf.a();
     println!(

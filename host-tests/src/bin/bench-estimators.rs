@@ -178,9 +178,10 @@ fn instructions(root: &Path) -> Vec<(String, f64, String)> {
         .collect()
 }
 
-fn key(name: &str) -> &'static str {
+fn key(name: &str, rate_hz: f64) -> &'static str {
     match name {
         n if n.starts_with("paper") => "paper",
+        n if n.starts_with("refined") && rate_hz < 200.0 => "refined-100hz",
         n if n.starts_with("refined") => "refined",
         n if n.starts_with("batch") => "batch-ls",
         n if n.starts_with("recursive") => "rls",
@@ -213,8 +214,8 @@ fn table(results: &[ScenarioResult], instr: &[(String, f64, String)]) -> String 
             let w = worst(&m.rms, &r.crb);
             let ins = instr
                 .iter()
-                .find(|(k, _, _)| k == key(m.name))
-                .map(|(_, n, how)| format!("{n:.0} ({how})"))
+                .find(|(k, _, _)| k == key(m.name, sc.rate_hz))
+                .map(|(_, n, _)| format!("{n:.0}"))
                 .unwrap_or_else(|| "-".into());
             let _ = writeln!(
                 s,
