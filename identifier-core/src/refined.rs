@@ -561,3 +561,120 @@ impl Refined {
         *slot = slot.saturating_add(1);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const A: [f32; 3] = [0.9, 0.259_740_26, -0.94];
+
+    /// The paper's body from (1, 1, 1), RK4 in f32, `n` samples at `dt`.
+    fn motion(n: usize, dt: f32) -> impl Iterator<Item = [f32; 3]> {
+        let f = |w: [f32; 3]| [A[0] * w[1] * w[2], A[1] * w[2] * w[0], A[2] * w[0] * w[1]];
+        let add =
+            |w: [f32; 3], k: [f32; 3], h: f32| [w[0] + h * k[0], w[1] + h * k[1], w[2] + h * k[2]];
+        let mut w = [1.0f32, 1.0, 1.0];
+        (0..n).map(move |_| {
+            let out = w;
+            let k1 = f(w);
+            let k2 = f(add(w, k1, 0.5 * dt));
+            let k3 = f(add(w, k2, 0.5 * dt));
+            let k4 = f(add(w, k3, dt));
+            for i in 0..3 {
+                w[i] += dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            }
+            out
+        })
+    }
+
+    #[test]
+    fn converges_on_noise_free_motion() {
+        let mut id = Refined::new(RefinedSettings::new()).unwrap();
+        for w in motion(10_000, 1e-3) {
+            id.step(w, 1e-3);
+        }
+        let est = id.estimate();
+        for i in 0..3 {
+            assert!((est[i] - A[i]).abs() < 1e-4, "{est:?}");
+        }
+        assert_eq!(id.convergence(), Convergence::Converged);
+        assert_eq!(id.counters().integrated, 9_999);
+    }
+
+    #[test]
+    fn bad_inputs_have_the_core_statuses_and_hold_the_estimate() {
+        let mut id = Refined::new(RefinedSettings {
+            full_scale: 30.0,
+            ..RefinedSettings::new()
+        })
+        .unwrap();
+        let mut samples = motion(3_000, 1e-3);
+        for w in samples.by_ref().take(2_000) {
+            id.step(w, 1e-3);
+        }
+        let held = id.estimate();
+        let w = [1.0, 1.0, 1.0];
+        assert_eq!(
+            id.step([f32::NAN, 1.0, 1.0], 1e-3).status,
+            SampleStatus::NonFinite
+        );
+        assert_eq!(
+            id.step([f32::INFINITY, 1.0, 1.0], 1e-3).status,
+            SampleStatus::NonFinite
+        );
+        assert_eq!(
+            id.step([40.0, 1.0, 1.0], 1e-3).status,
+            SampleStatus::Saturated
+        );
+        assert_eq!(id.step(w, 0.0).status, SampleStatus::InvalidTimeStep);
+        assert_eq!(id.step(w, f32::NAN).status, SampleStatus::InvalidTimeStep);
+        assert_eq!(id.step(w, -1.0).status, SampleStatus::InvalidTimeStep);
+        assert_eq!(id.step(w, 1e-3).status, SampleStatus::Anchored);
+        assert_eq!(id.step(w, 5.0).status, SampleStatus::Gap);
+        let mut wide = Refined::new(RefinedSettings::new()).unwrap();
+        assert_eq!(
+            wide.step([1e30, 1e30, 1e-3], 1e-3).status,
+            SampleStatus::NumericalFault
+        );
+        assert!(wide.estimate().iter().all(|a| a.is_finite()));
+        let after = id.estimate();
+        for i in 0..3 {
+            assert!((after[i] - held[i]).abs() < 1e-3, "{after:?} vs {held:?}");
+            assert!(after[i].is_finite());
+        }
+        // And it carries on learning afterwards.
+        for w in samples {
+            id.step(w, 1e-3);
+        }
+        assert!(id.estimate().iter().all(|a| a.is_finite()));
+    }
+
+    #[test]
+    fn refuses_unusable_settings() {
+        let ok = RefinedSettings::new();
+        assert!(Refined::new(ok).is_some());
+        for bad in [
+            RefinedSettings {
+                noise_std: 0.0,
+                ..ok
+            },
+            RefinedSettings {
+                prior_std: f32::NAN,
+                ..ok
+            },
+            RefinedSettings { block: 0, ..ok },
+            RefinedSettings { block: 2000, ..ok },
+            RefinedSettings { max_dt: -1.0, ..ok },
+            RefinedSettings {
+                full_scale: 0.0,
+                ..ok
+            },
+            RefinedSettings {
+                initial_estimate: [0.0, f32::INFINITY, 0.0],
+                ..ok
+            },
+        ] {
+            assert!(Refined::new(bad).is_none(), "{bad:?}");
+        }
+    }
+}
