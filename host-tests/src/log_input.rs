@@ -54,7 +54,7 @@ impl std::str::FromStr for Format {
         match s.to_ascii_lowercase().as_str() {
             "phyphox" => Ok(Format::Phyphox),
             "csv" => Ok(Format::Csv),
-            other => Err(format!("unknown format {other:?} (phyphox|csv)")),
+            other => Err(format!("unknown format {} (phyphox|csv)", quote(other))),
         }
     }
 }
@@ -115,21 +115,52 @@ fn read_lines(path: &Path) -> Result<Vec<String>, InputError> {
     Ok(lines)
 }
 
+/// The fields of a line. phyphox exports may use `,`, `;` (then with decimal commas) or tab
+/// as separator; the separator is taken from the line itself.
 fn fields(line: &str) -> Vec<String> {
-    line.split(',')
-        .map(|f| f.trim().trim_matches('"').trim().to_string())
+    let (sep, decimal_comma) = if line.contains(';') {
+        (';', true)
+    } else if line.contains('\t') {
+        ('\t', false)
+    } else {
+        (',', false)
+    };
+    line.split(sep)
+        .map(|f| {
+            let f = f.trim().trim_matches('"').trim();
+            if decimal_comma {
+                f.replace(',', ".")
+            } else {
+                f.to_string()
+            }
+        })
         .collect()
 }
 
+/// `s` for an error message: at most 40 characters, marked when cut.
+fn quote(s: &str) -> String {
+    const MAX: usize = 40;
+    if s.chars().count() <= MAX {
+        format!("{s:?}")
+    } else {
+        let head: String = s.chars().take(MAX).collect();
+        format!("{head:?}... ({} bytes)", s.len())
+    }
+}
+
 fn number(path: &Path, line: usize, what: &str, s: &str) -> Result<f64, InputError> {
-    let v: f64 = s
-        .parse()
-        .map_err(|_| err(path, Some(line), format!("{what}: {s:?} is not a number")))?;
+    let v: f64 = s.parse().map_err(|_| {
+        err(
+            path,
+            Some(line),
+            format!("{what}: {} is not a number", quote(s)),
+        )
+    })?;
     if !v.is_finite() {
         return Err(err(
             path,
             Some(line),
-            format!("{what}: {s:?} is not finite"),
+            format!("{what}: {} is not finite", quote(s)),
         ));
     }
     Ok(v)
@@ -151,7 +182,10 @@ pub fn detect(path: &Path) -> Result<Format, InputError> {
         Err(err(
             &file,
             Some(1),
-            format!("unknown header {h:?}: expected phyphox \"Time (s)\",... or t,wx,wy,wz"),
+            format!(
+                "unknown header {}: expected phyphox \"Time (s)\",... or t,wx,wy,wz",
+                quote(h)
+            ),
         ))
     }
 }
@@ -227,7 +261,7 @@ pub fn read_phyphox(path: &Path) -> Result<(Vec<f64>, Vec<[f64; 3]>), InputError
         return Err(err(
             &file,
             Some(1),
-            format!("not a phyphox gyroscope header: {h:?}"),
+            format!("not a phyphox gyroscope header: {}", quote(h)),
         ));
     }
     samples(&file, &lines)
@@ -244,7 +278,7 @@ pub fn read_csv(path: &Path) -> Result<(Vec<f64>, Vec<[f64; 3]>), InputError> {
         return Err(err(
             path,
             Some(1),
-            format!("header must be t,wx,wy,wz, found {h:?}"),
+            format!("header must be t,wx,wy,wz, found {}", quote(h)),
         ));
     }
     samples(path, &lines)
@@ -264,7 +298,7 @@ pub fn read_segments(path: &Path) -> Result<Vec<Segment>, InputError> {
         return Err(err(
             path,
             Some(1),
-            format!("header needs start and end columns, found {h:?}"),
+            format!("header needs start and end columns, found {}", quote(h)),
         ));
     };
     let (cl, ck) = (col("segment"), col("keep"));
@@ -295,7 +329,7 @@ pub fn read_segments(path: &Path) -> Result<Vec<Segment>, InputError> {
                 return Err(err(
                     path,
                     Some(n),
-                    format!("keep must be true/false/empty, found {other:?}"),
+                    format!("keep must be true/false/empty, found {}", quote(other)),
                 ))
             }
         };
@@ -398,6 +432,18 @@ mod tests {
             assert_eq!(e.line, line, "{name}: {e}");
             assert!(e.to_string().contains(name), "{e}");
         }
+    }
+
+    #[test]
+    fn phyphox_with_semicolons_and_decimal_commas() {
+        let p = tmp(
+            "semi.csv",
+            "\"Time (s)\";\"Gyroscope x (rad/s)\";\"Gyroscope y (rad/s)\";\"Gyroscope z (rad/s)\"\n0,01;1,5;2;3\n0,02;1;2;3\n"
+                .as_bytes(),
+        );
+        let (t, w) = read_phyphox(&p).unwrap();
+        assert_eq!(t, vec![0.01, 0.02]);
+        assert_eq!(w[0], [1.5, 2.0, 3.0]);
     }
 
     #[test]

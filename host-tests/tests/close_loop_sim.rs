@@ -257,3 +257,66 @@ fn damping_and_gyro_bias_together() {
         ],
     );
 }
+
+/// Detection margins against effect size: each effect at a quarter, half and the full size
+/// used above. The statistic must grow with the size, and the full size must be detected.
+#[test]
+fn detection_grows_with_effect_size() {
+    type Make = fn(f64) -> Truth;
+    let cases: [(Effect, Make); 6] = [
+        (Effect::GyroBias, |k| Truth {
+            bias: [0.05 * k, -0.04 * k, 0.03 * k],
+            ..Default::default()
+        }),
+        (Effect::BodyTorque, |k| Truth {
+            torque_over_a: [1.5 * k, -2.0 * k, 1.0 * k],
+            ..Default::default()
+        }),
+        (Effect::Damping, |k| Truth {
+            damping_over_a: [0.15 * k; 3],
+            ..Default::default()
+        }),
+        (Effect::ProductsOfInertia, |k| Truth {
+            misalign: Some(([0.3, -0.5, 1.0], 0.04 * k)),
+            ..Default::default()
+        }),
+        (Effect::RotorMomentum, |k| Truth {
+            rotor_over_a1: [0.1 * k, -0.08 * k, 0.12 * k],
+            ..Default::default()
+        }),
+        (Effect::ScaleFactor, |k| Truth {
+            scale: Some(1.0 + 0.05 * k),
+            ..Default::default()
+        }),
+    ];
+    for (effect, make) in cases {
+        let mut zs = Vec::new();
+        for k in [0.25, 0.5, 1.0] {
+            let (log, a) = simulate(make(k), 21, 6, 100.0);
+            let an = analyse(
+                &log,
+                &Options {
+                    truth: Some(a),
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+            let c = an.rounds[0]
+                .candidates
+                .iter()
+                .find(|c| c.effect == effect)
+                .unwrap();
+            println!(
+                "{:>20} x{k:<4}: z {:7.2} vs z_crit {:.2} (margin {:+7.2}); effects found {:?}",
+                effect.name(),
+                c.z,
+                c.z_crit,
+                c.z - c.z_crit,
+                an.effects
+            );
+            zs.push((c.z, c.z_crit, an.effects.first().copied()));
+        }
+        assert!(zs[2].0 > zs[0].0, "{}: {zs:?}", effect.name());
+        assert_eq!(zs[2].2, Some(effect), "{}: {zs:?}", effect.name());
+    }
+}

@@ -112,14 +112,17 @@ impl ExtendedSettings {
         }
     }
 
-    /// True when every field is usable: finite positive priors, noise and `max_dt`, positive
+    /// True when every field is usable: priors and noise finite and positive with finite,
+    /// positive squares (so `P(0)` and `R` are usable), finite positive `max_dt`, positive
     /// `full_scale`, finite initial estimate, and no effect listed twice.
     pub fn is_valid(&self) -> bool {
         let pos = |v: f32| v.is_finite() && v > 0.0;
         let [e0, e1] = self.effects;
-        pos(self.prior_a)
-            && pos(self.prior_effect)
-            && pos(self.noise_std)
+        // The squares must be usable too: they are the initial P and R = 2 sigma^2.
+        let sq = |v: f32| pos(v) && pos(v * v) && pos(2.0 * v * v);
+        sq(self.prior_a)
+            && sq(self.prior_effect)
+            && sq(self.noise_std)
             && pos(self.max_dt)
             && !self.full_scale.is_nan()
             && self.full_scale > 0.0

@@ -57,6 +57,12 @@ fn main() -> Result<()> {
     };
     let an = analysis::analyse(&log, &opts)
         .map_err(|e| anyhow::anyhow!("{}: {e}", args.input.display()))?;
+    if !an.skipped_segments.is_empty() {
+        eprintln!(
+            "warning: segments with too few samples skipped: {}",
+            an.skipped_segments.join(", ")
+        );
+    }
     let json = serde_json::to_string_pretty(&an)?;
     std::fs::write(&args.json, json).with_context(|| format!("writing {}", args.json.display()))?;
     let title = args

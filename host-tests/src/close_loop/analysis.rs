@@ -214,6 +214,8 @@ pub struct Analysis {
     pub segments: Vec<SegmentReport>,
     /// Blocks of (B) used.
     pub blocks: usize,
+    /// Labels of segments skipped for having fewer than `min_samples` samples.
+    pub skipped_segments: Vec<String>,
     /// Residual series for plots: (segment, block mid-time, torque-free at the least-squares
     /// `a`, extended model at the extended identifier's estimate).
     #[serde(skip)]
@@ -373,7 +375,7 @@ pub fn run_extended(
     ranges: &[(usize, usize)],
     effects: &[Effect],
     noise_std: f64,
-) -> (ExtendedIdentifier, Vec<[f64; 3]>) {
+) -> Result<(ExtendedIdentifier, Vec<[f64; 3]>), String> {
     let residual: Vec<ExtraEffect> = effects.iter().filter_map(|e| to_extra(*e)).collect();
     let mut s = ExtendedSettings::new([residual.first().copied(), residual.get(1).copied()]);
     s.scale_correction = effects.contains(&Effect::ScaleFactor);
@@ -382,7 +384,8 @@ pub fn run_extended(
     // excited updates from wandering.
     s.prior_effect = 1.0;
     s.max_dt = max_dt(&log.t);
-    let mut id = ExtendedIdentifier::new(s).expect("valid extended settings");
+    let mut id = ExtendedIdentifier::new(s)
+        .ok_or_else(|| format!("extended identifier refused its settings {s:?}"))?;
     let mut ends = Vec::new();
     for &(i0, i1) in ranges {
         id.restart();
@@ -400,7 +403,7 @@ pub fn run_extended(
                 .map(f64::from),
         );
     }
-    (id, ends)
+    Ok((id, ends))
 }
 
 /// A step longer than 2.5 median steps is a gap.
@@ -410,10 +413,14 @@ fn max_dt(t: &[f64]) -> f32 {
     (2.5 * d.get(d.len() / 2).copied().unwrap_or(0.01)) as f32
 }
 
-fn run_core(log: &Log, ranges: &[(usize, usize)], lambda: f32) -> (Identifier, Vec<[f64; 3]>) {
+fn run_core(
+    log: &Log,
+    ranges: &[(usize, usize)],
+    lambda: f32,
+) -> Result<(Identifier, Vec<[f64; 3]>), String> {
     let mut s = Settings::with_lambda(lambda);
     s.max_dt = max_dt(&log.t);
-    let mut id = Identifier::new(s).expect("valid settings");
+    let mut id = Identifier::new(s).map_err(|e| format!("core identifier settings: {e}"))?;
     let mut ends = Vec::new();
     for &(i0, i1) in ranges {
         id.restart();
@@ -427,7 +434,7 @@ fn run_core(log: &Log, ranges: &[(usize, usize)], lambda: f32) -> (Identifier, V
         }
         ends.push(id.estimate().map(f64::from));
     }
-    (id, ends)
+    Ok((id, ends))
 }
 
 fn spread(v: &[[f64; 3]]) -> Option<[f64; 3]> {
@@ -494,9 +501,15 @@ pub fn analyse(log: &Log, opts: &Options) -> Result<Analysis, String> {
         ));
     }
     let omega = &log.omega;
+    let step = f64::from(max_dt(&log.t)) / 2.5;
+    if !(1e-6..=10.0).contains(&step) {
+        return Err(format!(
+            "median sample interval {step:e} s is outside 1e-6..10 s: not a gyro log in seconds"
+        ));
+    }
 
     // 1. Identify with the on-board core.
-    let (core, core_ends) = run_core(log, &ranges, opts.lambda);
+    let (core, core_ends) = run_core(log, &ranges, opts.lambda)?;
     let a_before = core.estimate().map(f64::from);
 
     // 2-3. Residual and trace.
@@ -599,14 +612,14 @@ pub fn analyse(log: &Log, opts: &Options) -> Result<Analysis, String> {
     };
 
     // 4. The on-board extended identifier with the chosen effects, and with none.
-    let (ext, ext_ends) = run_extended(log, &ranges, &effects, noise_std);
+    let (ext, ext_ends) = run_extended(log, &ranges, &effects, noise_std)?;
     let ext_theta: Vec<f64> = ext.theta().iter().map(|v| f64::from(*v)).collect();
     let ext_est = ext.estimate(identifier_core::ExtendedStatus::Buffered);
     let a_after = ext_est.a.map(f64::from);
     let n_p = model::n_params(&effects);
     let ext_theta = ext_theta[..n_p].to_vec();
     let ext_lin = [ext_theta[0], ext_theta[1], ext_theta[2]];
-    let (rls0, _) = run_extended(log, &ranges, &[], noise_std);
+    let (rls0, _) = run_extended(log, &ranges, &[], noise_std)?;
     let rls0_theta: Vec<f64> = rls0.theta()[..3].iter().map(|v| f64::from(*v)).collect();
 
     // 5. Report.
@@ -704,6 +717,10 @@ pub fn analyse(log: &Log, opts: &Options) -> Result<Analysis, String> {
         rounds,
         segments,
         blocks: blocks.len(),
+        skipped_segments: (0..all_ranges.len())
+            .filter(|s| !keep.contains(s))
+            .map(|s| log.segments[s].label.clone())
+            .collect(),
         residual_series,
     })
 }
