@@ -98,7 +98,6 @@ fn refined_settings() -> impl Strategy<Value = RefinedSettings> {
                     eps,
                     h,
                     initial_estimate: a0,
-                    ..RefinedSettings::new()
                 }
             },
         )
