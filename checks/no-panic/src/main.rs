@@ -15,9 +15,11 @@
 use core::fmt::Write;
 use core::hint::black_box;
 
+use identifier_core::extended::{columns, consistency_scale, inverse_ratios};
 use identifier_core::invariant::{control, phi, phi_of_squares, sign, squares, triple_product};
 use identifier_core::{
-    consistency, ConvergenceMonitor, GainMatrix, Identifier, InertiaRatios, Settings,
+    consistency, ConvergenceMonitor, ExtendedIdentifier, ExtendedSettings, ExtendedStatus,
+    ExtraEffect, GainMatrix, Identifier, InertiaRatios, Refined, RefinedSettings, Settings,
     SignChangeCorrection,
 };
 
@@ -117,10 +119,72 @@ fn exercise() {
     black_box(ConvergenceMonitor::default());
 }
 
+fn exercise_refined() {
+    let mut s = black_box(RefinedSettings::new());
+    s.block = black_box(32);
+    s.end_correction = black_box(true);
+    s.full_scale = black_box(34.9);
+    black_box(s.is_valid());
+    if let Some(mut r) = Refined::new(s) {
+        for _ in 0..black_box(1000usize) {
+            let e = r.step(black_box([1.0, -0.5, 0.25]), black_box(1e-3));
+            black_box(e);
+        }
+        black_box(r.estimate());
+        black_box(r.block_estimate());
+        black_box(r.std_per_sigma());
+        black_box(r.counters());
+        black_box(r.settings());
+        black_box(r.convergence());
+        if black_box(false) {
+            r.restart();
+        }
+        if black_box(false) {
+            r.reset();
+        }
+        black_box(&r);
+    }
+}
+
+fn exercise_extended() {
+    let effect = |k: u8| match k {
+        0 => None,
+        1 => Some(ExtraEffect::GyroBias),
+        2 => Some(ExtraEffect::BodyTorque),
+        3 => Some(ExtraEffect::Damping),
+        4 => Some(ExtraEffect::ProductsOfInertia),
+        _ => Some(ExtraEffect::RotorMomentum),
+    };
+    let mut s = ExtendedSettings::new([effect(black_box(1)), effect(black_box(5))]);
+    s.scale_correction = black_box(true);
+    s.full_scale = black_box(34.9);
+    black_box(s.is_valid());
+    if let Some(mut x) = ExtendedIdentifier::new(black_box(s)) {
+        for _ in 0..black_box(1000usize) {
+            black_box(x.step(black_box([1.0, -0.5, 0.25]), black_box(1e-3)));
+        }
+        black_box(x.settings());
+        black_box(x.updates());
+        black_box(x.theta());
+        black_box(x.variances());
+        black_box(x.estimate(black_box(ExtendedStatus::Buffered)));
+        if black_box(false) {
+            x.restart();
+        }
+        black_box(&x);
+    }
+    let a = black_box([0.9, 0.26, -0.94]);
+    black_box(columns(&s.effects, a, black_box([0.3, 1.2, -0.7])));
+    black_box(inverse_ratios(a));
+    black_box(consistency_scale(a));
+}
+
 /// Entry point of the image (the linker's default entry symbol).
 #[no_mangle]
 pub extern "C" fn _start() -> ! {
     loop {
         exercise();
+        exercise_refined();
+        exercise_extended();
     }
 }
