@@ -1,7 +1,8 @@
-//! Fuzz target for `Identifier::step`: arbitrary bytes become settings and a sequence of
-//! `(omega, dt)` samples, mixing plausible rates (so that the integration is reached) with raw
-//! bit patterns and special values. After every step the documented invariants are checked;
-//! a violation aborts, and libFuzzer reports the input.
+//! Fuzz target for the core's `step` functions: arbitrary bytes become settings and a sequence
+//! of `(omega, dt)` samples, mixing plausible rates (so that the integration is reached) with
+//! raw bit patterns and special values. The same sequence drives the paper's `Identifier`, the
+//! `Refined` identifier and the `ExtendedIdentifier`. After every step the documented
+//! invariants are checked; a violation aborts, and libFuzzer reports the input.
 //!
 //! Layout: a 12-byte header for the settings, then records of 8 bytes
 //! `[tag, w1 (i16), w2 (i16), w3 (i16), dt code]`, where some tags read 4 to 16 more bytes of raw
@@ -10,7 +11,8 @@
 
 use identifier_core::invariant::control;
 use identifier_core::{
-    consistency, GainMatrix, Identifier, InertiaRatios, SampleStatus, Settings,
+    consistency, ExtendedIdentifier, ExtendedSettings, ExtendedStatus, ExtraEffect, GainMatrix,
+    Identifier, InertiaRatios, Refined, RefinedSettings, SampleStatus, Settings,
     SignChangeCorrection,
 };
 use libfuzzer_sys::fuzz_target;
@@ -140,9 +142,141 @@ fn sample(b: &mut Bytes, full_scale: f32) -> Option<([f32; 3], f32, u8)> {
     Some((omega, dt, tag))
 }
 
+/// What must be refused for its input alone, in the documented order.
+fn refusal(omega: [f32; 3], dt: f32, full_scale: f32) -> Option<SampleStatus> {
+    if !(dt.is_finite() && dt > 0.0) {
+        Some(SampleStatus::InvalidTimeStep)
+    } else if omega.iter().any(|w| !w.is_finite()) {
+        Some(SampleStatus::NonFinite)
+    } else if omega.iter().any(|w| w.abs() >= full_scale) {
+        Some(SampleStatus::Saturated)
+    } else {
+        None
+    }
+}
+
+fn effect(k: u8) -> Option<ExtraEffect> {
+    match k % 6 {
+        0 => None,
+        1 => Some(ExtraEffect::GyroBias),
+        2 => Some(ExtraEffect::BodyTorque),
+        3 => Some(ExtraEffect::Damping),
+        4 => Some(ExtraEffect::ProductsOfInertia),
+        _ => Some(ExtraEffect::RotorMomentum),
+    }
+}
+
+/// The refined and extended identifiers on the same samples.
+struct Others {
+    refined: Option<Refined>,
+    extended: Option<ExtendedIdentifier>,
+    refined_anchored: u32,
+}
+
+impl Others {
+    fn new(s: &Settings, k: u8) -> Self {
+        let mut r = RefinedSettings::new();
+        r.full_scale = s.full_scale;
+        r.max_dt = s.max_dt;
+        r.eps = s.eps;
+        r.h = s.h;
+        r.initial_estimate = s.initial_estimate;
+        r.block = [1, 3, 32, 1024][usize::from(k % 4)];
+        r.end_correction = k & 4 != 0;
+        r.noise_std = [2e-3, 1e-6, 1.0, 0.1][usize::from(k / 8 % 4)];
+        let mut x = ExtendedSettings::new([effect(k), effect(k / 6)]);
+        x.scale_correction = k & 32 != 0;
+        x.full_scale = s.full_scale;
+        x.max_dt = s.max_dt;
+        x.initial_estimate = s.initial_estimate;
+        Others {
+            refined: Refined::new(r),
+            extended: ExtendedIdentifier::new(x),
+            refined_anchored: 0,
+        }
+    }
+
+    fn step(&mut self, omega: [f32; 3], dt: f32, full_scale: f32) {
+        let want = refusal(omega, dt, full_scale);
+        if let Some(r) = self.refined.as_mut() {
+            let before = (r.block_estimate(), r.estimate());
+            let e = r.step(omega, dt);
+            assert!(
+                e.a.iter().all(|x| x.is_finite()),
+                "refined {omega:?} {dt} {e:?}"
+            );
+            assert!(r.estimate().iter().all(|x| x.is_finite()));
+            assert!(r.std_per_sigma().iter().all(|x| x.is_finite()));
+            assert_eq!(e.a, r.block_estimate());
+            match want {
+                Some(w) => assert_eq!(e.status, w, "refined {omega:?} {dt}"),
+                None => assert!(!e.status.rejected(), "refined {omega:?} {dt} {e:?}"),
+            }
+            if matches!(e.status, SampleStatus::NonFinite | SampleStatus::Saturated) {
+                assert_eq!(before.0.map(f32::to_bits), e.a.map(f32::to_bits));
+                assert_eq!(before.1.map(f32::to_bits), r.estimate().map(f32::to_bits));
+            }
+            if e.status == SampleStatus::Anchored {
+                self.refined_anchored += 1;
+            }
+            let c = r.counters();
+            assert_eq!(
+                c.integrated
+                    + c.unidentifiable
+                    + c.rejected
+                    + c.gaps
+                    + c.numerical_faults
+                    + self.refined_anchored,
+                c.samples
+            );
+        }
+        if let Some(x) = self.extended.as_mut() {
+            let (theta0, updates0) = (x.theta(), x.updates());
+            let e = x.step(omega, dt);
+            assert!(
+                e.a.iter().all(|v| v.is_finite()),
+                "extended {omega:?} {dt} {e:?}"
+            );
+            assert!(e.effect_params.iter().flatten().all(|v| v.is_finite()));
+            assert!(e.scale.is_finite() && e.scale > 0.0);
+            assert!(x.theta().iter().all(|v| v.is_finite()));
+            assert!(x.variances().iter().all(|v| v.is_finite()));
+            let want = want.map(|w| match w {
+                SampleStatus::InvalidTimeStep => ExtendedStatus::InvalidTimeStep,
+                SampleStatus::NonFinite => ExtendedStatus::NonFinite,
+                _ => ExtendedStatus::Saturated,
+            });
+            match want {
+                Some(w) => assert_eq!(e.status, w, "extended {omega:?} {dt}"),
+                None => assert!(!matches!(
+                    e.status,
+                    ExtendedStatus::InvalidTimeStep
+                        | ExtendedStatus::NonFinite
+                        | ExtendedStatus::Saturated
+                )),
+            }
+            if e.status != ExtendedStatus::Updated {
+                assert_eq!(theta0.map(f32::to_bits), x.theta().map(f32::to_bits));
+                assert_eq!(x.updates(), updates0);
+            }
+        }
+    }
+
+    fn restart(&mut self) {
+        if let Some(r) = self.refined.as_mut() {
+            r.restart();
+        }
+        if let Some(x) = self.extended.as_mut() {
+            x.restart();
+        }
+    }
+}
+
 fn check(data: &[u8]) {
     let mut b = Bytes(data);
     let Some(s) = settings(&mut b) else { return };
+    let Some(k) = b.u8() else { return };
+    let mut others = Others::new(&s, k);
     let mut id = match Identifier::new(s) {
         Ok(id) => id,
         Err(e) => {
@@ -156,7 +290,10 @@ fn check(data: &[u8]) {
     while let Some((omega, dt, tag)) = sample(&mut b, s.full_scale) {
         // Now and then, the other entry points.
         match tag >> 5 {
-            6 => id.restart(),
+            6 => {
+                id.restart();
+                others.restart();
+            }
             7 if tag & 16 != 0 => {
                 id.reset();
                 steps = 0;
@@ -165,6 +302,7 @@ fn check(data: &[u8]) {
             }
             _ => {}
         }
+        others.step(omega, dt, s.full_scale);
         let before = id.estimate();
         let e = id.step(omega, dt);
         steps += 1;
