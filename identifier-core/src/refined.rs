@@ -90,6 +90,12 @@ pub struct RefinedSettings {
     pub h: f32,
     /// Estimate of `a` before any information.
     pub initial_estimate: [f32; 3],
+    /// Unmodelled torque (air drag, a wobbling mount) as a white angular acceleration of this
+    /// spectral density, rad/s per sqrt(s); `0` for the torque-free model (1). It lets the
+    /// intercept `c_i` wander further, so that (1) is trusted only over the time the torque
+    /// takes to matter. Uses [`RefinedSettings::noise_std`] as the actual gyro noise. Must be
+    /// finite and `>= 0`.
+    pub torque_noise: f32,
 }
 
 impl RefinedSettings {
@@ -107,6 +113,7 @@ impl RefinedSettings {
             eps: 1e-3,
             h: 1.0,
             initial_estimate: [0.0; 3],
+            torque_noise: 0.0,
         }
     }
 
@@ -125,6 +132,9 @@ impl RefinedSettings {
             && pos(self.eps)
             && pos(self.h)
             && self.initial_estimate.iter().all(|a| a.is_finite())
+            && self.torque_noise.is_finite()
+            && self.torque_noise >= 0.0
+            && (self.torque_noise / self.noise_std).is_finite()
     }
 }
 
@@ -191,8 +201,8 @@ impl Axis {
     /// wander first (Sherman-Morrison; `sq` is the variance per `sigma^2` of the integral's
     /// noise over the block, times `a^2` here), then the block's information and the sums of
     /// the residuals `e = w - c - a G` at the block's start values.
-    fn solve(&self, m: f32, sq: f32) -> Option<Solved> {
-        let q = self.a * self.a * sq;
+    fn solve(&self, m: f32, sq: f32, extra: f32) -> Option<Solved> {
+        let q = self.a * self.a * sq + extra;
         let se = self.sw - m * self.c - self.a * self.sg;
         let seg = self.swg - self.c * self.sg - self.a * self.sgg;
         let r = 1.0 / (1.0 + q * self.lcc);
@@ -347,13 +357,14 @@ impl Refined {
     pub fn estimate(&self) -> [f32; 3] {
         let m = f32::from(self.m);
         let q = self.block_noise();
+        let extra = self.torque_wander();
         let [x, y, z] = &self.axes;
         let [qx, qy, qz] = q;
         let one = |ax: &Axis, q: f32| {
             if self.m == 0 {
                 ax.a
             } else {
-                ax.solve(m, q).map_or(ax.a, |s| s.a)
+                ax.solve(m, q, extra).map_or(ax.a, |s| s.a)
             }
         };
         [one(x, qx), one(y, qy), one(z, qz)]
@@ -370,6 +381,13 @@ impl Refined {
         let k = self.block_time * self.block_time / m;
         let q = [w[0] * w[0], w[1] * w[1], w[2] * w[2]];
         [k * (q[1] + q[2]), k * (q[2] + q[0]), k * (q[0] + q[1])]
+    }
+
+    /// The intercept's extra wander over the open block from the unmodelled torque, per
+    /// `sigma^2`.
+    fn torque_wander(&self) -> f32 {
+        let r = self.settings.torque_noise / self.settings.noise_std;
+        r * r * self.block_time
     }
 
     /// The estimate as of the last completed block (what [`Refined::step`] reports).
@@ -468,8 +486,10 @@ impl Refined {
         }
         let m = f32::from(self.m);
         let [qx, qy, qz] = self.block_noise();
+        let e = self.torque_wander();
         let [x, y, z] = &self.axes;
-        let (Some(sx), Some(sy), Some(sz)) = (x.solve(m, qx), y.solve(m, qy), z.solve(m, qz))
+        let (Some(sx), Some(sy), Some(sz)) =
+            (x.solve(m, qx, e), y.solve(m, qy, e), z.solve(m, qz, e))
         else {
             return false;
         };

@@ -180,6 +180,7 @@ fn instructions(root: &Path) -> Vec<(String, f64, String)> {
 
 fn key(name: &str, rate_hz: f64) -> &'static str {
     match name {
+        n if n.starts_with("paper identifier,") => "paper-averaged",
         n if n.starts_with("paper") => "paper",
         n if n.starts_with("refined") && rate_hz < 200.0 => "refined-100hz",
         n if n.starts_with("refined") => "refined",
@@ -347,6 +348,7 @@ fn racquet(root: &Path) -> Result<String> {
     let methods: Vec<Box<dyn Method>> = vec![
         Box::new(onboard::Paper::default()),
         Box::new(onboard::RefinedMethod::default()),
+        Box::new(onboard::RefinedMethod::with_torque_noise()),
         Box::new(batch_ls::BatchLs),
         Box::new(host_tests::estimators::ml::Ml),
     ];
@@ -367,12 +369,7 @@ fn racquet(root: &Path) -> Result<String> {
     let _ = writeln!(s, "|---|---|---|---|---|");
     for m in &methods {
         let est: Vec<[f64; 3]> = tosses.iter().map(|ts| m.estimate(&ts.t, &ts.y)).collect();
-        let n = est.len() as f64;
-        let mean: [f64; 3] = std::array::from_fn(|i| est.iter().map(|e| e[i]).sum::<f64>() / n);
-        let sd: [f64; 3] = std::array::from_fn(|i| {
-            (est.iter().map(|e| (e[i] - mean[i]).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
-        });
-        let spread: [f64; 3] = std::array::from_fn(|i| sd[i] / mean[i].abs());
+        let (mean, spread) = spread(&est);
         let per: Vec<String> = est
             .iter()
             .zip(&tosses)
@@ -392,6 +389,7 @@ fn racquet(root: &Path) -> Result<String> {
             per.join("; ")
         );
     }
+    s.push_str(&model_check(&tosses));
     Ok(s)
 }
 
@@ -454,6 +452,92 @@ fn diagnose(sc: &Scenario) {
             [b[0] / crb6[0], b[1] / crb6[1], b[2] / crb6[2]]
         );
     }
+}
+
+/// Least squares of the integrated (1) per axis, `w_i(t) = c_i + a_i G_i(t)`, optionally with
+/// a linear damping `-d_i integral w_i` and a constant torque `b_i t`: the estimate and the
+/// RMS residual (rad/s). A model check: how much of the data the torque-free model explains.
+fn integral_fit(t: &[f64], y: &[[f64; 3]], effects: bool) -> ([f64; 3], f64) {
+    use nalgebra::{DMatrix, DVector};
+    let n = y.len();
+    let mut g = vec![[0.0f64; 3]; n];
+    let mut iw = vec![[0.0f64; 3]; n];
+    for k in 1..n {
+        let h = t[k] - t[k - 1];
+        let (f0, f1) = (
+            host_tests::estimators::products(y[k - 1]),
+            host_tests::estimators::products(y[k]),
+        );
+        for i in 0..3 {
+            g[k][i] = g[k - 1][i] + 0.5 * h * (f0[i] + f1[i]);
+            iw[k][i] = iw[k - 1][i] + 0.5 * h * (y[k - 1][i] + y[k][i]);
+        }
+    }
+    let cols = if effects { 4 } else { 2 };
+    let mut a = [0.0; 3];
+    let mut ss = 0.0;
+    for i in 0..3 {
+        let x = DMatrix::from_fn(n, cols, |k, c| match c {
+            0 => 1.0,
+            1 => g[k][i],
+            2 => iw[k][i],
+            _ => t[k] - t[0],
+        });
+        let b = DVector::from_fn(n, |k, _| y[k][i]);
+        let Ok(sol) = x.clone().svd(true, true).solve(&b, 1e-12) else {
+            return ([f64::NAN; 3], f64::NAN);
+        };
+        a[i] = sol[1];
+        ss += (x * sol - b).norm_squared();
+    }
+    (a, (ss / (3 * n) as f64).sqrt())
+}
+
+fn model_check(tosses: &[Toss]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "\nModel check (host, batch, per toss): least squares of the integrated (1), with and without a linear damping and a constant torque per axis; the residual is what the model leaves unexplained (gyro noise is about 0.01 rad/s).\n"
+    );
+    let _ = writeln!(
+        s,
+        "| fit | mean a (x, y, z) | spread x, y, z | RMS residual, rad/s |"
+    );
+    let _ = writeln!(s, "|---|---|---|---|");
+    for (name, effects) in [
+        ("integrated (1), torque-free", false),
+        ("integrated (1) + damping + constant torque", true),
+    ] {
+        let fits: Vec<([f64; 3], f64)> = tosses
+            .iter()
+            .map(|ts| integral_fit(&ts.t, &ts.y, effects))
+            .collect();
+        let est: Vec<[f64; 3]> = fits.iter().map(|f| f.0).collect();
+        let (mean, spread) = spread(&est);
+        let res = (fits.iter().map(|f| f.1 * f.1).sum::<f64>() / fits.len() as f64).sqrt();
+        let _ = writeln!(
+            s,
+            "| {name} | ({:.4}, {:.4}, {:.4}) | {:.2} %, {:.2} %, {:.2} % | {:.3} |",
+            mean[0],
+            mean[1],
+            mean[2],
+            100.0 * spread[0],
+            100.0 * spread[1],
+            100.0 * spread[2],
+            res
+        );
+    }
+    s
+}
+
+/// Mean and relative spread (std / |mean|) across tosses.
+fn spread(est: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
+    let n = est.len() as f64;
+    let mean: [f64; 3] = std::array::from_fn(|i| est.iter().map(|e| e[i]).sum::<f64>() / n);
+    let sd: [f64; 3] = std::array::from_fn(|i| {
+        (est.iter().map(|e| (e[i] - mean[i]).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
+    });
+    (mean, std::array::from_fn(|i| sd[i] / mean[i].abs()))
 }
 
 fn repo_root() -> PathBuf {

@@ -132,6 +132,7 @@ pub trait Method: Sync {
 pub fn all_methods() -> Vec<Box<dyn Method>> {
     vec![
         Box::new(onboard::Paper::default()),
+        Box::new(onboard::PaperAveraged::default()),
         Box::new(onboard::RefinedMethod::default()),
         Box::new(batch_ls::BatchLs),
         Box::new(rls::Rls),
