@@ -686,6 +686,10 @@ mod tests {
             RefinedSettings { block: 2000, ..ok },
             RefinedSettings { max_dt: -1.0, ..ok },
             RefinedSettings {
+                torque_noise: -1.0,
+                ..ok
+            },
+            RefinedSettings {
                 full_scale: 0.0,
                 ..ok
             },

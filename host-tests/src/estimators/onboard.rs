@@ -62,13 +62,8 @@ impl Method for Paper {
 /// The paper's identifier with its estimate averaged over the last quarter of the data (the
 /// way the planning figure of about 1e-3 was taken: the last 5 s of 20 s). Not a method of the
 /// paper; a context row.
+#[derive(Default)]
 pub struct PaperAveraged(pub Paper);
-
-impl Default for PaperAveraged {
-    fn default() -> Self {
-        PaperAveraged(Paper::default())
-    }
-}
 
 impl Method for PaperAveraged {
     fn name(&self) -> &'static str {
