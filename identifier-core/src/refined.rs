@@ -90,12 +90,6 @@ pub struct RefinedSettings {
     pub h: f32,
     /// Estimate of `a` before any information.
     pub initial_estimate: [f32; 3],
-    /// Unmodelled torque (air drag, a wobbling mount) as a white angular acceleration of this
-    /// spectral density, rad/s per sqrt(s); `0` for the torque-free model (1). It lets the
-    /// intercept `c_i` wander further, so that (1) is trusted only over the time the torque
-    /// takes to matter. Uses [`RefinedSettings::noise_std`] as the actual gyro noise. Must be
-    /// finite and `>= 0`.
-    pub torque_noise: f32,
 }
 
 impl RefinedSettings {
@@ -113,7 +107,6 @@ impl RefinedSettings {
             eps: 1e-3,
             h: 1.0,
             initial_estimate: [0.0; 3],
-            torque_noise: 0.0,
         }
     }
 
@@ -132,9 +125,6 @@ impl RefinedSettings {
             && pos(self.eps)
             && pos(self.h)
             && self.initial_estimate.iter().all(|a| a.is_finite())
-            && self.torque_noise.is_finite()
-            && self.torque_noise >= 0.0
-            && (self.torque_noise / self.noise_std).is_finite()
     }
 }
 
@@ -308,6 +298,8 @@ pub struct Refined {
     block_time: f32,
     monitor: ConvergenceMonitor,
     counters: Counters,
+    /// See [`Refined::set_torque_noise`].
+    torque_noise: f32,
 }
 
 impl Refined {
@@ -333,12 +325,35 @@ impl Refined {
             block_time: 0.0,
             monitor: ConvergenceMonitor::new(),
             counters: Counters::default(),
+            torque_noise: 0.0,
         })
+    }
+
+    /// Allows for an unmodelled torque (air drag, a wobbling mount) as a white angular
+    /// acceleration of spectral density `torque_noise`, rad/s per sqrt(s); `0` (the default)
+    /// is the torque-free model (1). It lets the intercept `c_i` wander further, so that (1)
+    /// is trusted only over the time such a torque takes to matter; this needs
+    /// [`RefinedSettings::noise_std`] to be the actual gyro noise. Returns false and changes
+    /// nothing unless `torque_noise` is finite and `>= 0`. Kept by [`Refined::reset`].
+    pub fn set_torque_noise(&mut self, torque_noise: f32) -> bool {
+        let ok = torque_noise.is_finite()
+            && torque_noise >= 0.0
+            && (torque_noise / self.settings.noise_std).is_finite();
+        if ok {
+            self.torque_noise = torque_noise;
+        }
+        ok
+    }
+
+    /// The unmodelled-torque density in force (see [`Refined::set_torque_noise`]).
+    pub fn torque_noise(&self) -> f32 {
+        self.torque_noise
     }
 
     /// Forgets everything learnt.
     pub fn reset(&mut self) {
-        if let Some(fresh) = Refined::new(self.settings) {
+        if let Some(mut fresh) = Refined::new(self.settings) {
+            fresh.torque_noise = self.torque_noise;
             *self = fresh;
         }
     }
@@ -386,7 +401,7 @@ impl Refined {
     /// The intercept's extra wander over the open block from the unmodelled torque, per
     /// `sigma^2`.
     fn torque_wander(&self) -> f32 {
-        let r = self.settings.torque_noise / self.settings.noise_std;
+        let r = self.torque_noise / self.settings.noise_std;
         r * r * self.block_time
     }
 
@@ -672,7 +687,12 @@ mod tests {
     #[test]
     fn refuses_unusable_settings() {
         let ok = RefinedSettings::new();
-        assert!(Refined::new(ok).is_some());
+        let mut id = Refined::new(ok).unwrap();
+        assert!(!id.set_torque_noise(-1.0));
+        assert!(!id.set_torque_noise(f32::NAN));
+        assert!(id.set_torque_noise(0.03));
+        id.reset();
+        assert_eq!(id.torque_noise(), 0.03);
         for bad in [
             RefinedSettings {
                 noise_std: 0.0,
@@ -685,10 +705,6 @@ mod tests {
             RefinedSettings { block: 0, ..ok },
             RefinedSettings { block: 2000, ..ok },
             RefinedSettings { max_dt: -1.0, ..ok },
-            RefinedSettings {
-                torque_noise: -1.0,
-                ..ok
-            },
             RefinedSettings {
                 full_scale: 0.0,
                 ..ok

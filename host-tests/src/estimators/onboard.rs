@@ -98,6 +98,8 @@ impl Method for PaperAveraged {
 pub struct RefinedMethod {
     /// Settings (default [`RefinedSettings::new`]).
     pub settings: RefinedSettings,
+    /// [`Refined::set_torque_noise`] (default 0).
+    pub torque_noise: f32,
     /// Name in tables.
     pub label: &'static str,
 }
@@ -106,6 +108,7 @@ impl Default for RefinedMethod {
     fn default() -> Self {
         RefinedMethod {
             settings: RefinedSettings::new(),
+            torque_noise: 0.0,
             label: "refined identifier",
         }
     }
@@ -119,9 +122,9 @@ impl RefinedMethod {
         RefinedMethod {
             settings: RefinedSettings {
                 noise_std: 0.01,
-                torque_noise: 0.03,
                 ..RefinedSettings::new()
             },
+            torque_noise: 0.03,
             label: "refined identifier, torque_noise 0.03",
         }
     }
@@ -147,6 +150,7 @@ impl Method for RefinedMethod {
         let Some(mut id) = Refined::new(settings) else {
             return vec![[f64::NAN; 3]; checkpoints.len()];
         };
+        id.set_torque_noise(self.torque_noise);
         let mut out = Vec::with_capacity(checkpoints.len());
         let mut next = checkpoints.iter().peekable();
         for (k, w) in y.iter().enumerate() {
