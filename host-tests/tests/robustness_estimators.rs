@@ -88,17 +88,17 @@ fn refined_settings() -> impl Strategy<Value = RefinedSettings> {
     )
         .prop_map(
             |(noise_std, prior_std, full_scale, max_dt, eps, h, a0, (block, end_correction))| {
-                RefinedSettings {
-                    block,
-                    end_correction,
-                    noise_std,
-                    prior_std,
-                    full_scale,
-                    max_dt,
-                    eps,
-                    h,
-                    initial_estimate: a0,
-                }
+                let mut s = RefinedSettings::new();
+                s.block = block;
+                s.end_correction = end_correction;
+                s.noise_std = noise_std;
+                s.prior_std = prior_std;
+                s.full_scale = full_scale;
+                s.max_dt = max_dt;
+                s.eps = eps;
+                s.h = h;
+                s.initial_estimate = a0;
+                s
             },
         )
 }
@@ -125,15 +125,17 @@ fn extended_settings() -> impl Strategy<Value = ExtendedSettings> {
         prop_oneof![Just(f32::INFINITY), Just(FS), 1e-3f32..100.0],
         prop_oneof![Just(0.05f32), 1e-6f32..10.0, Just(f32::MAX)],
     )
-        .prop_map(|(effects, sc, a0, pa, pe, ns, fs, md)| ExtendedSettings {
-            effects,
-            scale_correction: sc,
-            initial_estimate: a0,
-            prior_a: pa,
-            prior_effect: pe,
-            noise_std: ns,
-            full_scale: fs,
-            max_dt: md,
+        .prop_map(|(effects, sc, a0, pa, pe, ns, fs, md)| {
+            // Field by field, so that fields added later keep their defaults.
+            let mut s = ExtendedSettings::new(effects);
+            s.scale_correction = sc;
+            s.initial_estimate = a0;
+            s.prior_a = pa;
+            s.prior_effect = pe;
+            s.noise_std = ns;
+            s.full_scale = fs;
+            s.max_dt = md;
+            s
         })
         .prop_filter("valid", ExtendedSettings::is_valid)
 }
@@ -304,11 +306,14 @@ proptest! {
         a0 in prop::array::uniform3(any::<f32>()),
         seq in samples(60),
     ) {
-        let s = RefinedSettings {
-            noise_std: f[0], prior_std: f[1], full_scale: f[2], max_dt: f[3], eps: f[4], h: f[5],
-            initial_estimate: a0,
-            ..RefinedSettings::new()
-        };
+        let mut s = RefinedSettings::new();
+        s.noise_std = f[0];
+        s.prior_std = f[1];
+        s.full_scale = f[2];
+        s.max_dt = f[3];
+        s.eps = f[4];
+        s.h = f[5];
+        s.initial_estimate = a0;
         match Refined::new(s) {
             None => prop_assert!(!s.is_valid()),
             Some(mut r) => {
@@ -327,10 +332,14 @@ proptest! {
         a0 in prop::array::uniform3(any::<f32>()),
         seq in samples(60),
     ) {
-        let s = ExtendedSettings {
-            effects, scale_correction: true, initial_estimate: a0, prior_a: f[0],
-            prior_effect: f[1], noise_std: f[2], full_scale: f[3], max_dt: f[4],
-        };
+        let mut s = ExtendedSettings::new(effects);
+        s.scale_correction = true;
+        s.initial_estimate = a0;
+        s.prior_a = f[0];
+        s.prior_effect = f[1];
+        s.noise_std = f[2];
+        s.full_scale = f[3];
+        s.max_dt = f[4];
         match ExtendedIdentifier::new(s) {
             None => prop_assert!(!s.is_valid()),
             Some(mut x) => {
@@ -357,8 +366,12 @@ proptest! {
         ),
     ) {
         let data = clean(12.0, 1000.0);
-        let mut r = Refined::new(RefinedSettings { full_scale: FS, ..RefinedSettings::new() }).unwrap();
-        let mut x = ExtendedIdentifier::new(ExtendedSettings { full_scale: FS, ..ExtendedSettings::new([None, None]) }).unwrap();
+        let mut rs = RefinedSettings::new();
+        rs.full_scale = FS;
+        let mut xs = ExtendedSettings::new([None, None]);
+        xs.full_scale = FS;
+        let mut r = Refined::new(rs).unwrap();
+        let mut x = ExtendedIdentifier::new(xs).unwrap();
         let mut anchored = 0;
         for w in &data[..6000] {
             refined_step(&mut r, *w, 1e-3, &mut anchored)?;
