@@ -27,14 +27,16 @@
 //! unknown needs its own nonvanishing excitation function and the gain design of (9)-(10) no
 //! longer closes in general. The sound on-board estimator used instead is recursive least
 //! squares on the *integrated* form of (E), so that no derivative of the noisy gyro signal is
-//! needed: over two sample intervals `h1`, `h2` (Simpson's rule on uneven nodes)
+//! needed: over a block of `K` Simpson pairs of sample intervals (pair `k`:
+//! nodes `w_k0, w_k1, w_k2`, intervals `h1`, `h2`, Simpson's rule on uneven nodes)
 //!
 //! ```text
-//! w(t2) - w(t0) = [q0 Phi(w0) + q1 Phi(w1) + q2 Phi(w2)] theta                          (I)
+//! w(t_end) - w(t_start) = sum_k [q0 Phi(w_k0) + q1 Phi(w_k1) + q2 Phi(w_k2)] theta      (I)
 //! q0 = (h1+h2)(2 h1 - h2)/(6 h1),  q1 = (h1+h2)^3/(6 h1 h2),  q2 = (h1+h2)(2 h2 - h1)/(6 h2)
 //! ```
 //!
-//! and each of the three rows of (I) is one scalar RLS update with forgetting factor 1
+//! The regressor is summed pair by pair in a fixed-size accumulator, and at the end of the
+//! block each of the three rows of (I) is one scalar RLS update with forgetting factor 1
 //! (`k = P x / (R + x^T P x)`, `theta += k (y - x^T theta)`, `P -= k x^T P`), `R = 2 sigma^2`
 //! the variance of the difference of two gyro readings. Blocks share only their end samples.
 //! [`ExtendedIdentifier::restart`] starts a new segment and keeps `theta` and `P`, so the
@@ -179,6 +181,16 @@ pub struct ExtendedIdentifier {
     w0: Option<[f32; 3]>,
     /// Middle sample and the interval `h1` before it.
     w1: Option<([f32; 3], f32)>,
+    /// First sample of the current block.
+    w_start: Option<[f32; 3]>,
+    /// The block's regressor so far: sum over its Simpson pairs of weights times columns.
+    acc: Cols,
+    /// Simpson pairs in the current block.
+    pairs: u16,
+    /// Simpson pairs per block ([`ExtendedIdentifier::set_block_pairs`]).
+    block_pairs: u16,
+    /// See [`ExtendedIdentifier::set_bilinear_gate`].
+    bilinear_gate: f32,
     pending_dt: f32,
     updates: u32,
 }
@@ -211,6 +223,11 @@ impl ExtendedIdentifier {
             p,
             w0: None,
             w1: None,
+            w_start: None,
+            acc: [[0.0; 3]; MAX_PARAMS],
+            pairs: 0,
+            block_pairs: 1,
+            bilinear_gate: 0.02,
             pending_dt: 0.0,
             updates: 0,
         })
@@ -221,12 +238,53 @@ impl ExtendedIdentifier {
     pub fn restart(&mut self) {
         self.w0 = None;
         self.w1 = None;
+        self.w_start = None;
+        self.acc = [[0.0; 3]; MAX_PARAMS];
+        self.pairs = 0;
         self.pending_dt = 0.0;
     }
 
     /// The settings in force.
     pub fn settings(&self) -> &ExtendedSettings {
         &self.settings
+    }
+
+    /// Sets the Simpson pairs (two sample intervals each) per block of (I), default 1: the
+    /// block's regressor is summed over its pairs and one RLS update is made per block. Longer
+    /// blocks carry more signal against the noise of their two end samples at high sample
+    /// rates. Refused (returns false, nothing changed) for 0; takes effect from the next block.
+    pub fn set_block_pairs(&mut self, pairs: u16) -> bool {
+        if pairs == 0 {
+            return false;
+        }
+        self.block_pairs = pairs;
+        true
+    }
+
+    /// Sets the gate on the bilinear columns, default 0.02. The columns of `GyroBias`,
+    /// `ProductsOfInertia` and `RotorMomentum` are evaluated at the current `a`; while `a` is
+    /// still poorly known they would feed wrong regressors into `P` for good (forgetting
+    /// factor 1), so they are held at zero until the standard deviation of every `a_i` in `P`
+    /// is below the gate (`P_ii < gate^2`). Refused (false) unless `gate` and `gate^2` are
+    /// finite and positive.
+    pub fn set_bilinear_gate(&mut self, gate: f32) -> bool {
+        let g2 = gate * gate;
+        if !(gate.is_finite() && gate > 0.0 && g2.is_finite() && g2 > 0.0) {
+            return false;
+        }
+        self.bilinear_gate = gate;
+        true
+    }
+
+    /// True once every `a_i` has a standard deviation in `P` below the gate of
+    /// [`ExtendedIdentifier::set_bilinear_gate`]: the bilinear columns are in use.
+    pub fn a_settled(&self) -> bool {
+        let g = self.bilinear_gate;
+        self.p
+            .iter()
+            .take(3)
+            .enumerate()
+            .all(|(i, row)| row.get(i).is_some_and(|v| *v < g * g))
     }
 
     /// Blocks integrated so far.
@@ -289,22 +347,30 @@ impl ExtendedIdentifier {
         let h = self.pending_dt + dt;
         self.pending_dt = 0.0;
         let Some(w0) = self.w0 else {
-            self.w0 = Some(omega);
+            self.open_block(omega);
             return ExtendedStatus::Anchored;
         };
         if h > self.settings.max_dt {
-            self.w0 = Some(omega);
-            self.w1 = None;
+            self.open_block(omega);
             return ExtendedStatus::Gap;
         }
         let Some((w1, h1)) = self.w1 else {
             self.w1 = Some((omega, h));
             return ExtendedStatus::Buffered;
         };
-        // The block closes here; the next one starts from this sample.
+        // A Simpson pair closes here: add its share of the block integral.
         self.w0 = Some(omega);
         self.w1 = None;
-        if self.update(w0, w1, omega, h1, h) {
+        self.accumulate(w0, w1, omega, h1, h);
+        self.pairs = self.pairs.saturating_add(1);
+        if self.pairs < self.block_pairs {
+            return ExtendedStatus::Buffered;
+        }
+        // The block closes here; the next one starts from this sample.
+        let start = self.w_start.unwrap_or(w0);
+        let ok = self.update(start, omega);
+        self.open_block(omega);
+        if ok {
             self.updates = self.updates.saturating_add(1);
             ExtendedStatus::Updated
         } else {
@@ -312,8 +378,18 @@ impl ExtendedIdentifier {
         }
     }
 
-    /// The three rows of (I) on nodes `w0, w1, w2` with intervals `h1`, `h2`.
-    fn update(&mut self, w0: [f32; 3], w1: [f32; 3], w2: [f32; 3], h1: f32, h2: f32) -> bool {
+    /// Starts a new block (and pair) at `omega`.
+    fn open_block(&mut self, omega: [f32; 3]) {
+        self.w_start = Some(omega);
+        self.w0 = Some(omega);
+        self.w1 = None;
+        self.acc = [[0.0; 3]; MAX_PARAMS];
+        self.pairs = 0;
+    }
+
+    /// Adds the Simpson weights of (I) on nodes `w0, w1, w2` (intervals `h1`, `h2`) times the
+    /// columns to the block's regressor.
+    fn accumulate(&mut self, w0: [f32; 3], w1: [f32; 3], w2: [f32; 3], h1: f32, h2: f32) {
         let s = h1 + h2;
         let q = [
             s * (2.0 * h1 - h2) / (6.0 * h1),
@@ -325,22 +401,32 @@ impl ExtendedIdentifier {
             self.theta.get(1).copied().unwrap_or(0.0),
             self.theta.get(2).copied().unwrap_or(0.0),
         ];
-        let mut x: Cols = [[0.0; 3]; MAX_PARAMS];
+        let settled = self.a_settled();
         for (w, qm) in [w0, w1, w2].iter().zip(q.iter()) {
-            let c = columns(&self.settings.effects, a, *w);
-            for (xp, cp) in x.iter_mut().zip(c.iter()) {
+            let c = if settled {
+                columns(&self.settings.effects, a, *w)
+            } else {
+                columns_linear_only(&self.settings.effects, a, *w)
+            };
+            for (xp, cp) in self.acc.iter_mut().zip(c.iter()) {
                 for (xi, ci) in xp.iter_mut().zip(cp.iter()) {
                     *xi += qm * ci;
                 }
             }
         }
+    }
+
+    /// The three rows of (I) for the block from `start` to `end` with the accumulated
+    /// regressor.
+    fn update(&mut self, start: [f32; 3], end: [f32; 3]) -> bool {
+        let x = self.acc;
         let r = 2.0 * self.settings.noise_std * self.settings.noise_std;
         let (mut theta, mut p) = (self.theta, self.p);
         for axis in 0..3 {
             let row: Vecp = core::array::from_fn(|k| {
                 x.get(k).and_then(|c| c.get(axis)).copied().unwrap_or(0.0)
             });
-            let y = w2.get(axis).copied().unwrap_or(0.0) - w0.get(axis).copied().unwrap_or(0.0);
+            let y = end.get(axis).copied().unwrap_or(0.0) - start.get(axis).copied().unwrap_or(0.0);
             rls_row(&mut theta, &mut p, &row, y, r);
         }
         let finite =
@@ -351,6 +437,31 @@ impl ExtendedIdentifier {
         }
         finite
     }
+}
+
+/// The columns of (E) with the bilinear ones held at zero (see
+/// [`ExtendedIdentifier::set_bilinear_gate`]).
+fn columns_linear_only(
+    effects: &[Option<ExtraEffect>; MAX_EFFECTS],
+    a: [f32; 3],
+    w: [f32; 3],
+) -> [[f32; 3]; MAX_PARAMS] {
+    let mut c = columns(effects, a, w);
+    let mut slots = c.iter_mut().skip(3);
+    for e in effects.iter().flatten() {
+        let bilinear = matches!(
+            e,
+            ExtraEffect::GyroBias | ExtraEffect::ProductsOfInertia | ExtraEffect::RotorMomentum
+        );
+        for _ in 0..3 {
+            if let Some(col) = slots.next() {
+                if bilinear {
+                    *col = [0.0; 3];
+                }
+            }
+        }
+    }
+    c
 }
 
 /// Number of parameters in use: `3 + 3 * (effects present)`.
@@ -517,6 +628,12 @@ mod tests {
 
     #[test]
     fn recovers_a_and_damping_from_exact_samples() {
+        for pairs in [1u16, 5] {
+            recovers_a_and_damping(pairs);
+        }
+    }
+
+    fn recovers_a_and_damping(pairs: u16) {
         // w' = a (.) (w2 w3, w3 w1, w1 w2) - d (.) w, integrated finely in f64.
         let a = [0.9f64, 0.2597, -0.94];
         let d = [0.05f64, 0.1, 0.02];
@@ -530,6 +647,8 @@ mod tests {
         let mut s = ExtendedSettings::new([Some(ExtraEffect::Damping), None]);
         s.noise_std = 1e-3;
         let mut id = ExtendedIdentifier::new(s).unwrap();
+        assert!(id.set_block_pairs(pairs));
+        assert!(!id.set_block_pairs(0) && !id.set_bilinear_gate(f32::NAN));
         let mut w = [1.0f64, 1.0, 1.0];
         let dt = 1e-3f64;
         let mut est = id.step([1.0, 1.0, 1.0], dt as f32);
@@ -547,7 +666,7 @@ mod tests {
             est = id.step(w.map(|v| v as f32), dt as f32);
         }
         for i in 0..3 {
-            assert!((est.a[i] as f64 - a[i]).abs() < 2e-3, "{:?}", est);
+            assert!((est.a[i] as f64 - a[i]).abs() < 2e-3, "{pairs}: {:?}", est);
             assert!(
                 (est.effect_params[0][i] as f64 - d[i]).abs() < 2e-3,
                 "{:?}",

@@ -214,6 +214,8 @@ pub struct Analysis {
     pub segments: Vec<SegmentReport>,
     /// Blocks of (B) used.
     pub blocks: usize,
+    /// Samples per block of (B).
+    pub samples_per_block: usize,
     /// Labels of segments skipped for having fewer than `min_samples` samples.
     pub skipped_segments: Vec<String>,
     /// Residual series for plots: (segment, block mid-time, torque-free at the least-squares
@@ -386,6 +388,9 @@ pub fn run_extended(
     s.max_dt = max_dt(&log.t);
     let mut id = ExtendedIdentifier::new(s)
         .ok_or_else(|| format!("extended identifier refused its settings {s:?}"))?;
+    // Blocks as long as the residual's (B): two Simpson pairs per run of four intervals.
+    let pairs = (2 * model::runs_per_block(&log.t, &log.omega, ranges)).min(1000) as u16;
+    id.set_block_pairs(pairs);
     let mut ends = Vec::new();
     for &(i0, i1) in ranges {
         id.restart();
@@ -493,11 +498,13 @@ pub fn analyse(log: &Log, opts: &Options) -> Result<Analysis, String> {
         .filter(|&s| all_ranges[s].1 - all_ranges[s].0 >= opts.min_samples)
         .collect();
     let ranges: Vec<(usize, usize)> = keep.iter().map(|&s| all_ranges[s]).collect();
-    let blocks = model::blocks(&log.t, &ranges);
+    let runs = model::runs_per_block(&log.t, &log.omega, &ranges);
+    let blocks = model::blocks(&log.t, &ranges, runs);
     if 3 * blocks.len() < 30 {
         return Err(format!(
-            "only {} usable blocks of 5 samples in the free-flight segments",
-            blocks.len()
+            "only {} usable blocks of {} samples in the free-flight segments",
+            blocks.len(),
+            4 * runs + 1
         ));
     }
     let omega = &log.omega;
@@ -717,6 +724,7 @@ pub fn analyse(log: &Log, opts: &Options) -> Result<Analysis, String> {
         rounds,
         segments,
         blocks: blocks.len(),
+        samples_per_block: 4 * runs + 1,
         skipped_segments: (0..all_ranges.len())
             .filter(|s| !keep.contains(s))
             .map(|s| log.segments[s].label.clone())

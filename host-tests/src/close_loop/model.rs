@@ -180,16 +180,17 @@ pub fn rhs(effects: &[Effect], a_lin: [f64; 3], theta: &[f64], w: [f64; 3]) -> [
     std::array::from_fn(|i| cols.iter().zip(theta).map(|(c, t)| c[i] * t).sum())
 }
 
-/// A block of five consecutive samples `k0..=k0+4` inside one segment; its equation is the
-/// integral of (M) over the block:
+/// A block of `4 m + 1` consecutive samples `k0..=k0+4m` inside one segment; its equation is
+/// the integral of (M) over the block:
 ///
 /// ```text
-/// w(t_{k0+4}) - w(t_{k0}) = sum_{m=0..4} q_m phi(w(t_{k0+m})) theta + r                 (B)
+/// w(t_{k0+4m}) - w(t_{k0}) = sum_{j=0..4m} q_j phi(w(t_{k0+j})) theta + r                (B)
 /// ```
 ///
-/// with `q_m` the weights of the degree-4 interpolatory quadrature on the block's (possibly
-/// uneven) nodes (Boole's rule on even ones). Consecutive blocks are one sample apart, so no
-/// sample enters two blocks and `r` is independent from block to block for white gyro noise.
+/// with `q_j` the weights of the composite degree-4 interpolatory quadrature (the rule on
+/// each run of five nodes, uneven nodes allowed; Boole's rule on even ones). Consecutive
+/// blocks are one sample apart, so no sample enters two blocks and `r` is independent from
+/// block to block for white gyro noise. `m` comes from [`runs_per_block`].
 #[derive(Clone, Debug)]
 pub struct Block {
     /// Segment index.
@@ -198,8 +199,54 @@ pub struct Block {
     pub k0: usize,
     /// Block mid-time, seconds.
     pub t_mid: f64,
-    /// Quadrature weights.
-    pub q: [f64; 5],
+    /// Quadrature weights, one per sample of the block.
+    pub q: Vec<f64>,
+}
+
+impl Block {
+    /// Index of the last sample.
+    pub fn k1(&self) -> usize {
+        self.k0 + self.q.len() - 1
+    }
+}
+
+/// Longest block of (B), seconds.
+pub const MAX_BLOCK_TIME: f64 = 0.2;
+
+/// Quadrature runs per block, `m` of [`Block`]: the block is made as long as possible, since
+/// the information a block carries on the parameters grows with its length while the noise of
+/// its two end samples does not, subject to
+/// (i) the noise the regressors carry, about `h T_b mean|w|^2 sigma^2` for `|a| ~ 1`, staying
+///     below a quarter of the end-point noise `2 sigma^2`: `T_b <= 0.5 / (h mean|w|^2)`;
+/// (ii) each segment keeping at least 15 blocks (whiteness test, plots);
+/// (iii) `T_b <= MAX_BLOCK_TIME`;
+/// and at least one run of four intervals. At 100 Hz and 20 rad/s this gives `m = 1`
+/// (5 samples, 40 ms), at 1 kHz and 1 rad/s `m = 50` (0.2 s).
+pub fn runs_per_block(t: &[f64], omega: &[[f64; 3]], ranges: &[(usize, usize)]) -> usize {
+    let mut dts: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    dts.sort_by(f64::total_cmp);
+    let h = dts.get(dts.len() / 2).copied().unwrap_or(1.0);
+    let (mut w2, mut n) = (0.0, 0usize);
+    let mut shortest = f64::INFINITY;
+    for &(i0, i1) in ranges {
+        if i1 > i0 + 1 {
+            shortest = shortest.min(t[i1 - 1] - t[i0]);
+        }
+        for w in &omega[i0..i1] {
+            w2 += w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+            n += 1;
+        }
+    }
+    let w2 = w2 / n.max(1) as f64;
+    let tb = (0.5 / (h * w2.max(1e-12)))
+        .min(shortest / 15.0)
+        .min(MAX_BLOCK_TIME);
+    let m = (tb / (4.0 * h)).floor();
+    if m.is_finite() && m >= 1.0 {
+        (m as usize).min(10_000)
+    } else {
+        1
+    }
 }
 
 /// Weights of the interpolatory quadrature of degree 4 on nodes `x` over `[x0, x4]`:
@@ -221,26 +268,41 @@ pub fn quadrature(x: [f64; 5]) -> Option<[f64; 5]> {
     q.iter().all(|v| v.is_finite()).then_some(q)
 }
 
-/// The blocks of the segments `ranges` (`[i0, i1)` sample ranges). A block is skipped when one
-/// of its steps exceeds `2.5` times the median step (a gap).
-pub fn blocks(t: &[f64], ranges: &[(usize, usize)]) -> Vec<Block> {
+/// The blocks of the segments `ranges` (`[i0, i1)` sample ranges), `4 m` intervals each
+/// (`m` from [`runs_per_block`]). A block is skipped when one of its steps exceeds `2.5` times
+/// the median step (a gap).
+pub fn blocks(t: &[f64], ranges: &[(usize, usize)], m: usize) -> Vec<Block> {
     let mut dts: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
     dts.sort_by(f64::total_cmp);
     let med = dts.get(dts.len() / 2).copied().unwrap_or(1.0);
+    let m = m.max(1);
+    let len = 4 * m;
     let mut out = Vec::new();
     for (s, &(i0, i1)) in ranges.iter().enumerate() {
         let mut k = i0;
-        while k + 4 < i1 {
-            let x: [f64; 5] = std::array::from_fn(|m| t[k + m]);
-            let even = x.windows(2).all(|w| w[1] - w[0] <= 2.5 * med);
-            if let (true, Some(q)) = (even, quadrature(x)) {
+        while k + len < i1 {
+            let even = t[k..=k + len].windows(2).all(|w| w[1] - w[0] <= 2.5 * med);
+            let mut q = vec![0.0; len + 1];
+            let mut ok = even;
+            for r in 0..m {
+                let x: [f64; 5] = std::array::from_fn(|j| t[k + 4 * r + j]);
+                match quadrature(x) {
+                    Some(w) if ok => {
+                        for j in 0..5 {
+                            q[4 * r + j] += w[j];
+                        }
+                    }
+                    _ => ok = false,
+                }
+            }
+            if ok {
                 out.push(Block {
                     segment: s,
                     k0: k,
-                    t_mid: x[2],
+                    t_mid: 0.5 * (t[k] + t[k + len]),
                     q,
                 });
-                k += 5;
+                k += len + 1;
             } else {
                 k += 1;
             }
@@ -261,17 +323,17 @@ pub fn block_rows(
     let mut y = Vec::with_capacity(3 * blocks.len());
     for b in blocks {
         let mut xb = vec![[0.0f64; 3]; p];
-        for m in 0..5 {
-            let cols = regressors(effects, a_lin, omega[b.k0 + m]);
+        for (j, qj) in b.q.iter().enumerate() {
+            let cols = regressors(effects, a_lin, omega[b.k0 + j]);
             for (acc, c) in xb.iter_mut().zip(&cols) {
                 for i in 0..3 {
-                    acc[i] += b.q[m] * c[i];
+                    acc[i] += qj * c[i];
                 }
             }
         }
         for i in 0..3 {
             x.push(xb.iter().map(|c| c[i]).collect());
-            y.push(omega[b.k0 + 4][i] - omega[b.k0][i]);
+            y.push(omega[b.k1()][i] - omega[b.k0][i]);
         }
     }
     (x, y)
@@ -335,6 +397,48 @@ pub fn free_run_rms(
         n += 3;
     }
     (sum / n.max(1) as f64).sqrt()
+}
+
+/// The alternative residual, for comparison: the smoothing-differentiated `w'` (Savitzky-Golay:
+/// a cubic fitted by least squares to the `2 half + 1` samples around each sample, on their
+/// actual times) minus the right-hand side (1) at the smoothed `w`, rad/s^2, one per sample
+/// whose window lies inside its segment. Returned as `(segment, residual)`.
+pub fn sg_residual(
+    t: &[f64],
+    omega: &[[f64; 3]],
+    ranges: &[(usize, usize)],
+    half: usize,
+    a: [f64; 3],
+) -> Vec<(usize, [f64; 3])> {
+    let mut out = Vec::new();
+    for (s, &(i0, i1)) in ranges.iter().enumerate() {
+        for k in (i0 + half)..i1.saturating_sub(half) {
+            let rows: Vec<Vec<f64>> = (k - half..=k + half)
+                .map(|j| {
+                    let x = t[j] - t[k];
+                    vec![1.0, x, x * x, x * x * x]
+                })
+                .collect();
+            let mut w = [0.0; 3];
+            let mut dw = [0.0; 3];
+            let mut ok = true;
+            for i in 0..3 {
+                let y: Vec<f64> = (k - half..=k + half).map(|j| omega[j][i]).collect();
+                match super::stats::lstsq(&rows, &y) {
+                    Some(f) => {
+                        w[i] = f.theta[0];
+                        dw[i] = f.theta[1];
+                    }
+                    None => ok = false,
+                }
+            }
+            if ok {
+                let f = euler(a, w);
+                out.push((s, std::array::from_fn(|i| dw[i] - f[i])));
+            }
+        }
+    }
+    out
 }
 
 #[cfg(test)]

@@ -26,8 +26,9 @@ pub fn markdown(an: &Analysis, title: &str) -> String {
     let mut s = String::new();
     let names: Vec<&str> = an.effects.iter().map(|e| e.name()).collect();
     let _ = writeln!(s, "## {title}\n");
-    let _ = writeln!(s, "Input: `{}`; {} blocks of 5 samples in {} segments; gyro noise estimated from the final residual: {:.4} rad/s.\n",
-        an.input, an.blocks, an.segments.len(), an.noise_std_estimate);
+    let _ = writeln!(s, "Input: `{}`; {} blocks of {} samples in {} segments; gyro noise estimated from the final residual: {:.4} rad/s.\n",
+        an.input, an.blocks,
+        an.samples_per_block, an.segments.len(), an.noise_std_estimate);
     let _ = writeln!(
         s,
         "Effects found: **{}**\n",
