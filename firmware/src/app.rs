@@ -1,0 +1,338 @@
+//! The sample loop: one gyro sample, one identifier step; a report every 100 ms.
+
+use embedded_hal::delay::DelayNs;
+use icm42688::{Config, Error, Icm42688, RegisterInterface};
+use identifier_core::{
+    Convergence, Counters, Estimate, Identifier, InertiaRatios, SampleStatus, Settings,
+    SettingsError,
+};
+
+use crate::bench;
+
+/// Reports per second (one every `odr / REPORT_HZ` sample periods).
+pub const REPORT_HZ: u32 = 10;
+/// Gyro initialisation attempts before giving up.
+pub const INIT_ATTEMPTS: u32 = 5;
+/// Data-ready is polled every this many microseconds, for up to two sample periods.
+pub const POLL_US: u32 = 10;
+
+/// The identifier's settings for a gyro configured with `config`: the paper's
+/// `C = -3 E` (section 4), and `full_scale` just below the gyro's clip level, so that a
+/// clipped reading (+-32767 counts) is rejected as saturated instead of integrated as a
+/// wrong rate.
+pub fn identifier_settings(config: &Config) -> Settings {
+    let mut s = Settings::with_lambda(3.0);
+    s.full_scale = icm42688::raw_to_rad_s(32767, config.full_scale);
+    s
+}
+
+/// The loop's own counters (the identifier keeps finer ones, see [`Counters`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LoopCounters {
+    /// Gyro samples read and given to the identifier.
+    pub samples: u32,
+    /// Samples the identifier did not integrate: rejected (saturated, non-finite),
+    /// unidentifiable (`|w1 w2 w3| < w_min`), after a gap, or a numerical fault. The anchor
+    /// sample after a start or gap is not counted.
+    pub skipped: u32,
+    /// Bus transfers that failed (status poll or sample read). The loop carries on.
+    pub bus_errors: u32,
+    /// Samples the part marked invalid (-32768).
+    pub invalid: u32,
+    /// Data-ready waits that timed out.
+    pub timeouts: u32,
+}
+
+/// What goes out at [`REPORT_HZ`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Report {
+    /// Sample periods since the loop started (data-ready events, lost reads included).
+    pub tick: u32,
+    /// Seconds since the loop started, `tick / odr`.
+    pub t: f32,
+    /// Estimate `(a1, a2, a3)` of (12).
+    pub a: [f32; 3],
+    /// `A2/A1`, `A3/A1` implied by `a`.
+    pub ratios: Option<InertiaRatios>,
+    /// `a1 + a2 + a3 + a1 a2 a3` (zero for a rigid body).
+    pub consistency: f32,
+    /// The paper's accuracy criterion.
+    pub convergence: Convergence,
+    /// The loop's counters.
+    pub counters: LoopCounters,
+}
+
+/// Why the loop could not start.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum InitError<E> {
+    /// The gyro: bus, identity, timeout or configuration read-back.
+    Gyro(Error<E>),
+    /// The identifier refused its settings.
+    Settings(SettingsError),
+}
+
+/// What one [`SampleLoop::poll`] did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Poll {
+    /// A sample went through the identifier; `report` is set every `odr / REPORT_HZ` periods.
+    Stepped {
+        /// The step's result.
+        estimate: Estimate,
+        /// The periodic report, when due.
+        report: Option<Report>,
+    },
+    /// No data-ready within two sample periods (on the simulated part: the log has ended).
+    Timeout,
+    /// A bus error; counted, the sample's time is carried to the next step.
+    BusError,
+    /// The part marked the sample invalid; counted, its time carried to the next step.
+    Invalid,
+}
+
+/// The gyro and the identifier, wired together.
+pub struct SampleLoop<IF> {
+    gyro: Icm42688<IF>,
+    identifier: Identifier,
+    counters: LoopCounters,
+    /// Nominal sample period, s.
+    period: f32,
+    /// Time since the last identifier step, s: a period per data-ready, so samples lost to
+    /// bus errors lengthen the next step instead of shrinking the time base.
+    pending_dt: f32,
+    tick: u32,
+    report_every: u32,
+    max_polls: u32,
+}
+
+impl<IF: RegisterInterface> SampleLoop<IF> {
+    /// Initialises the gyro with `config` (reset, identity, configuration; up to
+    /// [`INIT_ATTEMPTS`] times, since a bus error or a slow reset is transient but a wrong
+    /// identity is not) and a fresh identifier with [`identifier_settings`].
+    pub fn new(
+        mut gyro: Icm42688<IF>,
+        delay: &mut impl DelayNs,
+        config: Config,
+    ) -> Result<Self, InitError<IF::Error>> {
+        let mut attempt = 1;
+        loop {
+            match gyro.init(delay, config) {
+                Ok(()) => break,
+                Err(e @ Error::WrongId(_)) => return Err(InitError::Gyro(e)),
+                Err(e) if attempt >= INIT_ATTEMPTS => return Err(InitError::Gyro(e)),
+                Err(_) => attempt += 1,
+            }
+        }
+        let identifier =
+            Identifier::new(identifier_settings(&config)).map_err(InitError::Settings)?;
+        let odr_hz = config.odr.hz() as u32;
+        Ok(SampleLoop {
+            gyro,
+            identifier,
+            counters: LoopCounters::default(),
+            period: config.odr.period_s(),
+            pending_dt: 0.0,
+            tick: 0,
+            report_every: (odr_hz / REPORT_HZ).max(1),
+            // Two sample periods of polling before a timeout.
+            max_polls: (2 * config.odr.period_us() / POLL_US).max(2),
+        })
+    }
+
+    /// Waits for the next sample, reads it and steps the identifier with it.
+    pub fn poll(&mut self, delay: &mut impl DelayNs) -> Poll {
+        match self.gyro.wait_data_ready(delay, POLL_US, self.max_polls) {
+            Ok(()) => {}
+            Err(Error::Timeout) => {
+                self.counters.timeouts = self.counters.timeouts.saturating_add(1);
+                return Poll::Timeout;
+            }
+            Err(_) => {
+                self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
+                return Poll::BusError;
+            }
+        }
+        self.tick = self.tick.wrapping_add(1);
+        self.pending_dt += self.period;
+        let outcome = match self.gyro.read_gyro() {
+            Ok(omega) => {
+                let dt = self.pending_dt;
+                self.pending_dt = 0.0;
+                bench::step_begin();
+                let estimate = self.identifier.step(omega, dt);
+                bench::step_end();
+                self.count(&estimate);
+                Poll::Stepped {
+                    estimate,
+                    report: None,
+                }
+            }
+            Err(Error::InvalidSample) => {
+                self.counters.invalid = self.counters.invalid.saturating_add(1);
+                Poll::Invalid
+            }
+            Err(_) => {
+                self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
+                Poll::BusError
+            }
+        };
+        match outcome {
+            Poll::Stepped { estimate, .. } if self.tick.is_multiple_of(self.report_every) => {
+                Poll::Stepped {
+                    estimate,
+                    report: Some(self.report()),
+                }
+            }
+            other => other,
+        }
+    }
+
+    fn count(&mut self, e: &Estimate) {
+        let c = &mut self.counters;
+        c.samples = c.samples.saturating_add(1);
+        if !e.status.integrated() && e.status != SampleStatus::Anchored {
+            c.skipped = c.skipped.saturating_add(1);
+        }
+    }
+
+    /// The report as of now.
+    pub fn report(&self) -> Report {
+        let a = self.identifier.estimate();
+        Report {
+            tick: self.tick,
+            t: self.tick as f32 * self.period,
+            a,
+            ratios: InertiaRatios::from_a(a),
+            consistency: identifier_core::consistency(a),
+            convergence: self.identifier.convergence(),
+            counters: self.counters,
+        }
+    }
+
+    /// The loop's counters.
+    pub fn counters(&self) -> LoopCounters {
+        self.counters
+    }
+
+    /// The identifier's own counters.
+    pub fn identifier_counters(&self) -> Counters {
+        self.identifier.counters()
+    }
+
+    /// The identifier.
+    pub fn identifier(&self) -> &Identifier {
+        &self.identifier
+    }
+
+    /// The gyro driver (on QEMU: reaches the simulated part's state).
+    pub fn gyro(&self) -> &Icm42688<IF> {
+        &self.gyro
+    }
+}
+
+/// Logs a report as one defmt line (the format the end-to-end check and `scripts/run.sh`
+/// read).
+#[cfg(feature = "defmt")]
+pub fn log_report(r: &Report) {
+    let (q2, q3) = r
+        .ratios
+        .map_or((f32::NAN, f32::NAN), |q| (q.a2_over_a1, q.a3_over_a1));
+    let c = &r.counters;
+    defmt::info!(
+        "t={=f32}s a=[{=f32}, {=f32}, {=f32}] A2/A1={=f32} A3/A1={=f32} consistency={=f32} {} samples={=u32} skipped={=u32} bus_errors={=u32}",
+        r.t,
+        r.a[0],
+        r.a[1],
+        r.a[2],
+        q2,
+        q3,
+        r.consistency,
+        r.convergence,
+        c.samples,
+        c.skipped,
+        c.bus_errors
+    );
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+    use super::*;
+    use icm42688::sim::SimIcm42688;
+
+    struct NoDelay;
+    impl DelayNs for NoDelay {
+        fn delay_ns(&mut self, _: u32) {}
+    }
+
+    /// A torque-free spin sampled crudely (explicit midpoint at 1 kHz) is enough for the
+    /// loop's bookkeeping; accuracy is tested end to end.
+    fn spin(n: usize) -> impl FnMut() -> Option<[f32; 3]> {
+        let a = [0.9f32, 0.4 / 1.54, -0.94];
+        let mut w = [1.0f32, 1.0, 1.0];
+        let mut k = 0;
+        move || {
+            if k == n {
+                return None;
+            }
+            k += 1;
+            let h = 1e-3f32;
+            let f = |w: [f32; 3]| [a[0] * w[1] * w[2], a[1] * w[2] * w[0], a[2] * w[0] * w[1]];
+            let d = f(w);
+            let m = [
+                w[0] + 0.5 * h * d[0],
+                w[1] + 0.5 * h * d[1],
+                w[2] + 0.5 * h * d[2],
+            ];
+            let d = f(m);
+            w = [w[0] + h * d[0], w[1] + h * d[1], w[2] + h * d[2]];
+            Some(w)
+        }
+    }
+
+    #[test]
+    fn reports_at_10_hz_counts_bus_errors_and_ends_with_timeout() {
+        // Init hits injected errors too, and retries.
+        let sim = SimIcm42688::new(spin(2000)).with_bus_error_every(23);
+        let mut lp =
+            SampleLoop::new(Icm42688::new_spi(sim), &mut NoDelay, Config::identifier()).unwrap();
+        let mut reports = 0;
+        let mut last = None;
+        // With a bus error every 23 transfers a 200-poll wait never times out: the end of
+        // the log is seen on the simulated part, as the QEMU firmware does.
+        while !lp.gyro().interface().bus().exhausted() {
+            if let Poll::Stepped {
+                report: Some(r), ..
+            } = lp.poll(&mut NoDelay)
+            {
+                reports += 1;
+                last = Some(r);
+            }
+        }
+        let c = lp.counters();
+        assert!(c.bus_errors > 10, "{c:?}");
+        let r = last.unwrap();
+        assert_eq!(r.tick % 100, 0);
+        assert!(reports >= 19 && reports <= 20, "{reports}");
+        assert!(lp.gyro().interface().bus().exhausted());
+        // Every sample the simulated part latched was either stepped or lost to a bus error.
+        let latched = lp.gyro().interface().bus().stats().samples;
+        assert_eq!(latched, 2000);
+        assert!(c.samples <= latched && c.samples + c.bus_errors >= latched);
+    }
+
+    #[test]
+    fn settings_reject_clipped_readings() {
+        let s = identifier_settings(&Config::identifier());
+        let clip = icm42688::raw_to_rad_s(32767, icm42688::GyroFullScale::Dps500);
+        assert_eq!(s.full_scale, clip);
+        let mut id = Identifier::new(s).unwrap();
+        assert_eq!(
+            id.step([clip, 1.0, 1.0], 1e-3).status,
+            SampleStatus::Saturated
+        );
+    }
+}

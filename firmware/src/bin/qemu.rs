@@ -1,0 +1,211 @@
+//! The firmware under QEMU (`-machine netduinoplus2`, an STM32F405 with the same memory map as
+//! the real board): the ICM-42688-P is [`SimIcm42688`], answering the driver's SPI transfers
+//! with samples from a gyro log read through semihosting; defmt goes out over semihosting; the
+//! exit code tells the host how the run went.
+//!
+//! Semihosting command line: `firmware-qemu <log path> [bus error every n transfers]`.
+//! Exit codes: 0 log replayed, 1 gyro init failed, 2 log unreadable, 3 bad arguments.
+#![no_std]
+#![no_main]
+
+use core::ffi::CStr;
+
+use cortex_m_rt::entry;
+use defmt_semihosting as _;
+use embedded_hal::delay::DelayNs;
+use firmware::log_format::{decode_sample, Header, HEADER_LEN, SAMPLE_LEN};
+use firmware::{stack, Poll, SampleLoop};
+use icm42688::sim::{SampleSource, SimIcm42688};
+use icm42688::{Config, Icm42688};
+use semihosting::fs::File;
+use semihosting::io::Read;
+
+/// Samples read per semihosting call.
+const CHUNK: usize = 64;
+
+/// Samples from the log file, read in chunks.
+struct LogSource {
+    file: File,
+    buf: [u8; CHUNK * SAMPLE_LEN],
+    len: usize,
+    pos: usize,
+    left: u32,
+}
+
+impl LogSource {
+    fn refill(&mut self) -> bool {
+        // Keep a partial sample, then top up.
+        let rest = self.len - self.pos;
+        self.buf.copy_within(self.pos..self.len, 0);
+        self.len = rest;
+        self.pos = 0;
+        while self.len < SAMPLE_LEN {
+            match self.file.read(&mut self.buf[self.len..]) {
+                Ok(0) | Err(_) => return false,
+                Ok(n) => self.len += n,
+            }
+        }
+        true
+    }
+}
+
+impl SampleSource for LogSource {
+    fn next_sample(&mut self) -> Option<[f32; 3]> {
+        if self.left == 0 {
+            return None;
+        }
+        if self.len - self.pos < SAMPLE_LEN && !self.refill() {
+            self.left = 0;
+            return None;
+        }
+        let mut s = [0u8; SAMPLE_LEN];
+        s.copy_from_slice(&self.buf[self.pos..self.pos + SAMPLE_LEN]);
+        self.pos += SAMPLE_LEN;
+        self.left -= 1;
+        Some(decode_sample(&s))
+    }
+}
+
+/// Time is not simulated: the simulated part always has the next sample ready.
+struct NoDelay;
+
+impl DelayNs for NoDelay {
+    fn delay_ns(&mut self, _ns: u32) {}
+}
+
+fn exit(code: i32) -> ! {
+    semihosting::process::exit(code)
+}
+
+fn open_log(path: &str) -> Option<(LogSource, Header)> {
+    let mut name = [0u8; 256];
+    let bytes = path.as_bytes();
+    if bytes.len() >= name.len() {
+        return None;
+    }
+    name[..bytes.len()].copy_from_slice(bytes);
+    let cpath = CStr::from_bytes_until_nul(&name).ok()?;
+    let mut file = File::open(cpath).ok()?;
+    let mut h = [0u8; HEADER_LEN];
+    let mut got = 0;
+    while got < HEADER_LEN {
+        match file.read(&mut h[got..]) {
+            Ok(0) | Err(_) => return None,
+            Ok(n) => got += n,
+        }
+    }
+    let header = match Header::decode(&h) {
+        Ok(header) => header,
+        Err(e) => {
+            defmt::error!("log header refused: {}", e);
+            return None;
+        }
+    };
+    let source = LogSource {
+        file,
+        buf: [0; CHUNK * SAMPLE_LEN],
+        len: 0,
+        pos: 0,
+        left: header.samples,
+    };
+    Some((source, header))
+}
+
+#[entry]
+fn main() -> ! {
+    stack::paint();
+
+    let Ok(args) = semihosting::experimental::env::args::<512>() else {
+        defmt::error!("no semihosting command line");
+        exit(3)
+    };
+    let mut it = (&args).into_iter().skip(1);
+    let Some(Ok(path)) = it.next() else {
+        defmt::error!("usage: firmware-qemu <gyro log> [bus error every n]");
+        exit(3)
+    };
+    let fail_every = match it.next() {
+        Some(Ok(n)) => match n.parse::<u32>() {
+            Ok(n) => n,
+            Err(_) => exit(3),
+        },
+        _ => 0,
+    };
+    let Some((source, header)) = open_log(path) else {
+        defmt::error!("cannot read gyro log {=str}", path);
+        exit(2)
+    };
+    let config = Config::identifier();
+    defmt::info!(
+        "gyro log {=str}: {=u32} samples at {=f32} Hz; gyro {} at {} (simulated ICM-42688-P, bus error every {=u32} transfers)",
+        path,
+        header.samples,
+        header.rate_hz,
+        config.full_scale,
+        config.odr,
+        fail_every
+    );
+    if header.rate_hz != config.odr.hz() {
+        defmt::warn!("log rate differs from the gyro ODR: dt is the ODR period");
+    }
+
+    let sim = SimIcm42688::new(source).with_bus_error_every(fail_every);
+    let mut delay = NoDelay;
+    let mut app = match SampleLoop::new(Icm42688::new_spi(sim), &mut delay, config) {
+        Ok(app) => app,
+        Err(e) => {
+            defmt::error!("init failed: {}", e);
+            exit(1)
+        }
+    };
+    let loop_depth = stack::depth();
+    #[cfg(feature = "bench")]
+    firmware::bench::calibrate();
+
+    // Until the log is exhausted (a timeout alone is not the end: with injected bus errors a
+    // wait can fail before it times out).
+    while !app.gyro().interface().bus().exhausted() {
+        if let Poll::Stepped {
+            report: Some(r), ..
+        } = app.poll(&mut delay)
+        {
+            firmware::app::log_report(&r);
+        }
+    }
+
+    let r = app.report();
+    firmware::app::log_report(&r);
+    let a = r.a;
+    let c = app.counters();
+    let ic = app.identifier_counters();
+    defmt::info!(
+        "final a=[{=f32}, {=f32}, {=f32}] bits=[{=u32:#010x}, {=u32:#010x}, {=u32:#010x}] samples={=u32} skipped={=u32} bus_errors={=u32} invalid={=u32} timeouts={=u32} integrated={=u32} sign_changes={=u32}",
+        a[0],
+        a[1],
+        a[2],
+        a[0].to_bits(),
+        a[1].to_bits(),
+        a[2].to_bits(),
+        c.samples,
+        c.skipped,
+        c.bus_errors,
+        c.invalid,
+        c.timeouts,
+        ic.integrated,
+        ic.sign_changes
+    );
+    let hw = stack::high_water();
+    defmt::info!(
+        "stack high-water {=usize} bytes of {=usize}; sample loop below main: {=usize} bytes",
+        hw,
+        stack::size(),
+        hw.saturating_sub(loop_depth)
+    );
+    exit(0)
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    defmt::error!("panic: {}", defmt::Display2Format(info));
+    exit(101)
+}

@@ -1,0 +1,29 @@
+//! Flight firmware of the inertia-ratio identifier: gyro samples from an ICM-42688-P go one by
+//! one into `identifier-core`, and the estimates, inertia ratios, convergence status and
+//! counters go out as a defmt stream at 10 Hz.
+//!
+//! The library holds everything that is not tied to a board, generic over the driver's bus
+//! interface, so the same code runs:
+//! * on an STM32F405 flight controller (`src/bin/stm32f405.rs`, defmt over RTT, probe-rs);
+//! * under QEMU (`src/bin/qemu.rs`), where the gyro is [`icm42688::sim::SimIcm42688`] fed
+//!   from a recorded log read through semihosting;
+//! * on the host, where `host-tests` runs [`SampleLoop`] over the same log and the same
+//!   simulated part to produce the reference the QEMU run must reproduce bit for bit.
+//!
+//! Nothing here panics or allocates.
+#![no_std]
+#![deny(missing_docs)]
+#![deny(
+    clippy::panic,
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::indexing_slicing
+)]
+
+pub mod app;
+pub mod bench;
+pub mod log_format;
+#[cfg(all(target_arch = "arm", target_os = "none"))]
+pub mod stack;
+
+pub use app::{identifier_settings, InitError, LoopCounters, Poll, Report, SampleLoop};

@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Runs a firmware-qemu ELF under QEMU (netduinoplus2 = STM32F405, Cortex-M4F) and decodes its
+# defmt stream (semihosting stdout) with defmt-print.
+#   scripts/firmware-qemu.sh <elf> <gyro log> [bus error every n] [-- extra qemu args]
+# Also usable as a cargo runner (`cargo qemu -- <log>`). Exits with the firmware's status.
+# Semihosting paths are relative to the current directory.
+set -euo pipefail
+elf="$1"; shift
+args=("$@")
+extra=()
+for i in "${!args[@]}"; do
+    if [ "${args[$i]}" = "--" ]; then
+        extra=("${args[@]:$((i + 1))}")
+        args=("${args[@]:0:$i}")
+        break
+    fi
+done
+cmdline="arg=firmware-qemu"
+for a in "${args[@]}"; do cmdline+=",arg=$a"; done
+set +e
+qemu-system-arm -machine netduinoplus2 -display none -monitor none -serial none \
+    -semihosting-config "enable=on,target=native,$cmdline" \
+    "${extra[@]}" -kernel "$elf" | defmt-print -e "$elf" --log-format '{L} {s}'
+status=("${PIPESTATUS[@]}")
+set -e
+[ "${status[1]}" -eq 0 ] || { echo "defmt-print failed (${status[1]})" >&2; exit 70; }
+exit "${status[0]}"
