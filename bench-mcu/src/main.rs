@@ -1,8 +1,8 @@
-//! Instructions per step on the Cortex-M4F under QEMU (`mps2-an386`, `-icount shift=0`: one
-//! instruction per virtual nanosecond). SysTick runs on the 25 MHz core clock of the model, so
-//! one tick is 40 virtual ns; the tick-to-instruction factor is calibrated on a block of a
-//! known number of `nop`s, and the cost of reading SysTick is subtracted. Each method runs
-//! `N` steps on the same test signal (samples generated before timing each step).
+//! Instructions per step on the Cortex-M4F under QEMU (`netduinoplus2`, an STM32F405, with
+//! `-icount shift=0`: one instruction per virtual nanosecond). SysTick runs on the core clock
+//! of the model; the tick-to-instruction factor is calibrated on a block of a known number of
+//! `nop`s, and the cost of reading SysTick is subtracted. Each method runs `N` steps on the
+//! same test signal (samples generated before timing each step).
 #![no_std]
 #![no_main]
 

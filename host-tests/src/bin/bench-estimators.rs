@@ -244,41 +244,58 @@ fn worst(rms: &[f64; 3], crb: &[f64; 3]) -> f64 {
 }
 
 fn plot(dir: &Path, r: &ScenarioResult) -> Result<()> {
-    let mut series: Vec<Series> = r
-        .methods
-        .iter()
-        .map(|m| Series {
-            name: m.name.to_string(),
-            points: r
-                .times
-                .iter()
-                .zip(&m.curve_rms)
-                .map(|(t, e)| (*t, e.max(1e-12).log10()))
-                .collect(),
-        })
-        .collect();
-    series.push(Series {
-        name: "Cramer-Rao bound".into(),
+    // The plot module has six colours: the on-board identifiers and the peers get a chart
+    // each, both with the bound.
+    let curve = |name: &str, ys: &[f64]| Series {
+        name: name.to_string(),
         points: r
             .times
             .iter()
-            .zip(&r.crb_curve)
+            .zip(ys)
             .map(|(t, e)| (*t, e.max(1e-12).log10()))
             .collect(),
-    });
-    let title = format!(
-        "{}: RMS error of a (mean over axes) vs time",
+    };
+    let bound = || curve("Cramer-Rao bound", &r.crb_curve);
+    let mut onboard: Vec<Series> = r
+        .methods
+        .iter()
+        .filter(|m| m.onboard)
+        .map(|m| curve(m.name, &m.curve_rms))
+        .collect();
+    onboard.push(bound());
+    let mut peers: Vec<Series> = r
+        .methods
+        .iter()
+        .filter(|m| !m.onboard)
+        .map(|m| curve(m.name, &m.curve_rms))
+        .collect();
+    peers.push(bound());
+    let t1 = format!(
+        "{}: on-board identifiers, RMS error of a (mean over axes)",
+        r.scenario.name
+    );
+    let t2 = format!(
+        "{}: peers, RMS error of a (mean over axes)",
         r.scenario.name
     );
     write_svg(
         &dir.join(format!("error-{}.svg", r.scenario.name)),
-        &[Chart {
-            title: &title,
-            x_label: "time, s",
-            y_label: "log10 RMS error of a",
-            y_range: None,
-            series,
-        }],
+        &[
+            Chart {
+                title: &t1,
+                x_label: "time, s",
+                y_label: "log10 RMS error of a",
+                y_range: None,
+                series: onboard,
+            },
+            Chart {
+                title: &t2,
+                x_label: "time, s",
+                y_label: "log10 RMS error of a",
+                y_range: None,
+                series: peers,
+            },
+        ],
     )
 }
 
@@ -330,7 +347,8 @@ fn read_round(dir: &Path, label: &str) -> Result<Vec<Toss>> {
     Ok(out)
 }
 
-fn racquet(root: &Path) -> Result<String> {
+/// The racquet section and each method's worst per-toss spread.
+fn racquet(root: &Path) -> Result<(String, Vec<(&'static str, [f64; 3])>)> {
     let base = root.join("../shared/data/racquet");
     let mut tosses = Vec::new();
     for round in ["round2", "round4"] {
@@ -352,6 +370,7 @@ fn racquet(root: &Path) -> Result<String> {
         Box::new(batch_ls::BatchLs),
         Box::new(host_tests::estimators::ml::Ml),
     ];
+    let mut spreads = Vec::new();
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -370,6 +389,7 @@ fn racquet(root: &Path) -> Result<String> {
     for m in &methods {
         let est: Vec<[f64; 3]> = tosses.iter().map(|ts| m.estimate(&ts.t, &ts.y)).collect();
         let (mean, spread) = spread(&est);
+        spreads.push((m.name(), spread));
         let per: Vec<String> = est
             .iter()
             .zip(&tosses)
@@ -390,7 +410,7 @@ fn racquet(root: &Path) -> Result<String> {
         );
     }
     s.push_str(&model_check(&tosses));
-    Ok(s)
+    Ok((s, spreads))
 }
 
 /// What limits a per-axis equation-error fit of the integrated (1): its bound with the true
@@ -540,6 +560,87 @@ fn spread(est: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
     (mean, std::array::from_fn(|i| sd[i] / mean[i].abs()))
 }
 
+/// The goals, checked on this run's numbers.
+fn goals(
+    results: &[ScenarioResult],
+    instr: &[(String, f64, String)],
+    spreads: &[(&'static str, [f64; 3])],
+) -> String {
+    let mut s = String::from("\n## Goals, checked on this run\n\n");
+    let verdict = |ok: bool| if ok { "met" } else { "NOT met" };
+    let find = |r: &ScenarioResult, prefix: &str| {
+        r.methods
+            .iter()
+            .find(|m| m.name.starts_with(prefix))
+            .map(|m| m.rms)
+    };
+    if let Some(r) = results.iter().find(|r| r.scenario.name == "paper") {
+        if let Some(rms) = find(r, "refined") {
+            let ratio: [f64; 3] = std::array::from_fn(|i| rms[i] / r.crb[i]);
+            let w = ratio.iter().fold(0.0f64, |a, b| a.max(*b));
+            let _ = writeln!(
+                s,
+                "- Refined identifier within 1.5x of the Cramer-Rao bound on the first scenario after 20 s: ratios {:.2}, {:.2}, {:.2} (worst {:.2}): **{}**.",
+                ratio[0], ratio[1], ratio[2], w, verdict(w <= 1.5)
+            );
+        }
+    }
+    let count = |k: &str| instr.iter().find(|(n, _, _)| n == k).map(|x| x.1);
+    match (count("refined"), count("refined-100hz"), count("ekf")) {
+        (Some(r), r100, Some(e)) => {
+            let _ = writeln!(
+                s,
+                "- At most 1/10 of the EKF's instructions per step: refined {r:.0} (1 kHz settings, used on the first scenario) vs EKF {e:.0} = {:.3}: **{}**.{}",
+                r / e,
+                verdict(r <= 0.1 * e),
+                r100.map(|x| format!(" The 100 Hz settings of the toss (3-sample blocks, end correction) cost {x:.0} = {:.3} of the EKF.", x / e)).unwrap_or_default()
+            );
+        }
+        _ => {
+            let _ = writeln!(
+                s,
+                "- Instructions per step: not measured in this run (run scripts/bench-estimators.sh without --quick)."
+            );
+        }
+    }
+    let mut all = true;
+    let mut parts = Vec::new();
+    for r in results {
+        if let (Some(a), Some(b)) = (find(r, "refined"), find(r, "batch")) {
+            let ok = (0..3).all(|i| a[i] <= b[i]);
+            all &= ok;
+            parts.push(format!(
+                "{} {:.2}/{:.2}/{:.2}",
+                r.scenario.name,
+                a[0] / b[0],
+                a[1] / b[1],
+                a[2] / b[2]
+            ));
+        }
+    }
+    let _ = writeln!(
+        s,
+        "- No worse than batch least squares on every scenario (RMS error of refined / batch LS per axis: {}): **{}**.",
+        parts.join("; "),
+        verdict(all)
+    );
+    for (name, sp) in spreads {
+        if name.starts_with("refined") || name.starts_with("batch") {
+            let w = sp.iter().fold(0.0f64, |a, b| a.max(*b));
+            let _ = writeln!(
+                s,
+                "- Racquet per-toss spread at most 1 %, {}: {:.2} %, {:.2} %, {:.2} %: **{}**.",
+                name,
+                100.0 * sp[0],
+                100.0 * sp[1],
+                100.0 * sp[2],
+                verdict(w <= 0.01)
+            );
+        }
+    }
+    s
+}
+
 fn repo_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .parent()
@@ -573,14 +674,19 @@ fn main() -> Result<()> {
     }
     let instr = instructions(&root);
     let mut out = table(&results, &instr);
+    let mut spreads: Vec<(&'static str, [f64; 3])> = Vec::new();
     if a.racquet {
         match racquet(&root) {
-            Ok(s) => out.push_str(&s),
+            Ok((s, sp)) => {
+                out.push_str(&s);
+                spreads = sp;
+            }
             Err(e) => {
                 let _ = writeln!(out, "\nracquet data not read: {e:#}");
             }
         }
     }
+    out.push_str(&goals(&results, &instr, &spreads));
     println!("{out}");
     if a.write {
         let dir = root.join("docs/bench");
