@@ -138,6 +138,10 @@ pub struct SegmentReport {
     pub free_run_before: f64,
     /// Free-run prediction RMS, rad/s, after (extended identifier, extended model).
     pub free_run_after: f64,
+    /// Free-run prediction RMS with the batch least-squares fit, torque-free model.
+    pub free_run_ls_before: f64,
+    /// Free-run prediction RMS with the batch least-squares fit, extended model.
+    pub free_run_ls_after: f64,
 }
 
 /// Fitted estimates of one estimator.
@@ -182,6 +186,10 @@ pub struct Analysis {
     pub free_run_rms_before: f64,
     /// Mean over segments of the free-run prediction RMS after, rad/s.
     pub free_run_rms_after: f64,
+    /// The same for the batch least-squares fits (model change alone), before.
+    pub free_run_ls_before: f64,
+    /// The same for the batch least-squares fits, after.
+    pub free_run_ls_after: f64,
     /// Standard deviation across segments of the per-segment least-squares `a`, before.
     pub spread_before: Option<[f64; 3]>,
     /// The same with the effects at their global values.
@@ -685,6 +693,15 @@ pub fn analyse(log: &Log, opts: &Options) -> Result<Analysis, String> {
             free_run_after: model::free_run_rms(
                 &log.t, omega, range, &effects, ext_lin, &ext_theta,
             ),
+            free_run_ls_before: model::free_run_rms(&log.t, omega, range, &[], a_ls0, &base.theta),
+            free_run_ls_after: model::free_run_rms(
+                &log.t,
+                omega,
+                range,
+                &effects,
+                current_lin,
+                &current.theta,
+            ),
         });
     }
     let mean = |f: fn(&SegmentReport) -> f64| {
@@ -708,6 +725,8 @@ pub fn analyse(log: &Log, opts: &Options) -> Result<Analysis, String> {
         residual_systematic_after: systematic_rms(&blocks, &r_after),
         free_run_rms_before: mean(|s| s.free_run_before),
         free_run_rms_after: mean(|s| s.free_run_after),
+        free_run_ls_before: mean(|s| s.free_run_ls_before),
+        free_run_ls_after: mean(|s| s.free_run_ls_after),
         spread_before: spread(&seg_before),
         spread_after: spread(&seg_after),
         consistency_before: consistency(a_before),

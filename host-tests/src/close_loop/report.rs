@@ -91,6 +91,11 @@ pub fn markdown(an: &Analysis, title: &str) -> String {
         format!("{:.3}", an.free_run_rms_after),
     );
     row(
+        "free-run prediction RMS, rad/s (least squares)",
+        format!("{:.3}", an.free_run_ls_before),
+        format!("{:.3}", an.free_run_ls_after),
+    );
+    row(
         "consistency a1+a2+a3+a1a2a3",
         format!("{:+.4}", an.consistency_before),
         format!("{:+.4}", an.consistency_after),
@@ -174,19 +179,21 @@ pub fn markdown(an: &Analysis, title: &str) -> String {
             );
         }
     }
-    let _ = writeln!(s, "\n| segment | samples | blocks | LS a before | LS a after | free-run before | free-run after |");
+    let _ = writeln!(s, "\n| segment | samples | blocks | LS a before | LS a after | free-run before (core / LS) | free-run after (extended / LS) |");
     let _ = writeln!(s, "|---|---|---|---|---|---|---|");
     for g in &an.segments {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {:.3} | {:.3} |",
+            "| {} | {} | {} | {} | {} | {:.3} / {:.3} | {:.3} / {:.3} |",
             g.label,
             g.samples,
             g.blocks,
             opt3(g.ls_a_before),
             opt3(g.ls_a_after),
             g.free_run_before,
-            g.free_run_after
+            g.free_run_ls_before,
+            g.free_run_after,
+            g.free_run_ls_after
         );
     }
     s
