@@ -126,7 +126,7 @@ impl Ekf32 {
         let c01 = s[1][2] * s[2][0] - s[1][0] * s[2][2];
         let c02 = s[1][0] * s[2][1] - s[1][1] * s[2][0];
         let det = s[0][0] * c00 + s[0][1] * c01 + s[0][2] * c02;
-        if !(det.abs() > 0.0) {
+        if det == 0.0 || det.is_nan() {
             self.p = p;
             return;
         }

@@ -347,8 +347,11 @@ fn read_round(dir: &Path, label: &str) -> Result<Vec<Toss>> {
     Ok(out)
 }
 
-/// The racquet section and each method's worst per-toss spread.
-fn racquet(root: &Path) -> Result<(String, Vec<(&'static str, [f64; 3])>)> {
+/// A method's name and its per-toss spread of each `a_i`.
+type Spread = (&'static str, [f64; 3]);
+
+/// The racquet section and each method's per-toss spread.
+fn racquet(root: &Path) -> Result<(String, Vec<Spread>)> {
     let base = root.join("../shared/data/racquet");
     let mut tosses = Vec::new();
     for round in ["round2", "round4"] {
@@ -564,7 +567,7 @@ fn spread(est: &[[f64; 3]]) -> ([f64; 3], [f64; 3]) {
 fn goals(
     results: &[ScenarioResult],
     instr: &[(String, f64, String)],
-    spreads: &[(&'static str, [f64; 3])],
+    spreads: &[Spread],
 ) -> String {
     let mut s = String::from("\n## Goals, checked on this run\n\n");
     let verdict = |ok: bool| if ok { "met" } else { "NOT met" };
@@ -674,7 +677,7 @@ fn main() -> Result<()> {
     }
     let instr = instructions(&root);
     let mut out = table(&results, &instr);
-    let mut spreads: Vec<(&'static str, [f64; 3])> = Vec::new();
+    let mut spreads: Vec<Spread> = Vec::new();
     if a.racquet {
         match racquet(&root) {
             Ok((s, sp)) => {
