@@ -26,6 +26,15 @@ pub fn identifier_settings(config: &Config) -> Settings {
     s
 }
 
+/// A delay that does not wait: for the simulated part, which models no time (it always has
+/// the next sample ready), under QEMU and on the host.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoDelay;
+
+impl DelayNs for NoDelay {
+    fn delay_ns(&mut self, _ns: u32) {}
+}
+
 /// The loop's own counters (the identifier keeps finer ones, see [`Counters`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -262,11 +271,6 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
     use icm42688::sim::SimIcm42688;
-
-    struct NoDelay;
-    impl DelayNs for NoDelay {
-        fn delay_ns(&mut self, _: u32) {}
-    }
 
     /// A torque-free spin sampled crudely (explicit midpoint at 1 kHz) is enough for the
     /// loop's bookkeeping; accuracy is tested end to end.

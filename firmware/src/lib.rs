@@ -26,4 +26,4 @@ pub mod log_format;
 #[cfg(all(target_arch = "arm", target_os = "none"))]
 pub mod stack;
 
-pub use app::{identifier_settings, InitError, LoopCounters, Poll, Report, SampleLoop};
+pub use app::{identifier_settings, InitError, LoopCounters, NoDelay, Poll, Report, SampleLoop};

@@ -12,9 +12,8 @@ use core::ffi::CStr;
 
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
-use embedded_hal::delay::DelayNs;
 use firmware::log_format::{decode_sample, Header, HEADER_LEN, SAMPLE_LEN};
-use firmware::{stack, Poll, SampleLoop};
+use firmware::{stack, NoDelay, Poll, SampleLoop};
 use icm42688::sim::{SampleSource, SimIcm42688};
 use icm42688::{Config, Icm42688};
 use semihosting::fs::File;
@@ -64,13 +63,6 @@ impl SampleSource for LogSource {
         self.left -= 1;
         Some(decode_sample(&s))
     }
-}
-
-/// Time is not simulated: the simulated part always has the next sample ready.
-struct NoDelay;
-
-impl DelayNs for NoDelay {
-    fn delay_ns(&mut self, _ns: u32) {}
 }
 
 fn exit(code: i32) -> ! {

@@ -46,9 +46,8 @@ fn main() -> ! {
     let spi = Spi::new(dp.SPI1, (sck, miso, mosi), SPI_MODE, 10.MHz(), &clocks);
     let mut delay = cp.SYST.delay(&clocks);
     let timer_delay = dp.TIM5.delay_us(&clocks);
-    let Ok(device) = ExclusiveDevice::new(spi, cs, timer_delay) else {
-        defmt::panic!("chip select pin");
-    };
+    // Setting a GPIO output cannot fail on this HAL (the error type is uninhabited).
+    let Ok(device) = ExclusiveDevice::new(spi, cs, timer_delay);
 
     let config = Config::identifier();
     let gyro = Icm42688::new_spi(device);
@@ -57,7 +56,10 @@ fn main() -> ! {
         Err(e) => {
             // A board can come up before the gyro is ready, or a connector is loose: report,
             // wait a second and start again from reset.
-            defmt::error!("gyro init failed: {}; resetting in 1 s", e);
+            defmt::error!(
+                "gyro init failed: {}; resetting in 1 s",
+                defmt::Debug2Format(&e)
+            );
             delay.delay_ms(1000);
             cortex_m::peripheral::SCB::sys_reset();
         }
