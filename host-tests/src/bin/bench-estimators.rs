@@ -235,6 +235,34 @@ fn table(results: &[ScenarioResult], instr: &[(String, f64, String)]) -> String 
                 ins
             );
         }
+        // Error against time: RMS over seeds, mean over the three axes.
+        let cols: Vec<usize> = [0, 2, 4, 9]
+            .into_iter()
+            .filter(|&c| c < r.times.len())
+            .collect();
+        let head: Vec<String> = cols
+            .iter()
+            .map(|&c| format!("t = {:.2} s", r.times[c]))
+            .collect();
+        let _ = writeln!(
+            s,
+            "\nError against time (RMS over seeds, mean over axes; figure `docs/bench/error-{}.svg`):\n\n| method | {} |\n|---|{}",
+            sc.name,
+            head.join(" | "),
+            "---|".repeat(cols.len())
+        );
+        for m in &r.methods {
+            let v: Vec<String> = cols
+                .iter()
+                .map(|&c| format!("{:.2e}", m.curve_rms[c]))
+                .collect();
+            let _ = writeln!(s, "| {} | {} |", m.name, v.join(" | "));
+        }
+        let v: Vec<String> = cols
+            .iter()
+            .map(|&c| format!("{:.2e}", r.crb_curve[c]))
+            .collect();
+        let _ = writeln!(s, "| Cramer-Rao bound | {} |", v.join(" | "));
     }
     s
 }
