@@ -46,7 +46,11 @@ impl Write for Sink {
 
 fn opaque_settings() -> Settings {
     let mut s = black_box(Settings::with_lambda(black_box(3.0)));
-    s.gain = black_box(GainMatrix(black_box([[-1.0, 0.5, 0.0], [0.0, -2.0, 0.1], [0.0, 0.0, -3.0]])));
+    s.gain = black_box(GainMatrix(black_box([
+        [-1.0, 0.5, 0.0],
+        [0.0, -2.0, 0.1],
+        [0.0, 0.0, -3.0],
+    ])));
     s.w_min = black_box(1e-3);
     s.full_scale = black_box(34.9);
     s.max_dt = black_box(0.1);

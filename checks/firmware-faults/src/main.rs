@@ -1,0 +1,730 @@
+//! Fault injection on the MCU, under QEMU (mps2-an386, Cortex-M4F).
+//!
+//! The real ICM-42688-P driver talks to the simulated part (`icm42688::sim`) through a
+//! fault-injecting SPI layer; a sample loop feeds `identifier-core`, counts every fault, reports
+//! over defmt, re-initialises the sensor when it stops making sense, and feeds a watchdog (the
+//! CMSDK APB watchdog that QEMU models on this machine). The motion is the paper's body
+//! tumbling from (1, 1, 1) rad/s, integrated on the target (RK4, f32) at the gyro's 1 kHz ODR,
+//! with seeded white noise of 1e-3 rad/s.
+//!
+//! Scenarios, each a 20 s replay: clean; 1 % corrupted + 1 % dropped samples + 1 % bus errors
+//! (the figure: RMS error of `a` over the last 10 s against the clean replay, within 2x); the
+//! bus dead for a while; `WHO_AM_I` reading 0x00 for a while; no data-ready for a while; the
+//! data stalled for a while; and a hang inside an SPI transfer, which only the watchdog can end:
+//! the machine resets, the firmware finds its marker in RAM that survives the reset, reports
+//! the recovery and carries on with the remaining scenarios.
+//!
+//! Exit code (semihosting): 0 when every check passed, 1 otherwise.
+#![no_std]
+#![no_main]
+
+use core::mem::MaybeUninit;
+use core::ptr::{addr_of, addr_of_mut, read_volatile, write_volatile};
+
+use cortex_m_rt::entry;
+use defmt_semihosting as _;
+use embedded_hal::delay::DelayNs;
+use embedded_hal::spi::{ErrorType, Operation, SpiDevice};
+use icm42688::registers as reg;
+use icm42688::sim::{SampleSource, SimBusError, SimIcm42688};
+use icm42688::{raw3_to_rad_s, Config, Error, Icm42688, SpiInterface};
+use identifier_core::{Identifier, Settings};
+
+// ---------------------------------------------------------------------------------------------
+// Watchdog: CMSDK APB watchdog at 0x4000_8000 on mps2-an386, clocked at 25 MHz.
+
+const WDOG: usize = 0x4000_8000;
+const WDOG_LOAD: usize = WDOG;
+const WDOG_CONTROL: usize = WDOG + 0x008;
+const WDOG_INTCLR: usize = WDOG + 0x00C;
+const WDOG_LOCK: usize = WDOG + 0xC00;
+const WDOG_UNLOCK: u32 = 0x1ACC_E551;
+/// 50 ms at 25 MHz; the reset comes at the second expiry without a feed, after 100 ms.
+const WDOG_TICKS: u32 = 1_250_000;
+
+fn wdog_write(addr: usize, v: u32) {
+    // SAFETY: a memory-mapped register of the CMSDK watchdog on this machine.
+    unsafe { write_volatile(addr as *mut u32, v) }
+}
+
+fn watchdog_start() {
+    if cfg!(feature = "selftest-no-watchdog") {
+        return;
+    }
+    wdog_write(WDOG_LOCK, WDOG_UNLOCK);
+    wdog_write(WDOG_LOAD, WDOG_TICKS);
+    wdog_write(WDOG_CONTROL, 0b11); // INTEN | RESEN
+    wdog_write(WDOG_LOCK, 0);
+}
+
+fn watchdog_feed() {
+    wdog_write(WDOG_LOCK, WDOG_UNLOCK);
+    wdog_write(WDOG_INTCLR, 1);
+    wdog_write(WDOG_LOCK, 0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// A marker in RAM that the reset leaves alone (cortex-m-rt does not initialise .uninit).
+
+const MAGIC_HANG: u32 = 0x4841_4E47; // "HANG"
+
+#[link_section = ".uninit.faults"]
+static mut MARK: MaybeUninit<[u32; 2]> = MaybeUninit::uninit();
+
+fn mark_read() -> [u32; 2] {
+    // SAFETY: plain words in RAM; any bit pattern is a valid [u32; 2].
+    unsafe { read_volatile(addr_of!(MARK).cast::<[u32; 2]>()) }
+}
+
+fn mark_write(v: [u32; 2]) {
+    // SAFETY: as above; single-threaded.
+    unsafe { write_volatile(addr_of_mut!(MARK).cast::<[u32; 2]>(), v) }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Stack high-water by painting.
+
+extern "C" {
+    static _stack_start: u32;
+    static _stack_end: u32;
+}
+const PAINT: u32 = 0xC0DE_57AC;
+
+fn stack_bounds() -> (usize, usize) {
+    // Only the addresses of the linker symbols are taken.
+    (
+        addr_of!(_stack_end) as usize,
+        addr_of!(_stack_start) as usize,
+    )
+}
+
+#[inline(never)]
+fn stack_paint() {
+    let (bottom, _) = stack_bounds();
+    let end = (cortex_m::register::msp::read() as usize).saturating_sub(256) & !3;
+    let mut p = (bottom + 3) & !3;
+    while p < end {
+        // SAFETY: free stack below every live frame.
+        unsafe { write_volatile(p as *mut u32, PAINT) };
+        p += 4;
+    }
+}
+
+fn stack_high_water() -> usize {
+    let (bottom, top) = stack_bounds();
+    let mut p = (bottom + 3) & !3;
+    // SAFETY: reading stack RAM between the linker's bounds.
+    while p < top && unsafe { read_volatile(p as *const u32) } == PAINT {
+        p += 4;
+    }
+    top - p
+}
+
+// ---------------------------------------------------------------------------------------------
+// Seeded randomness and maths without std.
+
+#[derive(Clone, Copy)]
+struct XorShift(u32);
+
+impl XorShift {
+    fn next(&mut self) -> u32 {
+        let mut x = self.0;
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        self.0 = x;
+        x
+    }
+    /// True with probability `ppm` per million.
+    fn chance(&mut self, ppm: u32) -> bool {
+        ppm != 0 && self.next() % 1_000_000 < ppm
+    }
+    /// Approximately normal, unit variance (sum of four uniforms).
+    fn normal(&mut self) -> f32 {
+        let mut s = 0.0f32;
+        for _ in 0..4 {
+            s += (self.next() >> 8) as f32 / (1u32 << 24) as f32;
+        }
+        (s - 2.0) * 1.732_050_8
+    }
+}
+
+fn sqrt(x: f32) -> f32 {
+    if x <= 0.0 || !x.is_finite() {
+        return 0.0;
+    }
+    let mut y = if x > 1.0 { x } else { 1.0 };
+    for _ in 0..40 {
+        y = 0.5 * (y + x / y);
+    }
+    y
+}
+
+// ---------------------------------------------------------------------------------------------
+// The motion.
+
+const A: [f32; 3] = [0.9, 0.4 / 1.54, -0.94];
+const RATE: f32 = 1000.0;
+const SECONDS: u32 = 20;
+const NOISE: f32 = 1e-3;
+
+struct Motion {
+    w: [f32; 3],
+    k: u32,
+    rng: XorShift,
+}
+
+impl Motion {
+    fn new(seed: u32) -> Self {
+        Motion {
+            w: [1.0, 1.0, 1.0],
+            k: 0,
+            rng: XorShift(seed | 1),
+        }
+    }
+}
+
+fn euler(w: [f32; 3]) -> [f32; 3] {
+    [A[0] * w[1] * w[2], A[1] * w[2] * w[0], A[2] * w[0] * w[1]]
+}
+
+impl SampleSource for Motion {
+    fn next_sample(&mut self) -> Option<[f32; 3]> {
+        if self.k >= SECONDS * RATE as u32 {
+            return None;
+        }
+        self.k += 1;
+        let out = [
+            self.w[0] + NOISE * self.rng.normal(),
+            self.w[1] + NOISE * self.rng.normal(),
+            self.w[2] + NOISE * self.rng.normal(),
+        ];
+        // Two RK4 substeps per sample.
+        let h = 0.5 / RATE;
+        for _ in 0..2 {
+            let w = self.w;
+            let add = |a: [f32; 3], b: [f32; 3], s: f32| {
+                [a[0] + s * b[0], a[1] + s * b[1], a[2] + s * b[2]]
+            };
+            let k1 = euler(w);
+            let k2 = euler(add(w, k1, 0.5 * h));
+            let k3 = euler(add(w, k2, 0.5 * h));
+            let k4 = euler(add(w, k3, h));
+            for i in 0..3 {
+                self.w[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            }
+        }
+        Some(out)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Fault injection between the driver and the simulated part.
+
+#[derive(Clone, Copy, Default, defmt::Format)]
+struct Faults {
+    /// Per million transactions: bus error.
+    bus_error_ppm: u32,
+    /// Per million data reads: one bit flipped.
+    corrupt_ppm: u32,
+    /// Per million data-ready events: lost (the sample is gone).
+    drop_ppm: u32,
+    /// Transaction windows `[from, to)`.
+    bus_dead: Option<(u32, u32)>,
+    wrong_id: Option<(u32, u32)>,
+    no_data_ready: Option<(u32, u32)>,
+    stalled: Option<(u32, u32)>,
+    /// The transfer never completes.
+    hang: Option<u32>,
+}
+
+#[derive(Clone, Copy, Default, defmt::Format)]
+struct Injected {
+    bus_errors: u32,
+    corrupted: u32,
+    dropped: u32,
+}
+
+struct FaultySpi<S> {
+    inner: SimIcm42688<S>,
+    faults: Faults,
+    rng: XorShift,
+    tx: u32,
+    stalled_data: Option<[u8; 6]>,
+    injected: Injected,
+}
+
+fn within(w: Option<(u32, u32)>, t: u32) -> bool {
+    w.is_some_and(|(a, b)| a <= t && t < b)
+}
+
+impl<S: SampleSource> ErrorType for FaultySpi<S> {
+    type Error = SimBusError;
+}
+
+impl<S: SampleSource> SpiDevice for FaultySpi<S> {
+    fn transaction(&mut self, ops: &mut [Operation<'_, u8>]) -> Result<(), SimBusError> {
+        self.tx = self.tx.wrapping_add(1);
+        let t = self.tx;
+        if self.faults.hang == Some(t) {
+            defmt::warn!("injected: SPI transfer {=u32} hangs", t);
+            loop {
+                cortex_m::asm::nop();
+            }
+        }
+        if within(self.faults.bus_dead, t) || self.rng.chance(self.faults.bus_error_ppm) {
+            self.injected.bus_errors += 1;
+            return Err(SimBusError);
+        }
+        let addr = match ops.first() {
+            Some(Operation::Write(b)) => b.first().copied(),
+            _ => None,
+        };
+        self.inner.transaction(ops)?;
+        let Some(a) = addr.filter(|a| a & reg::SPI_READ != 0).map(|a| a & 0x7F) else {
+            return Ok(());
+        };
+        let Some(Operation::Read(buf)) = ops.get_mut(1) else {
+            return Ok(());
+        };
+        match a {
+            reg::WHO_AM_I if within(self.faults.wrong_id, t) => buf.fill(0),
+            reg::INT_STATUS => {
+                let ready = buf
+                    .first()
+                    .is_some_and(|b| b & reg::INT_STATUS_DATA_RDY != 0);
+                if ready
+                    && (within(self.faults.no_data_ready, t)
+                        || self.rng.chance(self.faults.drop_ppm))
+                {
+                    if let Some(b) = buf.first_mut() {
+                        *b &= !reg::INT_STATUS_DATA_RDY;
+                    }
+                    self.injected.dropped += 1;
+                }
+            }
+            reg::GYRO_DATA_X1 if buf.len() == 6 => {
+                if within(self.faults.stalled, t) {
+                    let mut h = [0u8; 6];
+                    h.copy_from_slice(buf);
+                    let held = *self.stalled_data.get_or_insert(h);
+                    buf.copy_from_slice(&held);
+                } else {
+                    self.stalled_data = None;
+                    if self.rng.chance(self.faults.corrupt_ppm) {
+                        let bit = (self.rng.next() % 48) as usize;
+                        if let Some(b) = buf.get_mut(bit / 8) {
+                            *b ^= 1 << (bit % 8);
+                        }
+                        self.injected.corrupted += 1;
+                    }
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The sample loop with recovery.
+
+struct NoDelay;
+impl DelayNs for NoDelay {
+    fn delay_ns(&mut self, _: u32) {}
+}
+
+#[derive(Clone, Copy, Default, defmt::Format)]
+struct LoopCounters {
+    steps: u32,
+    bus_errors: u32,
+    timeouts: u32,
+    invalid: u32,
+    wrong_id: u32,
+    stalled: u32,
+    implausible: u32,
+    reinits: u32,
+    reinit_failures: u32,
+}
+
+const POLL_US: u32 = 10;
+const MAX_POLLS: u32 = 3;
+const REINIT_AFTER: u32 = 5;
+const STALLED_AFTER: u32 = 20;
+const HEALTH_EVERY: u32 = 100;
+const MAX_ACCEL: f32 = 80.0;
+const GATE_MARGIN: f32 = 0.02;
+
+#[derive(Clone, Copy, defmt::Format)]
+enum Why {
+    Failures,
+    WrongId,
+    Stalled,
+}
+
+struct SampleLoop<S: SampleSource> {
+    gyro: Icm42688<SpiInterface<FaultySpi<S>>>,
+    id: Identifier,
+    period: f32,
+    clock: u32,
+    last_raw: Option<[i16; 3]>,
+    repeats: u32,
+    last_accepted: Option<[f32; 3]>,
+    since_accepted: f32,
+    fails: u32,
+    c: LoopCounters,
+}
+
+impl<S: SampleSource> SampleLoop<S> {
+    fn new(spi: FaultySpi<S>) -> Option<Self> {
+        let config = Config::identifier();
+        let mut s = Settings::with_lambda(3.0);
+        s.full_scale = icm42688::raw_to_rad_s(32767, config.full_scale);
+        let mut lp = SampleLoop {
+            gyro: Icm42688::new_spi(spi),
+            id: Identifier::new(s).ok()?,
+            period: config.odr.period_s(),
+            clock: 0,
+            last_raw: None,
+            repeats: 0,
+            last_accepted: None,
+            since_accepted: 0.0,
+            fails: 0,
+            c: LoopCounters::default(),
+        };
+        lp.init();
+        Some(lp)
+    }
+
+    fn part(&self) -> &FaultySpi<S> {
+        self.gyro.interface().bus()
+    }
+
+    fn latched(&self) -> u32 {
+        self.part().inner.stats().samples
+    }
+
+    fn exhausted(&self) -> bool {
+        self.part().inner.exhausted()
+    }
+
+    fn init(&mut self) -> bool {
+        self.id.restart();
+        self.last_raw = None;
+        self.repeats = 0;
+        self.last_accepted = None;
+        self.fails = 0;
+        for _ in 0..10 {
+            watchdog_feed();
+            match self.gyro.init(&mut NoDelay, Config::identifier()) {
+                Ok(()) => {
+                    self.clock = self.latched();
+                    return true;
+                }
+                Err(Error::WrongId(id)) => {
+                    self.c.wrong_id += 1;
+                    if self.c.wrong_id <= 3 {
+                        defmt::warn!("gyro init: WHO_AM_I {=u8:#04x}", id);
+                    }
+                }
+                Err(_) => {}
+            }
+            self.c.reinit_failures += 1;
+        }
+        false
+    }
+
+    fn reinit(&mut self, why: Why) {
+        self.c.reinits += 1;
+        if self.c.reinits <= 5 {
+            defmt::warn!("re-initialising the gyro ({}): {}", why, self.c);
+        }
+        self.init();
+    }
+
+    fn failure(&mut self) {
+        self.fails += 1;
+        if self.fails >= REINIT_AFTER {
+            self.reinit(Why::Failures);
+        }
+    }
+
+    fn poll(&mut self) -> bool {
+        watchdog_feed();
+        if self.exhausted() {
+            return false;
+        }
+        match self.gyro.wait_data_ready(&mut NoDelay, POLL_US, MAX_POLLS) {
+            Ok(()) => {}
+            Err(Error::Timeout) => {
+                self.c.timeouts += 1;
+                self.failure();
+                return !self.exhausted();
+            }
+            Err(_) => {
+                self.c.bus_errors += 1;
+                self.failure();
+                return true;
+            }
+        }
+        let raw = match self.gyro.read_gyro_raw() {
+            Ok(raw) => raw,
+            Err(Error::InvalidSample) => {
+                self.c.invalid += 1;
+                self.failure();
+                return true;
+            }
+            Err(_) => {
+                self.c.bus_errors += 1;
+                self.failure();
+                return true;
+            }
+        };
+        if self.last_raw == Some(raw) {
+            self.repeats += 1;
+            if self.repeats >= STALLED_AFTER {
+                self.c.stalled += 1;
+                self.reinit(Why::Stalled);
+                return true;
+            }
+        } else {
+            self.repeats = 0;
+        }
+        self.last_raw = Some(raw);
+        let now = self.latched();
+        let dt = now.wrapping_sub(self.clock) as f32 * self.period;
+        self.clock = now;
+        let omega = raw3_to_rad_s(raw, self.gyro.full_scale());
+        self.since_accepted += dt;
+        if let Some(prev) = self.last_accepted {
+            let limit = MAX_ACCEL * self.since_accepted + GATE_MARGIN;
+            if (0..3).any(|i| (omega[i] - prev[i]).abs() > limit) {
+                self.c.implausible += 1;
+                self.id.step([f32::NAN; 3], dt);
+                return true;
+            }
+        }
+        self.last_accepted = Some(omega);
+        self.since_accepted = 0.0;
+        self.id.step(omega, dt);
+        self.c.steps += 1;
+        self.fails = 0;
+        if self.c.steps.is_multiple_of(HEALTH_EVERY) {
+            match self.gyro.who_am_i() {
+                Ok(reg::WHO_AM_I_VALUE) => {}
+                Ok(_) => {
+                    self.c.wrong_id += 1;
+                    self.reinit(Why::WrongId);
+                }
+                Err(_) => self.c.bus_errors += 1,
+            }
+        }
+        true
+    }
+}
+
+struct Outcome {
+    rms: f32,
+    final_err: f32,
+    c: LoopCounters,
+    injected: Injected,
+}
+
+fn replay(seed: u32, faults: Faults) -> Option<Outcome> {
+    let spi = FaultySpi {
+        inner: SimIcm42688::new(Motion::new(seed)),
+        faults,
+        rng: XorShift(seed.wrapping_mul(2_654_435_761) | 1),
+        tx: 0,
+        stalled_data: None,
+        injected: Injected::default(),
+    };
+    let mut lp = SampleLoop::new(spi)?;
+    lp.c.reinits = 0;
+    let (mut sum, mut count) = (0.0f32, 0u32);
+    let from = (SECONDS - 10) * RATE as u32;
+    while lp.poll() {
+        if lp.latched() >= from {
+            let e = lp.id.estimate();
+            for i in 0..3 {
+                sum += (e[i] - A[i]) * (e[i] - A[i]);
+            }
+            count += 3;
+        }
+    }
+    let e = lp.id.estimate();
+    let mut final_err = 0.0f32;
+    for i in 0..3 {
+        final_err = final_err.max((e[i] - A[i]).abs());
+    }
+    Some(Outcome {
+        rms: sqrt(sum / count.max(1) as f32),
+        final_err,
+        c: lp.c,
+        injected: lp.part().injected,
+    })
+}
+
+// ---------------------------------------------------------------------------------------------
+
+const SEED: u32 = 12345;
+const AT: u32 = 12_000;
+
+fn scenarios() -> [(&'static str, Faults); 7] {
+    let none = Faults::default();
+    [
+        ("clean", none),
+        (
+            "1% corrupted + 1% dropped + 1% bus errors",
+            Faults {
+                bus_error_ppm: 10_000,
+                corrupt_ppm: 10_000,
+                drop_ppm: 10_000,
+                ..none
+            },
+        ),
+        (
+            "bus dead for 200 transfers",
+            Faults {
+                bus_dead: Some((AT, AT + 200)),
+                ..none
+            },
+        ),
+        (
+            "WHO_AM_I reads 0x00 for 2000 transfers",
+            Faults {
+                wrong_id: Some((AT, AT + 2000)),
+                ..none
+            },
+        ),
+        (
+            "no data-ready for 400 transfers",
+            Faults {
+                no_data_ready: Some((AT, AT + 400)),
+                ..none
+            },
+        ),
+        (
+            "data stalled for 400 transfers",
+            Faults {
+                stalled: Some((AT, AT + 400)),
+                ..none
+            },
+        ),
+        (
+            "SPI transfer hangs",
+            Faults {
+                hang: Some(AT),
+                ..none
+            },
+        ),
+    ]
+}
+
+const HANG: usize = 6;
+
+/// The check for each scenario against the clean run's figures.
+fn check(k: usize, o: &Outcome, clean: Option<(f32, f32)>) -> bool {
+    let c = &o.c;
+    let (clean_rms, clean_final) = clean.unwrap_or((o.rms, o.final_err));
+    let seen = match k {
+        0 => c.bus_errors == 0 && c.reinits == 0 && c.implausible == 0,
+        1 => {
+            o.injected.bus_errors > 100
+                && o.injected.corrupted > 100
+                && o.injected.dropped > 100
+                && c.bus_errors >= o.injected.bus_errors / 2
+                && o.rms <= 2.0 * clean_rms
+        }
+        2 => c.bus_errors >= 5 && c.reinits >= 1,
+        3 => c.wrong_id >= 1 && c.reinits >= 1,
+        4 => c.timeouts >= 5 && c.reinits >= 1,
+        5 => c.stalled >= 1 && c.reinits >= 1,
+        _ => false,
+    };
+    seen && o.final_err <= 2.0 * clean_final + 1e-3 && o.final_err.is_finite()
+}
+
+#[entry]
+fn main() -> ! {
+    stack_paint();
+    let mark = mark_read();
+    mark_write([0, 0]);
+    watchdog_start();
+    let ok = if mark[0] == MAGIC_HANG {
+        // Second boot: the earlier scenarios ran in the first one, the last hung.
+        defmt::warn!(
+            "reset by the watchdog after the injected hang: the firmware is running again"
+        );
+        mark[1] == 1
+    } else {
+        run_scenarios()
+    };
+    defmt::info!(
+        "fault injection: {=str}",
+        if ok { "all checks passed" } else { "FAILED" }
+    );
+    semihosting::process::exit(if ok { 0 } else { 1 })
+}
+
+/// Runs every scenario; returns only if the hang scenario failed to hang.
+fn run_scenarios() -> bool {
+    let mut ok = true;
+    let mut clean: Option<(f32, f32)> = None;
+    for (k, (name, faults)) in scenarios().iter().enumerate() {
+        if k == HANG {
+            defmt::info!(
+                "stack high-water over scenarios 0-{=usize}: {=usize} bytes of {=usize}",
+                HANG - 1,
+                stack_high_water(),
+                stack_bounds().1 - stack_bounds().0
+            );
+            defmt::info!(
+                "scenario {=usize}: {=str}: only the watchdog can end it",
+                k,
+                name
+            );
+            mark_write([MAGIC_HANG, u32::from(ok)]);
+        }
+        let Some(o) = replay(SEED, *faults) else {
+            defmt::error!("scenario {=usize}: gyro init failed", k);
+            ok = false;
+            continue;
+        };
+        if k == HANG {
+            defmt::error!("scenario {=usize}: the transfer did not hang", k);
+            mark_write([0, 0]);
+            return false;
+        }
+        let pass = check(k, &o, clean);
+        ok &= pass;
+        defmt::info!(
+            "scenario {=usize}: {=str}: RMS error of a over the last 10 s {=f32}, final {=f32}; injected {}; loop {}; {=str}",
+            k,
+            name,
+            o.rms,
+            o.final_err,
+            o.injected,
+            o.c,
+            if pass { "PASS" } else { "FAIL" }
+        );
+        if k == 0 {
+            clean = Some((o.rms, o.final_err));
+        }
+        if let (1, Some((c, _))) = (k, clean) {
+            defmt::info!(
+                "FIGURE: clean RMS {=f32}, faulty RMS {=f32}, ratio {=f32}",
+                c,
+                o.rms,
+                o.rms / c
+            );
+        }
+    }
+    false
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    defmt::error!("panic: {}", defmt::Display2Format(info));
+    semihosting::process::exit(101)
+}
