@@ -22,10 +22,14 @@ RUSTDOCFLAGS="-D warnings" cargo doc -p identifier-core --no-deps
 log "host tests"
 cargo test --release --workspace
 
-# ---- reliability (robustness issue): no panic path on the MCU, bounded fuzzing ----
-# The proptest properties (host-tests/tests/robustness*.rs) already ran in `cargo test` above.
+# ---- reliability (robustness issue): no panic path on the MCU, faults under QEMU, fuzzing ----
+# The proptest properties (host-tests/tests/robustness*.rs, readers_robustness.rs) already ran
+# in `cargo test` above.
 log "reliability: no panic path in identifier-core's thumbv7em release build"
 scripts/check-no-panic.sh
+
+log "reliability: fault injection on the MCU under QEMU (watchdog, re-initialisation, figure)"
+checks/firmware-faults/run.sh
 
 log "reliability: bounded fuzzing (30 s per target)"
 scripts/fuzz.sh 30
