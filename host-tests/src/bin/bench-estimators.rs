@@ -181,6 +181,7 @@ fn instructions(root: &Path) -> Vec<(String, f64, String)> {
 fn key(name: &str, rate_hz: f64) -> &'static str {
     match name {
         n if n.starts_with("paper identifier,") => "paper-averaged",
+        n if n.starts_with("paper identifier on") => "paper-lowpass",
         n if n.starts_with("paper") => "paper",
         n if n.starts_with("refined") && rate_hz < 200.0 => "refined-100hz",
         n if n.starts_with("refined") => "refined",

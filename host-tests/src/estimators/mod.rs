@@ -133,6 +133,7 @@ pub fn all_methods() -> Vec<Box<dyn Method>> {
     vec![
         Box::new(onboard::Paper::default()),
         Box::new(onboard::PaperAveraged::default()),
+        Box::new(onboard::PaperLowPass::default()),
         Box::new(onboard::RefinedMethod::default()),
         Box::new(batch_ls::BatchLs),
         Box::new(rls::Rls),

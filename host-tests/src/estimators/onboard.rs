@@ -92,6 +92,65 @@ impl Method for PaperAveraged {
     }
 }
 
+/// The paper's identifier on omega low-passed by a second-order Butterworth filter (bilinear
+/// transform, cut-off `cutoff_hz`; a filter the firmware could run too). The filter's delay is
+/// harmless: a time-shifted motion satisfies (1) as well.
+pub struct PaperLowPass {
+    /// The identifier.
+    pub paper: Paper,
+    /// Cut-off frequency, Hz.
+    pub cutoff_hz: f64,
+}
+
+impl Default for PaperLowPass {
+    fn default() -> Self {
+        PaperLowPass {
+            paper: Paper::default(),
+            cutoff_hz: 2.0,
+        }
+    }
+}
+
+/// Second-order Butterworth low-pass of each axis of `y` (uniform spacing `dt`), started at
+/// rest on the first sample.
+pub fn butterworth(y: &[[f64; 3]], dt: f64, cutoff_hz: f64) -> Vec<[f64; 3]> {
+    let k = (std::f64::consts::PI * cutoff_hz * dt).tan();
+    let q = std::f64::consts::SQRT_2;
+    let norm = 1.0 / (1.0 + q * k + k * k);
+    let (b0, b1, b2) = (k * k * norm, 2.0 * k * k * norm, k * k * norm);
+    let (a1, a2) = (2.0 * (k * k - 1.0) * norm, (1.0 - q * k + k * k) * norm);
+    let Some(first) = y.first() else {
+        return Vec::new();
+    };
+    let (mut x1, mut x2, mut y1, mut y2) = (*first, *first, *first, *first);
+    y.iter()
+        .map(|x| {
+            let out: [f64; 3] = std::array::from_fn(|i| {
+                b0 * x[i] + b1 * x1[i] + b2 * x2[i] - a1 * y1[i] - a2 * y2[i]
+            });
+            x2 = x1;
+            x1 = *x;
+            y2 = y1;
+            y1 = out;
+            out
+        })
+        .collect()
+}
+
+impl Method for PaperLowPass {
+    fn name(&self) -> &'static str {
+        "paper identifier on low-passed omega (2 Hz, filter in f64)"
+    }
+    fn estimate(&self, t: &[f64], y: &[[f64; 3]]) -> [f64; 3] {
+        self.curve(t, y, &[t.len() - 1])[0]
+    }
+    fn curve(&self, t: &[f64], y: &[[f64; 3]], checkpoints: &[usize]) -> Vec<[f64; 3]> {
+        let dt = if t.len() > 1 { t[1] - t[0] } else { 1e-3 };
+        let f = butterworth(y, dt, self.cutoff_hz);
+        self.paper.curve(t, &f, checkpoints)
+    }
+}
+
 /// The refined on-board identifier ([`identifier_core::Refined`]) with its default settings
 /// except two set from the sample rate: blocks of about 32 ms (32 samples at 1 kHz, 3 at
 /// 100 Hz) and the end correction of the integral below 200 Hz.
