@@ -503,7 +503,12 @@ fn flight_settings() -> Settings {
     }
 }
 
+/// `cases` per property, or `PROPTEST_CASES` from the environment for longer runs.
 fn config(cases: u32) -> Config {
+    let cases = std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(cases);
     Config {
         cases,
         failure_persistence: None,
@@ -586,8 +591,11 @@ proptest! {
 
     /// What was learnt survives: after 12 s of clean data the estimate is good; trouble that is
     /// refused (NaN, saturation, bad dt, gaps, unidentifiable stretches) leaves it bit for bit,
-    /// and with accepted junk mixed in, clean data afterwards brings it back within the same
-    /// accuracy. With a real full scale no sample ever causes a numerical fault.
+    /// and with accepted junk mixed in (plausible but wrong rates up to the full scale, which
+    /// the identifier cannot tell from data), clean data afterwards brings it back within the
+    /// same accuracy: the paper's identifier forgets exponentially. The recovery time depends
+    /// on how far the junk threw the estimate (rates near 35 rad/s once needed just over 12 s),
+    /// so 24 s are given. With a real full scale no sample ever causes a numerical fault.
     #[test]
     fn learnt_estimate_survives_trouble(
         segs in prop::collection::vec(segment(FULL_SCALE_2000DPS), 1..10),
@@ -610,12 +618,12 @@ proptest! {
             // only have improved.
             prop_assert!(max_err(h.id.estimate()) < 1e-3, "{:?}", h.id.estimate());
         }
-        // Clean data afterwards restores the accuracy.
-        let from = k.min(clean().len() - 12_000);
-        let mut k2 = from;
-        h.clean(&mut k2, 12_000)?;
+        // Clean data afterwards restores the accuracy (the replay restarts at 12 s of the
+        // motion; the jump there is one more piece of junk).
+        let mut k2 = 12_000;
+        h.clean(&mut k2, 24_000)?;
         let err = max_err(h.id.estimate());
-        prop_assert!(err < 1e-3, "after trouble + 12 s clean: err {err:e}, learnt err {err0:e}");
+        prop_assert!(err < 1e-3, "after trouble + 24 s clean: err {err:e}, learnt err {err0:e}");
         prop_assert_eq!(h.id.counters().numerical_faults, 0);
     }
 

@@ -271,7 +271,12 @@ fn without_refused(seq: &[([f32; 3], f32)], full_scale: f32) -> Option<Vec<Actio
     Some(out)
 }
 
+/// `cases` per property, or `PROPTEST_CASES` from the environment for longer runs.
 fn config(cases: u32) -> Config {
+    let cases = std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(cases);
     Config {
         cases,
         failure_persistence: None,
