@@ -98,7 +98,7 @@ fn main() -> ! {
     );
 
     // The refined identifier as configured for 1 kHz (defaults: 32-sample blocks, no end
-    // correction), and as configured for 100 Hz (3-sample blocks, end correction).
+    // correction), and as configured for 100 Hz (8-sample blocks, end correction).
     let Some(mut refined) = Refined::new(RefinedSettings::new()) else {
         semihosting::process::exit(4)
     };
@@ -108,7 +108,7 @@ fn main() -> ! {
     report("refined", t, "Cortex-M4F QEMU -icount; 1 kHz settings");
     let mut s = RefinedSettings::new();
     s.end_correction = true;
-    s.block = 3;
+    s.block = 8;
     let Some(mut r100) = Refined::new(s) else {
         semihosting::process::exit(5)
     };
@@ -118,7 +118,7 @@ fn main() -> ! {
     report(
         "refined-100hz",
         t,
-        "Cortex-M4F QEMU -icount; 100 Hz settings: 3-sample blocks and end correction",
+        "Cortex-M4F QEMU -icount; 100 Hz settings: 8-sample blocks and end correction",
     );
 
     let mut ekf = Ekf32::new([1.0, 1.0, 1.0], 2e-3);

@@ -113,7 +113,7 @@ fn refined_combines_tosses_and_reports_its_uncertainty() {
     let truth = sc.truth();
     let a = sc.a();
     let mut id = Refined::new(RefinedSettings {
-        block: 3,
+        block: 8,
         end_correction: true,
         noise_std: sc.sigma as f32,
         ..RefinedSettings::new()

@@ -72,8 +72,8 @@ pub struct RefinedSettings {
     pub prior_std: f32,
     /// Samples per measurement update (1 to 1024). Larger blocks cost fewer instructions per
     /// sample; the estimate reported by [`Refined::step`] then lags by up to this many samples.
-    /// Keep a block short against the motion (about 30 ms: 32 samples at 1 kHz, 3 at 100 Hz),
-    /// because the integral's noise is lumped once per block.
+    /// Keep a block short against the motion (32 samples at 1 kHz, 8 at 100 Hz in the
+    /// benchmark's fast toss), because the integral's noise is lumped once per block.
     pub block: u16,
     /// Use the fourth-order end correction of the integral (worth it when the rates change
     /// appreciably between samples, as at 100 Hz in a fast tumble; negligible at 1 kHz on a

@@ -625,7 +625,7 @@ fn goals(
                 "- At most 1/10 of the EKF's instructions per step: refined {r:.0} (1 kHz settings, used on the first scenario) vs EKF {e:.0} = {:.3}: **{}**.{}",
                 r / e,
                 verdict(r <= 0.1 * e),
-                r100.map(|x| format!(" The 100 Hz settings of the toss (3-sample blocks, end correction) cost {x:.0} = {:.3} of the EKF.", x / e)).unwrap_or_default()
+                r100.map(|x| format!(" The 100 Hz settings of the toss (8-sample blocks, end correction) cost {x:.0} = {:.3} of the EKF.", x / e)).unwrap_or_default()
             );
         }
         _ => {
