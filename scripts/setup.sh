@@ -45,3 +45,10 @@ ensure_defmt_print() {
         cargo install defmt-print --locked
     fi
 }
+
+ensure_gcc() {
+    if ! command -v gcc >/dev/null; then
+        log "installing gcc (Debian package, for the QEMU instruction-counting plugin)"
+        apt_install gcc libc6-dev
+    fi
+}

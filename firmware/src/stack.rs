@@ -8,8 +8,9 @@
 use core::ptr::{addr_of, read_volatile, write_volatile};
 
 const PAINT: u32 = 0xC0DE_57AC;
-/// Words left unpainted below the caller's stack pointer (the painting function's frame).
-const MARGIN_WORDS: usize = 64;
+/// Words left unpainted below this function's own stack pointer. Nothing below the stack
+/// pointer is live (no interrupts are enabled while painting), so this is only a guard.
+const MARGIN_WORDS: usize = 4;
 
 unsafe extern "C" {
     static _stack_start: u32;

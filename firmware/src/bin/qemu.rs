@@ -150,8 +150,11 @@ fn main() -> ! {
             exit(1)
         }
     };
+    // Stack: the high-water mark so far (start-up, log open, gyro init), then repaint so the
+    // mark at the end is the sample loop's alone (reports included).
+    let init_high_water = stack::high_water();
     let loop_depth = stack::depth();
-    #[cfg(feature = "bench")]
+    stack::paint();
     firmware::bench::calibrate();
 
     // Until the log is exhausted (a timeout alone is not the end: with injected bus errors a
@@ -188,10 +191,13 @@ fn main() -> ! {
     );
     let hw = stack::high_water();
     defmt::info!(
-        "stack high-water {=usize} bytes of {=usize}; sample loop below main: {=usize} bytes",
-        hw,
+        "stack: {=usize} bytes reserved; high-water {=usize} bytes during start-up and init, {=usize} bytes during the sample loop ({=usize} of them below main's frame); identifier state {=usize} bytes, sample loop state {=usize} bytes",
         stack::size(),
-        hw.saturating_sub(loop_depth)
+        init_high_water,
+        hw,
+        hw.saturating_sub(loop_depth),
+        core::mem::size_of::<identifier_core::Identifier>(),
+        core::mem::size_of_val(&app)
     );
     exit(0)
 }
