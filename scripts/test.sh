@@ -34,3 +34,28 @@ checks/firmware-faults/run.sh
 log "reliability: bounded fuzzing (30 s per target)"
 scripts/fuzz.sh 30
 # ---- end of reliability section ----
+
+# ---- firmware section (icm42688 driver, firmware crate, QEMU end to end) --------------------
+# The driver and the firmware library are host-built and tested above (icm42688 is a default
+# member; `cargo test --workspace` runs firmware's library tests). Here: the thumbv7em builds
+# of both firmware images, clippy on them, and the QEMU end-to-end check.
+ensure_qemu
+ensure_defmt_print
+
+log "icm42688 for thumbv7em-none-eabihf (no_std), clippy -D warnings"
+cargo build -p icm42688 --features sim,defmt --target thumbv7em-none-eabihf
+cargo clippy -p icm42688 --features sim,defmt --target thumbv7em-none-eabihf -- -D warnings
+
+for features in qemu stm32f405; do
+    log "firmware ($features) for thumbv7em-none-eabihf, clippy -D warnings"
+    cargo build -p firmware --bins --features "$features" --target thumbv7em-none-eabihf --profile firmware
+    cargo clippy -p firmware --bins --features "$features" --target thumbv7em-none-eabihf --profile firmware -- -D warnings
+done
+cargo clippy -p firmware --all-targets -- -D warnings
+
+log "docs of the driver and the firmware library without warnings"
+RUSTDOCFLAGS="-D warnings" cargo doc -p icm42688 -p firmware --no-deps --features icm42688/sim
+
+log "firmware end to end under QEMU (simulated body -> gyro log -> firmware -> defmt -> checks)"
+scripts/firmware-e2e.sh
+# ---- end of firmware section ----

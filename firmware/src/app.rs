@@ -109,6 +109,8 @@ pub struct SampleLoop<IF> {
     counters: LoopCounters,
     /// Nominal sample period, s.
     period: f32,
+    /// Output data rate, Hz.
+    odr_hz: f32,
     /// Time since the last identifier step, s: a period per data-ready, so samples lost to
     /// bus errors lengthen the next step instead of shrinking the time base.
     pending_dt: f32,
@@ -143,6 +145,7 @@ impl<IF: RegisterInterface> SampleLoop<IF> {
             identifier,
             counters: LoopCounters::default(),
             period: config.odr.period_s(),
+            odr_hz: config.odr.hz(),
             pending_dt: 0.0,
             tick: 0,
             report_every: (odr_hz / REPORT_HZ).max(1),
@@ -212,7 +215,8 @@ impl<IF: RegisterInterface> SampleLoop<IF> {
         let a = self.identifier.estimate();
         Report {
             tick: self.tick,
-            t: self.tick as f32 * self.period,
+            // A division, so whole seconds print as such (3000 / 1000 is exactly 3.0).
+            t: self.tick as f32 / self.odr_hz,
             a,
             ratios: InertiaRatios::from_a(a),
             consistency: identifier_core::consistency(a),
@@ -320,7 +324,7 @@ mod tests {
         assert!(c.bus_errors > 10, "{c:?}");
         let r = last.unwrap();
         assert_eq!(r.tick % 100, 0);
-        assert!(reports >= 19 && reports <= 20, "{reports}");
+        assert!((19..=20).contains(&reports), "{reports}");
         assert!(lp.gyro().interface().bus().exhausted());
         // Every sample the simulated part latched was either stepped or lost to a bus error.
         let latched = lp.gyro().interface().bus().stats().samples;
