@@ -4,7 +4,8 @@
 //! exit code tells the host how the run went.
 //!
 //! Semihosting command line: `firmware-qemu <log path> [bus error every n transfers]`.
-//! Exit codes: 0 log replayed, 1 gyro init failed, 2 log unreadable, 3 bad arguments.
+//! Exit codes: 0 log replayed, 1 gyro init failed, 2 log unreadable, 3 bad arguments,
+//! 4 log shorter than its header says (truncated file or a read error).
 #![no_std]
 #![no_main]
 
@@ -199,6 +200,15 @@ fn main() -> ! {
         core::mem::size_of::<identifier_core::Identifier>(),
         core::mem::size_of_val(&app)
     );
+    let latched = app.gyro().interface().bus().stats().samples;
+    if latched != header.samples {
+        defmt::error!(
+            "the log ended after {=u32} of {=u32} samples",
+            latched,
+            header.samples
+        );
+        exit(4)
+    }
     exit(0)
 }
 
