@@ -145,3 +145,14 @@ fn refined_combines_tosses_and_reports_its_uncertainty() {
         );
     }
 }
+
+#[test]
+fn refined_keeps_its_accuracy_over_a_long_run_in_f32() {
+    // 100 s at 1 kHz: the information keeps growing and f32 must keep up.
+    let mut sc = scenario("paper");
+    sc.duration = 100.0;
+    let r = rms_ratio(&onboard::RefinedMethod::default(), &sc, 12);
+    let ekf = rms_ratio(&host_tests::estimators::ekf::Ekf, &sc, 12);
+    eprintln!("refined / CRB {r:?}, EKF / CRB {ekf:?}");
+    assert!(r.iter().all(|x| *x < 2.0), "refined / CRB = {r:?}");
+}
