@@ -159,7 +159,8 @@ impl<IF: RegisterInterface> Icm42688<IF> {
         Err(Error::Timeout)
     }
 
-    /// Resets the part, checks its identity and configures it: full scale and ODR
+    /// Resets the part, checks its identity and configures it: on SPI the I2C interface off
+    /// (`INTF_CONFIG0`), full scale and ODR
     /// (`GYRO_CONFIG0`), optionally data-ready on INT1, gyro in low-noise mode with the
     /// accelerometer off (`PWR_MGMT0`). Configuration registers are read back and compared.
     /// Returns once the gyro's start-up time has passed.
@@ -172,6 +173,9 @@ impl<IF: RegisterInterface> Icm42688<IF> {
         let id = self.who_am_i()?;
         if id != reg::WHO_AM_I_VALUE {
             return Err(Error::WrongId(id));
+        }
+        if IF::IS_SPI {
+            self.write_checked(reg::INTF_CONFIG0, reg::INTF_CONFIG0_SPI_ONLY)?;
         }
         if config.data_ready_int1 {
             self.write_checked(reg::INT_CONFIG, reg::INT_CONFIG_INT1_ACTIVE_HIGH_PUSH_PULL)?;

@@ -10,6 +10,8 @@ use crate::registers::SPI_READ;
 pub trait RegisterInterface {
     /// The bus's error.
     type Error;
+    /// True on SPI: the driver then disables the part's I2C interface (`INTF_CONFIG0`).
+    const IS_SPI: bool = false;
     /// Writes `value` to register `reg` of the current bank.
     fn write_register(&mut self, reg: u8, value: u8) -> Result<(), Self::Error>;
     /// Reads `buf.len()` registers starting at `reg` (the part auto-increments the address,
@@ -48,6 +50,7 @@ impl<SPI> SpiInterface<SPI> {
 
 impl<SPI: SpiDevice> RegisterInterface for SpiInterface<SPI> {
     type Error = SPI::Error;
+    const IS_SPI: bool = true;
 
     fn write_register(&mut self, reg: u8, value: u8) -> Result<(), Self::Error> {
         self.spi.write(&[reg & !SPI_READ, value])

@@ -46,6 +46,13 @@ pub const SIGNAL_PATH_RESET: u8 = 0x4B;
 /// `FIFO_FLUSH` bit of `SIGNAL_PATH_RESET`.
 pub const SIGNAL_PATH_RESET_FIFO_FLUSH: u8 = 1 << 1;
 
+/// `INTF_CONFIG0`: bit 5 `FIFO_COUNT_ENDIAN`, bit 4 `SENSOR_DATA_ENDIAN` (1 = big-endian, the
+/// reset value), bits 1:0 `UI_SIFS_CFG` (11 = disable the I2C interface).
+pub const INTF_CONFIG0: u8 = 0x4C;
+/// Big-endian count and data (as after reset) with I2C disabled: on an SPI bus, a pattern that
+/// looks like an I2C start can otherwise put the part's serial interface in I2C mode.
+pub const INTF_CONFIG0_SPI_ONLY: u8 = 0b0011_0011;
+
 /// `PWR_MGMT0`: bits 3:2 `GYRO_MODE`, bits 1:0 `ACCEL_MODE` (00 = off), bit 5 `TEMP_DIS`.
 pub const PWR_MGMT0: u8 = 0x4E;
 /// `GYRO_MODE` = 11, low-noise mode, in `PWR_MGMT0`; the accelerometer stays off.

@@ -59,7 +59,7 @@ fn reset_registers() -> [u8; 128] {
     set(&mut r, reg::INT_CONFIG1, reg::INT_CONFIG1_ASYNC_RESET);
     set(&mut r, reg::INT_SOURCE0, 0x10);
     set(&mut r, reg::FIFO_CONFIG1, 0x00);
-    set(&mut r, 0x4C, 0x30); // INTF_CONFIG0: big-endian data and FIFO count
+    set(&mut r, reg::INTF_CONFIG0, 0x30); // big-endian data and FIFO count
     r
 }
 
@@ -73,7 +73,7 @@ const WRITABLE: [u8; 8] = [
     reg::FIFO_CONFIG1,
     reg::INT_CONFIG1,
     reg::INT_SOURCE0,
-    0x4C,
+    reg::INTF_CONFIG0,
 ];
 
 /// Counts of what the simulated part saw.

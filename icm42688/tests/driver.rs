@@ -46,7 +46,9 @@ fn init_over_spi_follows_the_datasheet() {
     let mut parts = reset_seq();
     parts.extend([
         r(0x75, &[0x47]), // WHO_AM_I
-        w(0x14, 0x03),    // INT_CONFIG: INT1 push-pull, active high, pulsed
+        w(0x4C, 0x33),    // INTF_CONFIG0: big-endian, I2C interface disabled
+        r(0x4C, &[0x33]),
+        w(0x14, 0x03), // INT_CONFIG: INT1 push-pull, active high, pulsed
         r(0x14, &[0x03]),
         r(0x64, &[0x10]), // INT_CONFIG1 reset value
         w(0x64, 0x00),    // INT_ASYNC_RESET cleared
@@ -71,6 +73,8 @@ fn init_without_int1_and_other_range() {
     let mut parts = reset_seq();
     parts.extend([
         r(0x75, &[0x47]),
+        w(0x4C, 0x33),
+        r(0x4C, &[0x33]),
         w(0x4F, 0x01), // +-2000 dps, 32 kHz
         r(0x4F, &[0x01]),
         w(0x4E, 0x0C),
@@ -115,7 +119,13 @@ fn reset_that_never_completes_times_out() {
 #[test]
 fn readback_mismatch_is_reported() {
     let mut parts = reset_seq();
-    parts.extend([r(0x75, &[0x47]), w(0x4F, 0x46), r(0x4F, &[0x06])]);
+    parts.extend([
+        r(0x75, &[0x47]),
+        w(0x4C, 0x33),
+        r(0x4C, &[0x33]),
+        w(0x4F, 0x46),
+        r(0x4F, &[0x06]),
+    ]);
     let mut spi = SpiMock::new(&seq(&parts));
     let mut gyro = Icm42688::new_spi(spi.clone());
     let config = Config {
