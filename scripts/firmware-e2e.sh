@@ -8,7 +8,9 @@
 #     runs the firmware's own sample loop, driver and simulated part over the same f32
 #     samples, and every operation on the way is IEEE-754 binary32 with round-to-nearest, so
 #     the MCU build must give identical bits (see host-tests/src/bin/gen-log.rs);
-#  3. its sample, skipped-sample and bus-error counters equal the reference's;
+#  3. so does every one of its 10 Hz reports (about 200 intermediate estimates, compared as
+#     the shortest round-trip decimal strings, which identify the f32 bits), and its sample,
+#     skipped-sample and bus-error counters equal the reference's;
 #  4. |a_i - a_i(true)| <= TRUTH_TOL for each i (default 0.03): with 1 mrad/s gyro noise the
 #     estimate keeps wandering after it has converged; over seeds 1..5 the final error was
 #     1.1e-3 to 1.4e-2 and the largest error in the last 10 s of the seed-1 run 1.6e-2, so
@@ -40,7 +42,7 @@ cargo build -q -p firmware --bin firmware-qemu --features qemu \
 log "generating the gyro log and the host reference"
 mkdir -p "$OUT"
 cargo run -q --release -p host-tests --bin gen-log -- \
-    --out "$OUT/gyro.log" --reference "$OUT/reference.txt" \
+    --out "$OUT/gyro.log" --reference "$OUT/reference.txt" --reports "$OUT/reports.txt" \
     --duration "$DURATION" --noise "$NOISE" --seed "$SEED" --bus-error-every "$BUS_ERROR_EVERY"
 
 log "running the firmware under QEMU (netduinoplus2, Cortex-M4F)"
@@ -73,6 +75,14 @@ fw_a="$(sed -n 's/.*final a=\[\([^]]*\)\].*/\1/p' <<<"$final_line" | tr -d ' ')"
 ref_bits="$(ref bits)"
 check "firmware == host reference (bit for bit)" \
     "$([ "$fw_bits" = "$ref_bits" ] && echo 1 || echo 0)" "firmware $fw_bits, host $ref_bits"
+sed -n 's/.* t=[0-9.]*s a=\[\([^]]*\)\].*/\1/p' "$OUT/defmt.txt" | tr -d ',' >"$OUT/fw-reports.txt"
+n_reports="$(wc -l <"$OUT/reports.txt")"
+if cmp -s "$OUT/reports.txt" "$OUT/fw-reports.txt"; then
+    check "every report == host reference" 1 "$n_reports reports identical"
+else
+    first="$(diff "$OUT/reports.txt" "$OUT/fw-reports.txt" | head -n 4 | tr '\n' ' ')"
+    check "every report == host reference" 0 "differ: $first"
+fi
 for k in samples skipped bus_errors; do
     check "counter $k" "$([ "$(fin "$k")" = "$(ref "$k")" ] && echo 1 || echo 0)" \
         "firmware $(fin "$k"), host $(ref "$k")"

@@ -38,6 +38,10 @@ struct Args {
     /// Log file to write.
     #[arg(long, default_value = "target/firmware-e2e/gyro.log")]
     out: PathBuf,
+    /// Every 10 Hz report's estimate, one `a1 a2 a3` line each (Rust's shortest round-trip
+    /// formatting of the f32 values, as defmt-print prints them), then the final report's.
+    #[arg(long, default_value = "target/firmware-e2e/reports.txt")]
+    reports: PathBuf,
     /// Reference (key=value lines) to write.
     #[arg(long, default_value = "target/firmware-e2e/reference.txt")]
     reference: PathBuf,
@@ -66,7 +70,7 @@ fn main() -> Result<()> {
     let readings = GyroModel::noisy(args.noise, args.seed).measure(&trajectory);
     let samples: Vec<[f32; 3]> = readings.iter().map(|w| w.map(|x| x as f32)).collect();
 
-    for p in [&args.out, &args.reference] {
+    for p in [&args.out, &args.reference, &args.reports] {
         if let Some(dir) = p.parent() {
             std::fs::create_dir_all(dir)?;
         }
@@ -88,15 +92,19 @@ fn main() -> Result<()> {
     let mut app = SampleLoop::new(Icm42688::new_spi(sim), &mut NoDelay, config)
         .map_err(|e| anyhow::anyhow!("gyro init on the simulated part failed: {e:?}"))?;
     let mut reports = 0u32;
+    let mut stream = BufWriter::new(File::create(&args.reports)?);
     while !app.gyro().interface().bus().exhausted() {
         if let Poll::Stepped {
-            report: Some(_), ..
+            report: Some(r), ..
         } = app.poll(&mut NoDelay)
         {
             reports += 1;
+            writeln!(stream, "{} {} {}", r.a[0], r.a[1], r.a[2])?;
         }
     }
     let r = app.report();
+    writeln!(stream, "{} {} {}", r.a[0], r.a[1], r.a[2])?;
+    stream.flush()?;
     let c = app.counters();
     ensure!(c.samples > 0, "no sample reached the identifier");
 
