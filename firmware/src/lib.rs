@@ -11,6 +11,17 @@
 //!   simulated part to produce the reference the QEMU run must reproduce bit for bit.
 //!
 //! Nothing here panics or allocates.
+//!
+//! # Running
+//!
+//! * `scripts/run.sh`: build, simulate a spinning body, run under QEMU, show the estimates.
+//! * `scripts/firmware-e2e.sh`: the same, checked against the host reference and the truth.
+//! * `scripts/bench-firmware.sh`: instructions per step, flash/RAM, stack high-water.
+//! * `cargo qemu -- <gyro log> [bus error every n]`: the QEMU image via its runner script.
+//! * `cargo flash-board`: the STM32F405 image through `probe-rs run` (a probe attached).
+//!
+//! The binaries build only for `thumbv7em-none-eabihf` with their feature (`qemu` or
+//! `stm32f405`); the library, with no feature, also builds and tests on the host.
 #![no_std]
 #![deny(missing_docs)]
 #![deny(
