@@ -6,7 +6,7 @@
 #![no_std]
 #![no_main]
 
-use bench_mcu::{Ekf32, Signal};
+use bench_mcu::{Ekf32, Ekf32Sparse, Signal};
 use cortex_m::peripheral::{syst::SystClkSource, Peripherals, SYST};
 use cortex_m_rt::entry;
 use identifier_core::{Identifier, Refined, RefinedSettings, Settings};
@@ -131,11 +131,27 @@ fn main() -> ! {
         t,
         "Cortex-M4F QEMU -icount; dense f32 EKF (bench-mcu)",
     );
+
+    let mut sparse = Ekf32Sparse::new([1.0, 1.0, 1.0], 2e-3);
+    let t = measure(|w, dt| {
+        sparse.step(core::hint::black_box(w), dt);
+        core::hint::black_box(&sparse);
+    });
+    report(
+        "ekf-sparse",
+        t,
+        "Cortex-M4F QEMU -icount; f32 EKF exploiting sparsity and symmetry (bench-mcu)",
+    );
     let a = refined.estimate();
     let e = ekf.a();
     println!(
         "# check: refined a = ({:.4}, {:.4}, {:.4}), ekf a = ({:.4}, {:.4}, {:.4})",
         a[0], a[1], a[2], e[0], e[1], e[2]
+    );
+    let sp = sparse.a();
+    println!(
+        "# check: sparse ekf a = ({:.4}, {:.4}, {:.4})",
+        sp[0], sp[1], sp[2]
     );
     semihosting::process::exit(0)
 }
