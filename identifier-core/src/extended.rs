@@ -315,8 +315,15 @@ impl ExtendedIdentifier {
         } else {
             1.0
         };
+        // theta is finite, but near f32::MAX the scaled a is not: then report it unscaled.
+        let scaled = [a1 * scale, a2 * scale, a3 * scale];
+        let (a, scale) = if scaled.iter().all(|v| v.is_finite()) {
+            (scaled, scale)
+        } else {
+            (a, 1.0)
+        };
         ExtendedEstimate {
-            a: [a1 * scale, a2 * scale, a3 * scale],
+            a,
             effect_params: [[p0, p1, p2], [p3, p4, p5]],
             scale,
             status,
