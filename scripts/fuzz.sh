@@ -50,7 +50,8 @@ for t in "${TARGETS[@]}"; do
     secs="$(sed -n 's/^Done \([0-9]*\) runs in \([0-9]*\) second.*/\2/p' "$out" | tail -n 1)"
     cov="$(grep -o 'cov: [0-9]*' "$out" | tail -n 1 || true)"
     if [ "$rc" -ne 0 ] || [ -z "$runs" ]; then
-        tail -n 60 "$out" >&2
+        grep -m 1 -A 3 "panicked at" "$out" >&2 || true
+        grep -E "^(Error|SUMMARY|artifact_prefix)" "$out" >&2 || tail -n 30 "$out" >&2
         rm -f "$out"
         echo "fuzz: $t FAILED (exit $rc); see fuzz/artifacts/$t/" >&2
         exit 1
