@@ -4,10 +4,11 @@
 //! # Why
 //!
 //! The paper's identifier with `C = -lambda E` low-passes the instantaneous ratio
-//! `(w_i^2)' / (2 w1 w2 w3)` with the weight `|w1 w2 w3|` (see (13)-(14)). With a gain that
-//! decays like `1 / (information so far)` its estimate telescopes to differences of `w_i^2`
-//! between sign changes of `w1 w2 w3`: the information enters through a few noisy end points,
-//! and on noisy data the plain identifier stays far above the Cramer-Rao bound.
+//! `(w_i^2)' / (2 w1 w2 w3)` with the weight `|w1 w2 w3|` (see (13)-(14)). Even with a gain
+//! that decays like `1 / (information so far)` its estimate would telescope to differences of
+//! `w_i^2` between sign changes of `w1 w2 w3`: the information enters through a few noisy end
+//! points, and on noisy data the plain identifier stays far above the Cramer-Rao bound
+//! (`BENCHMARKS.md`).
 //!
 //! # What this module does instead
 //!
@@ -26,13 +27,14 @@
 //! `a_i^2 sigma^2 h^2 (w_j^2 + w_k^2)` per step, next to the white measurement noise
 //! `sigma^2`. A two-state Kalman filter per axis on `(c_i, a_i)` with exactly these variances
 //! is the best linear estimator for that model: it weighs each sample by what it still
-//! says about `a_i` once the integral's noise is accounted for. Both variances scale with
+//! says about `a_i` once the integral's noise is accounted for (it ignores that the integral's
+//! noise on one axis comes from the other axes' measurement noise). Both variances scale with
 //! `sigma^2`, so the filter runs in units of `sigma^2` and its gains do not depend on the
 //! noise level; only the prior on `a` does ([`RefinedSettings::prior_std`] over
 //! [`RefinedSettings::noise_std`]).
 //!
 //! The filter is kept in information form and its measurement update is done once per block
-//! of [`RefinedSettings::block`] samples: per sample only five running sums per axis are
+//! of [`RefinedSettings::block`] samples: per sample only four running sums per axis are
 //! added (`sum G`, `sum G^2`, `sum w`, `sum w G`), and per block one 2x2 solve per axis turns
 //! them into the new `(c_i, a_i)`. Within a block the intercept's wander is lumped at the
 //! block's start, a negligible approximation for blocks much shorter than the time over which
@@ -64,8 +66,9 @@ use crate::status::{Counters, Estimate, SampleStatus};
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RefinedSettings {
     /// Gyro white noise per sample, rad/s (datasheet noise density times the square root of
-    /// the bandwidth). Only scales the prior: the filter's gains are independent of it. Must
-    /// be finite and `> 0`.
+    /// the bandwidth). It scales the prior and the unmodelled torque of
+    /// [`Refined::set_torque_noise`]; the filter's gains for (1) do not depend on it. Must be
+    /// finite and `> 0`.
     pub noise_std: f32,
     /// Prior standard deviation of each `a_i` around [`RefinedSettings::initial_estimate`]
     /// (`|a_i| < 1` for any real body, so `1` is a wide prior). Must be finite and `> 0`.
