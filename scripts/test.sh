@@ -59,3 +59,9 @@ RUSTDOCFLAGS="-D warnings" cargo doc -p icm42688 -p firmware --no-deps --feature
 log "firmware end to end under QEMU (simulated body -> gyro log -> firmware -> defmt -> checks)"
 scripts/firmware-e2e.sh
 # ---- end of firmware section ----
+
+# ---- benchmarks, quick mode: every estimator and the Cramer-Rao bound on 8 seeds -------------
+# The figures in BENCHMARKS.md come from the full run (scripts/bench-estimators.sh); this
+# checks that the benchmark itself runs end to end and prints its table.
+log "estimator benchmark, quick mode"
+scripts/bench-estimators.sh --quick
