@@ -10,6 +10,8 @@ ensure_qemu
 ensure_defmt_print
 
 cd "$ROOT/checks/firmware-faults"
+# Its own target directory, whatever the caller's CARGO_TARGET_DIR: the ELF path is fixed below.
+export CARGO_TARGET_DIR="$ROOT/checks/firmware-faults/target"
 features=()
 limit=120
 if [ "${1:-}" = "--selftest-no-watchdog" ]; then
