@@ -1,6 +1,8 @@
 //! Flight firmware of the inertia-ratio identifier: gyro samples from an ICM-42688-P go one by
-//! one into `identifier-core`, and the estimates, inertia ratios, convergence status and
-//! counters go out as a defmt stream at 10 Hz.
+//! one into two identifiers of `identifier-core`, the paper's [`identifier_core::Identifier`]
+//! and the refined [`identifier_core::Refined`] beside it (near the Cramer-Rao bound on noisy
+//! gyros), and both estimates, the refined inertia ratios, the convergence status of each and
+//! the counters go out as a defmt stream at 10 Hz.
 //!
 //! The library holds everything that is not tied to a board, generic over the driver's bus
 //! interface, so the same code runs:
@@ -37,4 +39,7 @@ pub mod log_format;
 #[cfg(all(target_arch = "arm", target_os = "none"))]
 pub mod stack;
 
-pub use app::{identifier_settings, InitError, LoopCounters, NoDelay, Poll, Report, SampleLoop};
+pub use app::{
+    identifier_settings, refined_settings, InitError, LoopCounters, NoDelay, Poll, Report,
+    SampleLoop,
+};

@@ -171,33 +171,41 @@ fn main() -> ! {
 
     let r = app.report();
     firmware::app::log_report(&r);
-    let a = r.a;
+    let (p, f) = (r.a_paper, r.a_refined);
     let c = app.counters();
     let ic = app.identifier_counters();
     defmt::info!(
-        "final a=[{=f32}, {=f32}, {=f32}] bits=[{=u32:#010x}, {=u32:#010x}, {=u32:#010x}] samples={=u32} skipped={=u32} bus_errors={=u32} invalid={=u32} timeouts={=u32} integrated={=u32} sign_changes={=u32}",
-        a[0],
-        a[1],
-        a[2],
-        a[0].to_bits(),
-        a[1].to_bits(),
-        a[2].to_bits(),
+        "final a_paper=[{=f32}, {=f32}, {=f32}] bits_paper=[{=u32:#010x}, {=u32:#010x}, {=u32:#010x}] a_refined=[{=f32}, {=f32}, {=f32}] bits_refined=[{=u32:#010x}, {=u32:#010x}, {=u32:#010x}] samples={=u32} skipped={=u32} bus_errors={=u32} invalid={=u32} timeouts={=u32} integrated={=u32} sign_changes={=u32} refined_integrated={=u32}",
+        p[0],
+        p[1],
+        p[2],
+        p[0].to_bits(),
+        p[1].to_bits(),
+        p[2].to_bits(),
+        f[0],
+        f[1],
+        f[2],
+        f[0].to_bits(),
+        f[1].to_bits(),
+        f[2].to_bits(),
         c.samples,
         c.skipped,
         c.bus_errors,
         c.invalid,
         c.timeouts,
         ic.integrated,
-        ic.sign_changes
+        ic.sign_changes,
+        app.refined_counters().integrated
     );
     let hw = stack::high_water();
     defmt::info!(
-        "stack: {=usize} bytes reserved; high-water {=usize} bytes during start-up and init, {=usize} bytes during the sample loop ({=usize} of them below main's frame); identifier state {=usize} bytes, sample loop state {=usize} bytes",
+        "stack: {=usize} bytes reserved; high-water {=usize} bytes during start-up and init, {=usize} bytes during the sample loop ({=usize} of them below main's frame); identifier state {=usize} bytes (paper) + {=usize} bytes (refined), sample loop state {=usize} bytes",
         stack::size(),
         init_high_water,
         hw,
         hw.saturating_sub(loop_depth),
         core::mem::size_of::<identifier_core::Identifier>(),
+        core::mem::size_of::<identifier_core::Refined>(),
         core::mem::size_of_val(&app)
     );
     let latched = app.gyro().interface().bus().stats().samples;

@@ -8,9 +8,9 @@
 //! The reference runs the firmware's own [`firmware::SampleLoop`] over the same simulated
 //! ICM-42688-P (`icm42688::sim`) fed from the same f32 values, with the same injected bus
 //! errors: int16 quantisation at the configured full scale, the driver's conversion, one
-//! `identifier-core` step per sample with the ODR period as `dt`. Only the sample source
-//! differs (memory here, semihosting file reads on the MCU), so the firmware's final estimate
-//! must equal the reference bit for bit: both are IEEE-754 binary32 with round-to-nearest and
+//! step of each identifier (the paper's and the refined one) per sample with the ODR period as
+//! `dt`. Only the sample source differs (memory here, semihosting file reads on the MCU), so
+//! the firmware's final estimates must equal the reference bit for bit: both are IEEE-754 binary32 with round-to-nearest and
 //! no fused or reordered operations (Rust does not contract `a * b + c`), and identifier-core
 //! uses only `+ - * /`, `abs`, `min`, `max` and comparisons, which are exact the same way on
 //! the host's SSE and the Cortex-M4F's FPv4 (and QEMU's soft-float model of it).
@@ -24,7 +24,7 @@ use std::path::PathBuf;
 use anyhow::{ensure, Context, Result};
 use clap::Parser;
 use firmware::log_format::{encode_sample, Header};
-use firmware::{NoDelay, Poll, SampleLoop};
+use firmware::{NoDelay, Poll, Report, SampleLoop};
 use host_tests::gyro::GyroModel;
 use host_tests::rigid_body::Body;
 use icm42688::sim::SimIcm42688;
@@ -38,8 +38,9 @@ struct Args {
     /// Log file to write.
     #[arg(long, default_value = "target/firmware-e2e/gyro.log")]
     out: PathBuf,
-    /// Every 10 Hz report's estimate, one `a1 a2 a3` line each (Rust's shortest round-trip
-    /// formatting of the f32 values, as defmt-print prints them), then the final report's.
+    /// Every 10 Hz report's two estimates, one `a1 a2 a3 b1 b2 b3` line each (`a` the paper's
+    /// identifier, `b` the refined one; Rust's shortest round-trip formatting of the f32
+    /// values, as defmt-print prints them), then the final report's.
     #[arg(long, default_value = "target/firmware-e2e/reports.txt")]
     reports: PathBuf,
     /// Reference (key=value lines) to write.
@@ -99,26 +100,28 @@ fn main() -> Result<()> {
         } = app.poll(&mut NoDelay)
         {
             reports += 1;
-            writeln!(stream, "{} {} {}", r.a[0], r.a[1], r.a[2])?;
+            write_report(&mut stream, &r)?;
         }
     }
     let r = app.report();
-    writeln!(stream, "{} {} {}", r.a[0], r.a[1], r.a[2])?;
+    write_report(&mut stream, &r)?;
     stream.flush()?;
     let c = app.counters();
     ensure!(c.samples > 0, "no sample reached the identifier");
 
     let mut out = BufWriter::new(File::create(&args.reference)?);
-    let a = r.a;
+    let (a, b) = (r.a_paper, r.a_refined);
     writeln!(out, "samples_in_log={}", samples.len())?;
-    writeln!(out, "a={},{},{}", a[0], a[1], a[2])?;
-    writeln!(
-        out,
-        "bits={:#010x},{:#010x},{:#010x}",
-        a[0].to_bits(),
-        a[1].to_bits(),
-        a[2].to_bits()
-    )?;
+    for (key, x) in [("paper", a), ("refined", b)] {
+        writeln!(out, "a_{key}={},{},{}", x[0], x[1], x[2])?;
+        writeln!(
+            out,
+            "bits_{key}={:#010x},{:#010x},{:#010x}",
+            x[0].to_bits(),
+            x[1].to_bits(),
+            x[2].to_bits()
+        )?;
+    }
     writeln!(out, "truth={},{},{}", truth[0], truth[1], truth[2])?;
     writeln!(
         out,
@@ -130,12 +133,15 @@ fn main() -> Result<()> {
     writeln!(out, "skipped={}", c.skipped)?;
     writeln!(out, "bus_errors={}", c.bus_errors)?;
     writeln!(out, "reports={reports}")?;
-    writeln!(out, "convergence={:?}", r.convergence)?;
+    writeln!(out, "convergence_paper={:?}", r.convergence_paper)?;
+    writeln!(out, "convergence_refined={:?}", r.convergence_refined)?;
     out.flush()?;
 
-    let err = (0..3)
-        .map(|i| (f64::from(a[i]) - truth[i]).abs())
-        .fold(0.0, f64::max);
+    let err = |x: [f32; 3]| {
+        (0..3)
+            .map(|i| (f64::from(x[i]) - truth[i]).abs())
+            .fold(0.0, f64::max)
+    };
     println!(
         "wrote {} ({} samples at {rate} Hz, noise {} rad/s, seed {}) and {}",
         args.out.display(),
@@ -145,8 +151,26 @@ fn main() -> Result<()> {
         args.reference.display()
     );
     println!(
-        "host reference: a = [{:.6}, {:.6}, {:.6}], truth [{:.6}, {:.6}, {:.6}], max error {err:.2e}; samples {} skipped {} bus errors {}",
-        a[0], a[1], a[2], truth[0], truth[1], truth[2], c.samples, c.skipped, c.bus_errors
+        "host reference: truth [{:.6}, {:.6}, {:.6}]; samples {} skipped {} bus errors {}",
+        truth[0], truth[1], truth[2], c.samples, c.skipped, c.bus_errors
     );
+    for (name, x, conv) in [
+        ("paper  ", a, r.convergence_paper),
+        ("refined", b, r.convergence_refined),
+    ] {
+        println!(
+            "  {name} a = [{:.6}, {:.6}, {:.6}], max error {:.2e}, {conv:?}",
+            x[0],
+            x[1],
+            x[2],
+            err(x)
+        );
+    }
     Ok(())
+}
+
+/// One line of the reports file: the paper's estimate, then the refined one.
+fn write_report(w: &mut impl Write, r: &Report) -> std::io::Result<()> {
+    let (a, b) = (r.a_paper, r.a_refined);
+    writeln!(w, "{} {} {} {} {} {}", a[0], a[1], a[2], b[0], b[1], b[2])
 }
