@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Firmware figures (a benchmark, not a test): instructions per identifier step on the
-# Cortex-M4F build under QEMU with an instruction-counting TCG plugin, and cycles estimated at
-# 168 MHz; flash and RAM of the firmware images and of identifier-core alone (llvm-size);
+# Firmware figures (a benchmark, not a test): instructions per step of the paper's identifier,
+# per step of the refined identifier and per sample-loop iteration on the Cortex-M4F build
+# under QEMU with an instruction-counting TCG plugin, and cycles estimated at 168 MHz; flash and RAM of the firmware images and of identifier-core alone (llvm-size);
 # worst-case stack use of the sample loop, measured by painting the stack under QEMU.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/setup.sh"
@@ -42,29 +42,49 @@ cargo run -q --release -p host-tests --bin gen-log -- \
 log "building the instruction-counting plugin"
 gcc -O2 -shared -fPIC -Wall -Wextra -o "$OUT/libinsncount.so" firmware/bench/insn-count.c
 
-log "counting instructions per identifier step (QEMU netduinoplus2 + TCG plugin)"
+log "checking the bench image's markers (firmware/src/bench.rs)"
+"$LLVM_BIN/llvm-objdump" -d "$OUT/firmware-qemu-bench" >"$OUT/firmware-qemu-bench.dis"
+for m in "r9, r9" "r10, r10" "r11, r11" "r12, r12" "r8, r8" "lr, lr"; do
+    # Each marker: once in bench::calibrate, once or more (one per return path) in the loop.
+    k="$(grep -cE "[[:space:]]mov[[:space:]]+$m\$" "$OUT/firmware-qemu-bench.dis" || true)"
+    [ "$k" -ge 2 ] || { echo "marker mov $m found $k times in the bench image" >&2; exit 1; }
+done
+
+log "counting instructions per step and per loop iteration (QEMU netduinoplus2 + TCG plugin)"
 qemu-system-arm -machine netduinoplus2 -display none -monitor none -serial none \
     -semihosting-config "enable=on,target=native,arg=firmware-qemu,arg=$OUT/gyro.log" \
     -kernel "$OUT/firmware-qemu-bench" -plugin "$OUT/libinsncount.so" -d plugin \
     2>"$OUT/plugin.txt" >/dev/null
-count="$(grep '^insn-count:' "$OUT/plugin.txt")"
+grep -q '^insn-count paper: intervals' "$OUT/plugin.txt" || { cat "$OUT/plugin.txt" >&2; exit 1; }
 
 log "stack painting run (flight image, no markers)"
 scripts/firmware-qemu.sh "$OUT/firmware-qemu" "$OUT/gyro.log" >"$OUT/defmt.txt"
 stack_line="$(grep 'stack:' "$OUT/defmt.txt")"
 
-field() { sed -n "s/.* $1=\([0-9.]*\).*/\1/p" <<<"$count"; }
+field() { sed -n "s/^insn-count $1: .* $2=\([0-9.]*\).*/\1/p" "$OUT/plugin.txt"; }
+figures() { # channel title
+    echo "   $2: $(grep "^insn-count $1:" "$OUT/plugin.txt" | sed 's/^insn-count [a-z]*: //')"
+    awk -v mean="$(field "$1" mean)" -v max="$(field "$1" max)" -v vm="$(field "$1" vdiv_mean)" \
+        -v vd="$(field "$1" vdiv_max)" -v mhz="$CLOCK_MHZ" 'BEGIN {
+        # Cortex-M4F timing (TRM): most instructions 1 cycle, VDIV.F32 14; loads, taken
+        # branches and flash wait states (ART accelerator at 168 MHz) add about 20-40 %.
+        # Bounds for the worst interval (its count and the most VDIVs of any interval).
+        lo = max + 13 * vd; hi = 1.4 * max + 13 * vd
+        mlo = mean + 13 * vm; mhi = 1.4 * mean + 13 * vm
+        printf "     mean %.0f, worst %d instructions (%d VDIV.F32 at most)\n", mean, max, vd
+        printf "     cycles, mean: %.0f to %.0f = %.2f to %.2f %% of the core at 1 kHz\n", mlo, mhi, mlo / mhz / 10, mhi / mhz / 10
+        printf "     cycles, worst: %d to %d = %.1f to %.1f us at %d MHz\n", lo, hi, lo / mhz, hi / mhz, mhz
+    }'
+}
 echo
-echo "== Instructions per identifier step (Cortex-M4F, thumbv7em-none-eabihf, opt-level s, fat LTO)"
-echo "   $count"
-awk -v mean="$(field mean)" -v max="$(field max)" -v vd="$(field vdiv_max)" -v mhz="$CLOCK_MHZ" 'BEGIN {
-    # Cortex-M4F timing (TRM): most instructions 1 cycle, VDIV.F32 14; loads, taken branches
-    # and flash wait states (ART accelerator at 168 MHz) add about 20-40 %.
-    lo = max + 13 * vd; hi = 1.4 * max + 13 * vd
-    printf "   intervals are steps over 20 s of log; mean %.0f, worst %d instructions (%d VDIV.F32)\n", mean, max, vd
-    printf "   cycles, worst step: %d (1 cycle per instruction + 13 per VDIV) to %d (x1.4 for loads, branches, wait states)\n", lo, hi
-    printf "   at %d MHz (STM32F405): %.1f to %.1f us per step = %.2f to %.2f %% of the core at 1 kHz\n", mhz, lo / mhz, hi / mhz, lo / mhz / 10, hi / mhz / 10
-}'
+echo "== Instructions (Cortex-M4F, thumbv7em-none-eabihf, opt-level s, fat LTO; 20 s of log at 1 kHz)"
+echo "   cycles: 1 per instruction + 13 per VDIV.F32, to x1.4 for loads, taken branches, wait states"
+figures paper "paper's identifier, one step (Identifier::step)"
+figures refined "refined identifier, one step (Refined::step; a 2x2 solve per axis every 32nd)"
+figures loop "whole sample-loop iteration (SampleLoop::poll that stepped: data-ready poll, SPI read, both steps, counters, the 10 Hz report's values)"
+echo "     (under QEMU the loop also runs the simulated ICM-42688-P's SPI side and its log reads,"
+echo "      64 samples per semihosting call: code that is not on the board, so these loop figures are"
+echo "      upper bounds for the MCU's own work; the report's defmt output is outside the interval)"
 echo
 echo "== Flash and RAM (llvm-size; flash = text + data, static RAM = data + bss)"
 "$LLVM_BIN/llvm-size" "$OUT/firmware-stm32f405" "$OUT/firmware-qemu" | sed 's|target/firmware-bench/||; s/^/   /'
@@ -72,7 +92,10 @@ echo "== Flash and RAM (llvm-size; flash = text + data, static RAM = data + bss)
 ident="$("$LLVM_BIN/llvm-nm" -C --size-sort -S -t d "$CORE_OBJ" |
     awk '$3 ~ /^[Tt]$/ && /identifier_core::(identifier|convergence|invariant|linalg|inertia|settings|status)::/ { s += $2 } END { print s + 0 }')"
 echo "   identifier-core, the Identifier the firmware uses (identifier, convergence, invariant, linalg, inertia, settings, status): ${ident} bytes of code"
-echo "   identifier-core RAM: no statics, no heap; its state lives in the firmware's SampleLoop on main's stack (size below)"
+refined="$("$LLVM_BIN/llvm-nm" -C --size-sort -S -t d "$CORE_OBJ" |
+    awk '$3 ~ /^[Tt]$/ && /identifier_core::refined::/ { s += $2 } END { print s + 0 }')"
+echo "   identifier-core, the Refined beside it (refined; it shares convergence, invariant, status): ${refined} bytes of code"
+echo "   identifier-core RAM: no statics, no heap; both identifiers' state lives in the firmware's SampleLoop on main's stack (sizes below)"
 echo
 echo "== Stack (painted under QEMU, flight image)"
 echo "   ${stack_line#INFO  }"

@@ -1,14 +1,17 @@
 /*
- * QEMU TCG plugin: counts the guest instructions executed between two marker instructions
- * the firmware's `bench` build puts around each identifier step (firmware/src/bench.rs):
- * `mov r9, r9` (Thumb 0x46C9) before, `mov r10, r10` (0x46D2) after. Prints min / mean / max
- * per interval at exit, and the number of VDIV.F32 among them (14-cycle instructions on the
- * Cortex-M4F, for the cycle estimate).
+ * QEMU TCG plugin: counts the guest instructions executed between the marker instructions
+ * the firmware's `bench` build puts around each step of the paper's identifier (`mov r9, r9`,
+ * Thumb 0x46C9, before; `mov r10, r10`, 0x46D2, after), each step of the refined identifier
+ * (`mov r11, r11` / `mov r12, r12`) and each sample-loop iteration (`mov r8, r8` /
+ * `mov lr, lr`); see firmware/src/bench.rs. Prints min / mean / max per interval of each pair
+ * at exit (and median, 99th and 99.9th percentiles, and which interval, counted from 1, was the
+ * longest), and the number of VDIV.F32 among them (14-cycle instructions on the Cortex-M4F,
+ * for the cycle estimate).
  *
  *   qemu-system-arm ... -plugin ./libinsncount.so -d plugin
  *
- * The first interval is the calibration call (begin immediately followed by end): its count
- * is the markers' own overhead, subtracted from every later interval.
+ * The first interval of each pair is the calibration call (begin immediately followed by
+ * end): its count is the markers' own overhead, subtracted from every later interval.
  *
  * Debian ships QEMU without its plugin header, so the few declarations used are written out
  * here from the documented plugin API (include/qemu/qemu-plugin.h, API version 1 in QEMU 7.2).
@@ -44,29 +47,53 @@ extern void qemu_plugin_outs(const char *string);
 __attribute__((visibility("default"))) int qemu_plugin_version = 1;
 
 static uint64_t insns, vdivs;        /* running totals, incremented inline */
-static uint64_t start_insns, start_vdivs;
-static bool inside;
-static uint64_t n, sum, min_i = UINT64_MAX, max_i, overhead, sum_vdiv, max_vdiv;
-static bool calibrated;
+
+/* One channel per marker pair (firmware/src/bench.rs); channels may nest (the loop's holds
+ * both steps), each keeps its own start and statistics. */
+#define NCH 3
+static const char *const names[NCH] = {"paper", "refined", "loop"};
+static const uint16_t begin_hw[NCH] = {0x46C9 /* mov r9,r9 */, 0x46DB /* mov r11,r11 */, 0x46C0 /* mov r8,r8 */};
+static const uint16_t end_hw[NCH] = {0x46D2 /* mov r10,r10 */, 0x46E4 /* mov r12,r12 */, 0x46F6 /* mov lr,lr */};
+#define HIST 65536 /* intervals longer than this count in the last bin (max is exact) */
+struct channel {
+    uint64_t start_insns, start_vdivs;
+    bool inside, calibrated;
+    uint64_t n, sum, min_i, max_i, max_at, overhead, sum_vdiv, max_vdiv;
+    uint32_t hist[HIST];
+};
+static struct channel ch[NCH];
 
 static void on_begin(unsigned int vcpu, void *u) {
-    (void)vcpu; (void)u;
-    start_insns = insns;
-    start_vdivs = vdivs;
-    inside = true;
+    (void)vcpu;
+    struct channel *c = u;
+    c->start_insns = insns;
+    c->start_vdivs = vdivs;
+    c->inside = true;
 }
 
 static void on_end(unsigned int vcpu, void *u) {
-    (void)vcpu; (void)u;
-    if (!inside) return;
-    inside = false;
-    uint64_t d = insns - start_insns, v = vdivs - start_vdivs;
-    if (!calibrated) { overhead = d; calibrated = true; return; }
-    d = d > overhead ? d - overhead : 0;
-    n++; sum += d; sum_vdiv += v;
-    if (d < min_i) min_i = d;
-    if (d > max_i) max_i = d;
-    if (v > max_vdiv) max_vdiv = v;
+    (void)vcpu;
+    struct channel *c = u;
+    if (!c->inside) return;
+    c->inside = false;
+    uint64_t d = insns - c->start_insns, v = vdivs - c->start_vdivs;
+    if (!c->calibrated) { c->overhead = d; c->calibrated = true; return; }
+    d = d > c->overhead ? d - c->overhead : 0;
+    c->n++; c->sum += d; c->sum_vdiv += v;
+    if (d < c->min_i) c->min_i = d;
+    if (d > c->max_i) { c->max_i = d; c->max_at = c->n; }
+    if (v > c->max_vdiv) c->max_vdiv = v;
+    c->hist[d < HIST ? d : HIST - 1]++;
+}
+
+/* The smallest count with at least a fraction q of the intervals at or below it. */
+static uint64_t quantile(const struct channel *c, double q) {
+    uint64_t need = (uint64_t)(q * (double)c->n + 0.999999), seen = 0;
+    for (uint64_t d = 0; d < HIST; d++) {
+        seen += c->hist[d];
+        if (seen >= need) return d;
+    }
+    return c->max_i;
 }
 
 /* VDIV.F32 (T1/A1): 1110 1110 1D00 Vn | Vd 101 0 N0M0 Vm. */
@@ -77,12 +104,11 @@ static bool is_vdiv_f32(const struct qemu_plugin_insn *insn) {
     return (hw1 & 0xFFB0) == 0xEE80 && (hw2 & 0x0F50) == 0x0A00;
 }
 
-/* 1: `mov r9, r9`, 2: `mov r10, r10`, 0: anything else. */
-static int marker(const struct qemu_plugin_insn *insn) {
+/* The 16-bit encoding of a 2-byte instruction, 0 for a 4-byte one. */
+static uint16_t halfword(const struct qemu_plugin_insn *insn) {
     if (qemu_plugin_insn_size(insn) != 2) return 0;
     const uint8_t *b = qemu_plugin_insn_data(insn);
-    uint16_t hw = (uint16_t)(b[0] | (b[1] << 8));
-    return hw == 0x46C9 ? 1 : hw == 0x46D2 ? 2 : 0;
+    return (uint16_t)(b[0] | (b[1] << 8));
 }
 
 static void on_tb(qemu_plugin_id_t id, struct qemu_plugin_tb *tb) {
@@ -90,10 +116,12 @@ static void on_tb(qemu_plugin_id_t id, struct qemu_plugin_tb *tb) {
     size_t k = qemu_plugin_tb_n_insns(tb);
     for (size_t i = 0; i < k; i++) {
         struct qemu_plugin_insn *insn = qemu_plugin_tb_get_insn(tb, i);
-        int m = marker(insn);
+        uint16_t hw = halfword(insn);
         /* Marker callbacks first, so the begin marker counts inside, the end marker not. */
-        if (m == 1) qemu_plugin_register_vcpu_insn_exec_cb(insn, on_begin, QEMU_PLUGIN_CB_NO_REGS, NULL);
-        if (m == 2) qemu_plugin_register_vcpu_insn_exec_cb(insn, on_end, QEMU_PLUGIN_CB_NO_REGS, NULL);
+        for (int c = 0; c < NCH; c++) {
+            if (hw == begin_hw[c]) qemu_plugin_register_vcpu_insn_exec_cb(insn, on_begin, QEMU_PLUGIN_CB_NO_REGS, &ch[c]);
+            if (hw == end_hw[c]) qemu_plugin_register_vcpu_insn_exec_cb(insn, on_end, QEMU_PLUGIN_CB_NO_REGS, &ch[c]);
+        }
         qemu_plugin_register_vcpu_insn_exec_inline(insn, QEMU_PLUGIN_INLINE_ADD_U64, &insns, 1);
         if (is_vdiv_f32(insn)) qemu_plugin_register_vcpu_insn_exec_inline(insn, QEMU_PLUGIN_INLINE_ADD_U64, &vdivs, 1);
     }
@@ -102,14 +130,22 @@ static void on_tb(qemu_plugin_id_t id, struct qemu_plugin_tb *tb) {
 static void on_exit_cb(qemu_plugin_id_t id, void *u) {
     (void)id; (void)u;
     char buf[512];
-    if (n == 0) {
-        snprintf(buf, sizeof buf, "insn-count: no complete interval (is this a `bench` build?)\n");
-    } else {
-        snprintf(buf, sizeof buf,
-                 "insn-count: intervals=%" PRIu64 " min=%" PRIu64 " mean=%.1f max=%" PRIu64
-                 " overhead=%" PRIu64 " vdiv_mean=%.2f vdiv_max=%" PRIu64 " total_insns=%" PRIu64 "\n",
-                 n, min_i, (double)sum / (double)n, max_i, overhead, (double)sum_vdiv / (double)n, max_vdiv, insns);
+    for (int i = 0; i < NCH; i++) {
+        const struct channel *c = &ch[i];
+        if (c->n == 0) {
+            snprintf(buf, sizeof buf, "insn-count %s: no complete interval (is this a `bench` build?)\n", names[i]);
+        } else {
+            snprintf(buf, sizeof buf,
+                     "insn-count %s: intervals=%" PRIu64 " min=%" PRIu64 " median=%" PRIu64
+                     " mean=%.1f p99=%" PRIu64 " p99.9=%" PRIu64 " max=%" PRIu64 " max_at=%" PRIu64 " overhead=%" PRIu64
+                     " vdiv_mean=%.2f vdiv_max=%" PRIu64 "\n",
+                     names[i], c->n, c->min_i, quantile(c, 0.5), (double)c->sum / (double)c->n,
+                     quantile(c, 0.99), quantile(c, 0.999), c->max_i, c->max_at, c->overhead,
+                     (double)c->sum_vdiv / (double)c->n, c->max_vdiv);
+        }
+        qemu_plugin_outs(buf);
     }
+    snprintf(buf, sizeof buf, "insn-count total: total_insns=%" PRIu64 "\n", insns);
     qemu_plugin_outs(buf);
 }
 
@@ -117,6 +153,7 @@ __attribute__((visibility("default"))) int qemu_plugin_install(qemu_plugin_id_t 
                                                                int argc, char **argv) {
     (void)info; (void)argc; (void)argv;
     qemu_plugin_register_vcpu_tb_trans_cb(id, on_tb);
+    for (int c = 0; c < NCH; c++) ch[c].min_i = UINT64_MAX;
     qemu_plugin_register_atexit_cb(id, on_exit_cb, NULL);
     return 0;
 }
