@@ -106,7 +106,7 @@ impl Identifier {
     /// [`SampleStatus`] says what happened and the state stays finite.
     pub fn step(&mut self, omega: [f32; 3], dt: f32) -> Estimate {
         let status = self.advance(omega, dt);
-        self.count(status);
+        self.counters.record(status);
         Estimate {
             a: self.delta,
             status,
@@ -272,26 +272,6 @@ impl Identifier {
         } else {
             SampleStatus::Updated
         }
-    }
-
-    fn count(&mut self, status: SampleStatus) {
-        let c = &mut self.counters;
-        c.samples = c.samples.saturating_add(1);
-        let slot = match status {
-            SampleStatus::Updated => &mut c.integrated,
-            SampleStatus::SignChange => {
-                c.sign_changes = c.sign_changes.saturating_add(1);
-                &mut c.integrated
-            }
-            SampleStatus::Unidentifiable => &mut c.unidentifiable,
-            SampleStatus::Gap => &mut c.gaps,
-            SampleStatus::NonFinite | SampleStatus::Saturated | SampleStatus::InvalidTimeStep => {
-                &mut c.rejected
-            }
-            SampleStatus::NumericalFault => &mut c.numerical_faults,
-            SampleStatus::Anchored => return,
-        };
-        *slot = slot.saturating_add(1);
     }
 }
 

@@ -92,3 +92,25 @@ pub struct Counters {
     /// Updates discarded as non-finite.
     pub numerical_faults: u32,
 }
+
+impl Counters {
+    /// Counts one step's outcome. Saturating: a counter stops at `u32::MAX` rather than wrap.
+    pub fn record(&mut self, status: SampleStatus) {
+        self.samples = self.samples.saturating_add(1);
+        let slot = match status {
+            SampleStatus::Updated => &mut self.integrated,
+            SampleStatus::SignChange => {
+                self.sign_changes = self.sign_changes.saturating_add(1);
+                &mut self.integrated
+            }
+            SampleStatus::Unidentifiable => &mut self.unidentifiable,
+            SampleStatus::Gap => &mut self.gaps,
+            SampleStatus::NonFinite | SampleStatus::Saturated | SampleStatus::InvalidTimeStep => {
+                &mut self.rejected
+            }
+            SampleStatus::NumericalFault => &mut self.numerical_faults,
+            SampleStatus::Anchored => return,
+        };
+        *slot = slot.saturating_add(1);
+    }
+}
