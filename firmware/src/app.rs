@@ -78,29 +78,86 @@ impl DelayNs for NoDelay {
     fn delay_ns(&mut self, _ns: u32) {}
 }
 
+/// Consecutive failures (bus errors, data-ready timeouts, samples the part marked invalid)
+/// after which the sensor is re-initialised.
+pub const REINIT_AFTER: u32 = 5;
+/// Identical consecutive raw samples (all three axes) after which the data counts as stalled
+/// and the sensor is re-initialised. With the part's noise (about 4 counts rms at 1 kHz and
+/// 500 dps) twenty repeats of all three axes practically never happen on live data.
+pub const STALLED_AFTER: u32 = 20;
+/// `WHO_AM_I` is checked every this many accepted samples (10 times a second at 1 kHz).
+pub const HEALTH_EVERY: u32 = 100;
+/// The plausibility gate's noise margin, rad/s: about 20 times the gyro's noise at 1 kHz.
+pub const GATE_MARGIN: f32 = 0.02;
+
+/// The plausibility gate's bound on the rate of change of each gyro component, rad/s^2, for a
+/// gyro configured with `config`: torque-free, `|w_i'| = |a_i w_j w_k| <= fs^2` since
+/// `|a_i| <= 1` and every rate is within the full scale `fs` (76 rad/s^2 at 500 dps). A sample
+/// whose change from the last accepted one exceeds `bound * (time since it) + GATE_MARGIN`
+/// cannot come from the motion: a flipped bit, a glitch on the bus.
+pub fn gate_rate_bound(config: &Config) -> f32 {
+    let fs = icm42688::raw_to_rad_s(32767, config.full_scale);
+    fs * fs
+}
+
+/// The loop's time base: a free-running clock in microseconds (wrapping at `2^32`), read once
+/// per sample. Samples lost on the way (data-ready missed, bus errors) then lengthen the next
+/// step instead of shrinking the time base, as counting data-ready events would.
+///
+/// The elapsed time between two samples is rounded to whole sample periods (at least one), so
+/// the clock needs only be good to a fraction of a period. On a board: a timer or the cycle
+/// counter; on the simulated part, which models no time: its count of latched samples times
+/// the period. Any `FnMut(&IF) -> u32` is a clock (the argument is the driver's bus
+/// interface, for the simulated part).
+pub trait SampleClock<IF> {
+    /// Microseconds since an arbitrary origin, wrapping.
+    fn now_us(&mut self, interface: &IF) -> u32;
+}
+
+impl<IF, F: FnMut(&IF) -> u32> SampleClock<IF> for F {
+    fn now_us(&mut self, interface: &IF) -> u32 {
+        self(interface)
+    }
+}
+
 /// The loop's own counters (the identifier keeps finer ones, see [`Counters`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LoopCounters {
-    /// Gyro samples read and given to both identifiers.
+    /// Gyro samples read, accepted by the gate and given to both identifiers.
     pub samples: u32,
     /// Samples the paper's identifier did not integrate: rejected (saturated, non-finite),
     /// unidentifiable (`|w1 w2 w3| < w_min`), after a gap, or a numerical fault. The anchor
     /// sample after a start or gap is not counted.
     pub skipped: u32,
-    /// Bus transfers that failed (status poll or sample read). The loop carries on.
+    /// Bus transfers that failed (status poll, sample read, `WHO_AM_I` check). The loop
+    /// carries on.
     pub bus_errors: u32,
     /// Samples the part marked invalid (-32768).
     pub invalid: u32,
     /// Data-ready waits that timed out.
     pub timeouts: u32,
+    /// Samples refused by the plausibility gate ([`gate_rate_bound`]); their time is carried
+    /// to the next accepted sample.
+    pub implausible: u32,
+    /// Sample periods that passed without a sample read (by the [`SampleClock`]).
+    pub missed: u32,
+    /// `WHO_AM_I` read a wrong value (periodic check or re-initialisation).
+    pub wrong_id: u32,
+    /// Stalled data seen ([`STALLED_AFTER`] identical samples).
+    pub stalled: u32,
+    /// Re-initialisations of the sensor (after [`REINIT_AFTER`] consecutive failures, a wrong
+    /// `WHO_AM_I` or stalled data).
+    pub reinits: u32,
+    /// Initialisation attempts during re-initialisations that failed.
+    pub reinit_failures: u32,
 }
 
 /// What goes out at [`REPORT_HZ`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Report {
-    /// Sample periods since the loop started (data-ready events, lost reads included).
+    /// Sample periods since the loop started, by the [`SampleClock`] (lost samples included).
     pub tick: u32,
     /// Seconds since the loop started, `tick / odr`.
     pub t: f32,
@@ -152,35 +209,57 @@ pub enum Poll {
     BusError,
     /// The part marked the sample invalid; counted, its time carried to the next step.
     Invalid,
+    /// The plausibility gate refused the sample; counted, its time carried to the next step.
+    Implausible,
+    /// The data stalled; the sensor was re-initialised.
+    Stalled,
 }
 
-/// The gyro and the two identifiers, wired together.
-pub struct SampleLoop<IF> {
+/// The gyro, the sample clock and the two identifiers, wired together, with the defences
+/// against a misbehaving sensor or bus: a plausibility gate on samples, dt from the sample
+/// clock, re-initialisation after repeated failures, a wrong `WHO_AM_I` or stalled data, and
+/// a periodic `WHO_AM_I` check.
+pub struct SampleLoop<IF, C> {
     gyro: Icm42688<IF>,
+    clock: C,
+    config: Config,
     identifier: Identifier,
     refined: Refined,
     counters: LoopCounters,
     /// Nominal sample period, s.
     period: f32,
+    /// Nominal sample period, us.
+    period_us: u32,
     /// Output data rate, Hz.
     odr_hz: f32,
-    /// Time since the last identifier step, s: a period per data-ready, so samples lost to
-    /// bus errors lengthen the next step instead of shrinking the time base.
-    pending_dt: f32,
+    /// The clock at the last sample read.
+    last_us: u32,
     tick: u32,
+    since_report: u32,
     report_every: u32,
     max_polls: u32,
+    /// Consecutive failures.
+    fails: u32,
+    last_raw: Option<[i16; 3]>,
+    repeats: u32,
+    last_accepted: Option<[f32; 3]>,
+    /// Seconds since the last accepted sample.
+    since_accepted: f32,
+    gate_bound: f32,
+    /// Accepted samples since the last `WHO_AM_I` check.
+    since_check: u32,
 }
 
-impl<IF: RegisterInterface> SampleLoop<IF> {
+impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C> {
     /// Initialises the gyro with `config` (reset, identity, configuration; up to
     /// [`INIT_ATTEMPTS`] times, since a bus error or a slow reset is transient but a wrong
     /// identity is not), a fresh paper's identifier with [`identifier_settings`] and a fresh
-    /// refined one with [`refined_settings`].
+    /// refined one with [`refined_settings`]; `clock` is the loop's time base.
     pub fn new(
         mut gyro: Icm42688<IF>,
         delay: &mut impl DelayNs,
         config: Config,
+        mut clock: C,
     ) -> Result<Self, InitError<IF::Error>> {
         let mut attempt = 1;
         loop {
@@ -195,22 +274,35 @@ impl<IF: RegisterInterface> SampleLoop<IF> {
             Identifier::new(identifier_settings(&config)).map_err(InitError::Settings)?;
         let refined = Refined::new(refined_settings(&config)).ok_or(InitError::RefinedSettings)?;
         let odr_hz = config.odr.hz() as u32;
+        let last_us = clock.now_us(gyro.interface());
         Ok(SampleLoop {
             gyro,
+            clock,
+            config,
             identifier,
             refined,
             counters: LoopCounters::default(),
             period: config.odr.period_s(),
+            period_us: config.odr.period_us().max(1),
             odr_hz: config.odr.hz(),
-            pending_dt: 0.0,
+            last_us,
             tick: 0,
+            since_report: 0,
             report_every: (odr_hz / REPORT_HZ).max(1),
             // Two sample periods of polling before a timeout.
             max_polls: (2 * config.odr.period_us() / POLL_US).max(2),
+            fails: 0,
+            last_raw: None,
+            repeats: 0,
+            last_accepted: None,
+            since_accepted: 0.0,
+            gate_bound: gate_rate_bound(&config),
+            since_check: 0,
         })
     }
 
-    /// Waits for the next sample, reads it and steps both identifiers with it.
+    /// Waits for the next sample, reads it, screens it and steps both identifiers with it;
+    /// re-initialises the sensor when it stops making sense.
     pub fn poll(&mut self, delay: &mut impl DelayNs) -> Poll {
         bench::loop_begin();
         let p = self.poll_once(delay);
@@ -227,50 +319,139 @@ impl<IF: RegisterInterface> SampleLoop<IF> {
             Ok(()) => {}
             Err(Error::Timeout) => {
                 self.counters.timeouts = self.counters.timeouts.saturating_add(1);
+                self.failure(delay);
                 return Poll::Timeout;
             }
             Err(_) => {
                 self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
+                self.failure(delay);
                 return Poll::BusError;
             }
         }
-        self.tick = self.tick.wrapping_add(1);
-        self.pending_dt += self.period;
-        let outcome = match self.gyro.read_gyro() {
-            Ok(omega) => {
-                let dt = self.pending_dt;
-                self.pending_dt = 0.0;
-                bench::step_begin();
-                let paper = self.identifier.step(omega, dt);
-                bench::step_end();
-                bench::refined_begin();
-                let refined = self.refined.step(omega, dt);
-                bench::refined_end();
-                self.count(&paper);
-                Poll::Stepped {
-                    paper,
-                    refined,
-                    report: None,
-                }
-            }
+        let raw = match self.gyro.read_gyro_raw() {
+            Ok(raw) => raw,
             Err(Error::InvalidSample) => {
                 self.counters.invalid = self.counters.invalid.saturating_add(1);
-                Poll::Invalid
+                self.failure(delay);
+                return Poll::Invalid;
             }
             Err(_) => {
                 self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
-                Poll::BusError
+                self.failure(delay);
+                return Poll::BusError;
             }
         };
-        match outcome {
-            Poll::Stepped { paper, refined, .. } if self.tick.is_multiple_of(self.report_every) => {
-                Poll::Stepped {
-                    paper,
-                    refined,
-                    report: Some(self.report()),
+        // Stalled data: the same three counts again and again.
+        if self.last_raw == Some(raw) {
+            self.repeats = self.repeats.saturating_add(1);
+            if self.repeats >= STALLED_AFTER {
+                self.counters.stalled = self.counters.stalled.saturating_add(1);
+                self.reinit(delay);
+                return Poll::Stalled;
+            }
+        } else {
+            self.repeats = 0;
+        }
+        self.last_raw = Some(raw);
+
+        // dt from the sample clock, in whole periods.
+        let now = self.clock.now_us(self.gyro.interface());
+        let elapsed = now.wrapping_sub(self.last_us);
+        self.last_us = now;
+        let mut periods = elapsed / self.period_us;
+        if elapsed % self.period_us >= self.period_us / 2 {
+            periods = periods.saturating_add(1);
+        }
+        let periods = periods.max(1);
+        self.counters.missed = self.counters.missed.saturating_add(periods - 1);
+        self.tick = self.tick.wrapping_add(periods);
+        self.since_report = self.since_report.saturating_add(periods);
+        let dt = periods as f32 * self.period;
+
+        let omega = icm42688::raw3_to_rad_s(raw, self.gyro.full_scale());
+        // The plausibility gate.
+        self.since_accepted += dt;
+        if let Some(prev) = self.last_accepted {
+            let limit = self.gate_bound * self.since_accepted + GATE_MARGIN;
+            if omega.iter().zip(prev).any(|(w, p)| (w - p).abs() > limit) {
+                // Refused like a non-finite sample: both identifiers carry its time.
+                self.counters.implausible = self.counters.implausible.saturating_add(1);
+                self.identifier.step([f32::NAN; 3], dt);
+                self.refined.step([f32::NAN; 3], dt);
+                return Poll::Implausible;
+            }
+        }
+        self.last_accepted = Some(omega);
+        self.since_accepted = 0.0;
+
+        bench::step_begin();
+        let paper = self.identifier.step(omega, dt);
+        bench::step_end();
+        bench::refined_begin();
+        let refined = self.refined.step(omega, dt);
+        bench::refined_end();
+        self.count(&paper);
+        self.fails = 0;
+
+        let report = if self.since_report >= self.report_every {
+            self.since_report %= self.report_every;
+            Some(self.report())
+        } else {
+            None
+        };
+
+        // Health check: is it still our part?
+        self.since_check = self.since_check.saturating_add(1);
+        if self.since_check >= HEALTH_EVERY {
+            self.since_check = 0;
+            match self.gyro.who_am_i() {
+                Ok(icm42688::registers::WHO_AM_I_VALUE) => {}
+                Ok(_) => {
+                    self.counters.wrong_id = self.counters.wrong_id.saturating_add(1);
+                    self.reinit(delay);
+                }
+                Err(_) => {
+                    self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
                 }
             }
-            other => other,
+        }
+        Poll::Stepped {
+            paper,
+            refined,
+            report,
+        }
+    }
+
+    /// One more consecutive failure; [`REINIT_AFTER`] of them re-initialise the sensor.
+    fn failure(&mut self, delay: &mut impl DelayNs) {
+        self.fails = self.fails.saturating_add(1);
+        if self.fails >= REINIT_AFTER {
+            self.reinit(delay);
+        }
+    }
+
+    /// Resets and reconfigures the part (up to [`INIT_ATTEMPTS`] times; if all fail, the
+    /// next failures bring another attempt). Both identifiers restart their integration but
+    /// keep what they learnt. The clock runs on: the time the re-initialisation took shows in
+    /// `missed`.
+    fn reinit(&mut self, delay: &mut impl DelayNs) {
+        self.counters.reinits = self.counters.reinits.saturating_add(1);
+        self.identifier.restart();
+        self.refined.restart();
+        self.last_raw = None;
+        self.repeats = 0;
+        self.last_accepted = None;
+        self.since_accepted = 0.0;
+        self.fails = 0;
+        for _ in 0..INIT_ATTEMPTS {
+            match self.gyro.init(delay, self.config) {
+                Ok(()) => return,
+                Err(Error::WrongId(_)) => {
+                    self.counters.wrong_id = self.counters.wrong_id.saturating_add(1);
+                }
+                Err(_) => {}
+            }
+            self.counters.reinit_failures = self.counters.reinit_failures.saturating_add(1);
         }
     }
 
@@ -340,7 +521,7 @@ pub fn log_report(r: &Report) {
     let c = &r.counters;
     let (p, f) = (&r.a_paper, &r.a_refined);
     defmt::info!(
-        "t={=f32}s a_paper=[{=f32}, {=f32}, {=f32}] {} a_refined=[{=f32}, {=f32}, {=f32}] {} A2/A1={=f32} A3/A1={=f32} consistency={=f32} samples={=u32} skipped={=u32} bus_errors={=u32}",
+        "t={=f32}s a_paper=[{=f32}, {=f32}, {=f32}] {} a_refined=[{=f32}, {=f32}, {=f32}] {} A2/A1={=f32} A3/A1={=f32} consistency={=f32} samples={=u32} skipped={=u32} bus_errors={=u32} invalid={=u32} timeouts={=u32} implausible={=u32} missed={=u32} wrong_id={=u32} stalled={=u32} reinits={=u32} reinit_failures={=u32}",
         r.t,
         p[0],
         p[1],
@@ -355,7 +536,15 @@ pub fn log_report(r: &Report) {
         r.consistency,
         c.samples,
         c.skipped,
-        c.bus_errors
+        c.bus_errors,
+        c.invalid,
+        c.timeouts,
+        c.implausible,
+        c.missed,
+        c.wrong_id,
+        c.stalled,
+        c.reinits,
+        c.reinit_failures
     );
 }
 
@@ -363,7 +552,16 @@ pub fn log_report(r: &Report) {
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
-    use icm42688::sim::SimIcm42688;
+    use icm42688::sim::{SampleSource, SimIcm42688};
+    use icm42688::SpiInterface;
+
+    /// The simulated part's clock: its latched samples times the period.
+    fn sim_clock<S: SampleSource>(i: &SpiInterface<SimIcm42688<S>>) -> u32 {
+        i.bus()
+            .stats()
+            .samples
+            .wrapping_mul(Config::identifier().odr.period_us())
+    }
 
     /// A torque-free spin sampled crudely (explicit midpoint at 1 kHz) is enough for the
     /// loop's bookkeeping; accuracy is tested end to end.
@@ -394,8 +592,13 @@ mod tests {
     fn reports_at_10_hz_counts_bus_errors_and_ends_with_timeout() {
         // Init hits injected errors too, and retries.
         let sim = SimIcm42688::new(spin(2000)).with_bus_error_every(23);
-        let mut lp =
-            SampleLoop::new(Icm42688::new_spi(sim), &mut NoDelay, Config::identifier()).unwrap();
+        let mut lp = SampleLoop::new(
+            Icm42688::new_spi(sim),
+            &mut NoDelay,
+            Config::identifier(),
+            sim_clock,
+        )
+        .unwrap();
         let mut reports = 0;
         let mut last = None;
         // With a bus error every 23 transfers a 200-poll wait never times out: the end of
@@ -449,8 +652,13 @@ mod tests {
     #[test]
     fn reports_carry_both_estimates() {
         let sim = SimIcm42688::new(spin(1000));
-        let mut lp =
-            SampleLoop::new(Icm42688::new_spi(sim), &mut NoDelay, Config::identifier()).unwrap();
+        let mut lp = SampleLoop::new(
+            Icm42688::new_spi(sim),
+            &mut NoDelay,
+            Config::identifier(),
+            sim_clock,
+        )
+        .unwrap();
         while !lp.gyro().interface().bus().exhausted() {
             lp.poll(&mut NoDelay);
         }

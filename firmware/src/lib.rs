@@ -14,6 +14,24 @@
 //!
 //! Nothing here panics or allocates.
 //!
+//! # Defences
+//!
+//! [`SampleLoop`] guards the identifiers against a misbehaving sensor or bus (measured under
+//! injected faults in `host-tests/tests/robustness_faults.rs`):
+//! * a plausibility gate: a sample whose change from the last accepted one exceeds what the
+//!   torque-free motion within the gyro's full scale allows ([`gate_rate_bound`]) is refused;
+//! * dt from a [`SampleClock`] (a timer on the board), so lost samples lengthen the next step
+//!   instead of shrinking the time base;
+//! * re-initialisation of the sensor after consecutive bus errors, data-ready timeouts or
+//!   invalid samples, after a wrong `WHO_AM_I`, or on stalled (frozen) data, and a periodic
+//!   `WHO_AM_I` check;
+//! * a counter for each, in the 10 Hz report.
+//!
+//! On the STM32F405 image the independent watchdog (IWDG) is fed once per loop iteration.
+//! QEMU's `netduinoplus2` machine does not model the IWDG, so the QEMU image has no watchdog;
+//! `checks/firmware-faults` exercises one on QEMU's `mps2-an386`, which models a CMSDK
+//! watchdog.
+//!
 //! # Running
 //!
 //! * `scripts/run.sh`: build, simulate a spinning body, run under QEMU, show the estimates.
@@ -40,6 +58,6 @@ pub mod log_format;
 pub mod stack;
 
 pub use app::{
-    identifier_settings, refined_settings, InitError, LoopCounters, NoDelay, Poll, Report,
-    SampleLoop,
+    gate_rate_bound, identifier_settings, refined_settings, InitError, LoopCounters, NoDelay, Poll,
+    Report, SampleClock, SampleLoop,
 };

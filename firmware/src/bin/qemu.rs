@@ -16,7 +16,7 @@ use defmt_semihosting as _;
 use firmware::log_format::{decode_sample, Header, HEADER_LEN, SAMPLE_LEN};
 use firmware::{stack, NoDelay, Poll, SampleLoop};
 use icm42688::sim::{SampleSource, SimIcm42688};
-use icm42688::{Config, Icm42688};
+use icm42688::{Config, Icm42688, SpiInterface};
 use semihosting::fs::File;
 use semihosting::io::Read;
 
@@ -144,7 +144,13 @@ fn main() -> ! {
 
     let sim = SimIcm42688::new(source).with_bus_error_every(fail_every);
     let mut delay = NoDelay;
-    let mut app = match SampleLoop::new(Icm42688::new_spi(sim), &mut delay, config) {
+    // The simulated part models no time: the loop's clock is its count of latched samples
+    // (one per data-ready poll), so a sample lost on the bus lengthens the next step.
+    let period_us = config.odr.period_us();
+    let clock = move |i: &SpiInterface<SimIcm42688<LogSource>>| {
+        i.bus().stats().samples.wrapping_mul(period_us)
+    };
+    let mut app = match SampleLoop::new(Icm42688::new_spi(sim), &mut delay, config, clock) {
         Ok(app) => app,
         Err(e) => {
             defmt::error!("init failed: {}", e);
@@ -175,7 +181,7 @@ fn main() -> ! {
     let c = app.counters();
     let ic = app.identifier_counters();
     defmt::info!(
-        "final a_paper=[{=f32}, {=f32}, {=f32}] bits_paper=[{=u32:#010x}, {=u32:#010x}, {=u32:#010x}] a_refined=[{=f32}, {=f32}, {=f32}] bits_refined=[{=u32:#010x}, {=u32:#010x}, {=u32:#010x}] samples={=u32} skipped={=u32} bus_errors={=u32} invalid={=u32} timeouts={=u32} integrated={=u32} sign_changes={=u32} refined_integrated={=u32}",
+        "final a_paper=[{=f32}, {=f32}, {=f32}] bits_paper=[{=u32:#010x}, {=u32:#010x}, {=u32:#010x}] a_refined=[{=f32}, {=f32}, {=f32}] bits_refined=[{=u32:#010x}, {=u32:#010x}, {=u32:#010x}] samples={=u32} skipped={=u32} bus_errors={=u32} invalid={=u32} timeouts={=u32} implausible={=u32} missed={=u32} wrong_id={=u32} stalled={=u32} reinits={=u32} integrated={=u32} sign_changes={=u32} refined_integrated={=u32}",
         p[0],
         p[1],
         p[2],
@@ -193,6 +199,11 @@ fn main() -> ! {
         c.bus_errors,
         c.invalid,
         c.timeouts,
+        c.implausible,
+        c.missed,
+        c.wrong_id,
+        c.stalled,
+        c.reinits,
         ic.integrated,
         ic.sign_changes,
         app.refined_counters().integrated

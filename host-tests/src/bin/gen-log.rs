@@ -90,7 +90,12 @@ fn main() -> Result<()> {
     // The reference: the firmware's loop on the host.
     let mut source = samples.clone().into_iter();
     let sim = SimIcm42688::new(move || source.next()).with_bus_error_every(args.bus_error_every);
-    let mut app = SampleLoop::new(Icm42688::new_spi(sim), &mut NoDelay, config)
+    // The simulated part's clock, as on QEMU: its latched samples times the period.
+    let period_us = config.odr.period_us();
+    let clock = move |i: &icm42688::SpiInterface<SimIcm42688<_>>| {
+        i.bus().stats().samples.wrapping_mul(period_us)
+    };
+    let mut app = SampleLoop::new(Icm42688::new_spi(sim), &mut NoDelay, config, clock)
         .map_err(|e| anyhow::anyhow!("gyro init on the simulated part failed: {e:?}"))?;
     let mut reports = 0u32;
     let mut stream = BufWriter::new(File::create(&args.reports)?);
