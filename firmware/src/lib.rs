@@ -54,7 +54,12 @@
 pub mod app;
 pub mod bench;
 pub mod log_format;
-#[cfg(all(target_arch = "arm", target_os = "none"))]
+// Stack painting needs `cortex-m`, which only the board features bring.
+#[cfg(all(
+    target_arch = "arm",
+    target_os = "none",
+    any(feature = "qemu", feature = "stm32f405")
+))]
 pub mod stack;
 
 pub use app::{

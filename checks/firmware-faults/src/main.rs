@@ -1,11 +1,13 @@
 //! Fault injection on the MCU, under QEMU (mps2-an386, Cortex-M4F).
 //!
 //! The real ICM-42688-P driver talks to the simulated part (`icm42688::sim`) through a
-//! fault-injecting SPI layer; a sample loop feeds `identifier-core`, counts every fault, reports
-//! over defmt, re-initialises the sensor when it stops making sense, and feeds a watchdog (the
-//! CMSDK APB watchdog that QEMU models on this machine). The motion is the paper's body
-//! tumbling from (1, 1, 1) rad/s, integrated on the target (RK4, f32) at the gyro's 1 kHz ODR,
-//! with seeded white noise of 1e-3 rad/s.
+//! fault-injecting SPI layer; the flight firmware's own sample loop (`firmware::SampleLoop`,
+//! the code that flies) feeds `identifier-core`, counts every fault and re-initialises the
+//! sensor when it stops making sense; this program reports over defmt and feeds a watchdog once
+//! per loop iteration (the CMSDK APB watchdog that QEMU models on this machine; the STM32F405
+//! image feeds its IWDG the same way, which QEMU's netduinoplus2 does not model). The motion is
+//! the paper's body tumbling from (1, 1, 1) rad/s, integrated on the target (RK4, f32) at the
+//! gyro's 1 kHz ODR, with seeded white noise of 1e-3 rad/s.
 //!
 //! Scenarios, each a 20 s replay: clean; 1 % corrupted + 1 % dropped samples + 1 % bus errors
 //! (the figure: RMS error of `a` over the last 10 s against the clean replay, within 2x); the
@@ -23,12 +25,11 @@ use core::ptr::{addr_of, addr_of_mut, read_volatile, write_volatile};
 
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
-use embedded_hal::delay::DelayNs;
 use embedded_hal::spi::{ErrorType, Operation, SpiDevice};
+use firmware::{LoopCounters, NoDelay, SampleLoop};
 use icm42688::registers as reg;
 use icm42688::sim::{SampleSource, SimBusError, SimIcm42688};
-use icm42688::{raw3_to_rad_s, Config, Error, Icm42688, SpiInterface};
-use identifier_core::{Identifier, Settings};
+use icm42688::{Config, Icm42688, SpiInterface};
 
 // ---------------------------------------------------------------------------------------------
 // Watchdog: CMSDK APB watchdog at 0x4000_8000 on mps2-an386, clocked at 25 MHz.
@@ -327,201 +328,9 @@ impl<S: SampleSource> SpiDevice for FaultySpi<S> {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The sample loop with recovery.
-
-struct NoDelay;
-impl DelayNs for NoDelay {
-    fn delay_ns(&mut self, _: u32) {}
-}
-
-#[derive(Clone, Copy, Default, defmt::Format)]
-struct LoopCounters {
-    steps: u32,
-    bus_errors: u32,
-    timeouts: u32,
-    invalid: u32,
-    wrong_id: u32,
-    stalled: u32,
-    implausible: u32,
-    reinits: u32,
-    reinit_failures: u32,
-}
-
-const POLL_US: u32 = 10;
-const MAX_POLLS: u32 = 3;
-const REINIT_AFTER: u32 = 5;
-const STALLED_AFTER: u32 = 20;
-const HEALTH_EVERY: u32 = 100;
-const MAX_ACCEL: f32 = 80.0;
-const GATE_MARGIN: f32 = 0.02;
-
-#[derive(Clone, Copy, defmt::Format)]
-enum Why {
-    Failures,
-    WrongId,
-    Stalled,
-}
-
-struct SampleLoop<S: SampleSource> {
-    gyro: Icm42688<SpiInterface<FaultySpi<S>>>,
-    id: Identifier,
-    period: f32,
-    clock: u32,
-    last_raw: Option<[i16; 3]>,
-    repeats: u32,
-    last_accepted: Option<[f32; 3]>,
-    since_accepted: f32,
-    fails: u32,
-    c: LoopCounters,
-}
-
-impl<S: SampleSource> SampleLoop<S> {
-    fn new(spi: FaultySpi<S>) -> Option<Self> {
-        let config = Config::identifier();
-        let mut s = Settings::with_lambda(3.0);
-        s.full_scale = icm42688::raw_to_rad_s(32767, config.full_scale);
-        let mut lp = SampleLoop {
-            gyro: Icm42688::new_spi(spi),
-            id: Identifier::new(s).ok()?,
-            period: config.odr.period_s(),
-            clock: 0,
-            last_raw: None,
-            repeats: 0,
-            last_accepted: None,
-            since_accepted: 0.0,
-            fails: 0,
-            c: LoopCounters::default(),
-        };
-        lp.init();
-        Some(lp)
-    }
-
-    fn part(&self) -> &FaultySpi<S> {
-        self.gyro.interface().bus()
-    }
-
-    fn latched(&self) -> u32 {
-        self.part().inner.stats().samples
-    }
-
-    fn exhausted(&self) -> bool {
-        self.part().inner.exhausted()
-    }
-
-    fn init(&mut self) -> bool {
-        self.id.restart();
-        self.last_raw = None;
-        self.repeats = 0;
-        self.last_accepted = None;
-        self.fails = 0;
-        for _ in 0..10 {
-            watchdog_feed();
-            match self.gyro.init(&mut NoDelay, Config::identifier()) {
-                Ok(()) => {
-                    self.clock = self.latched();
-                    return true;
-                }
-                Err(Error::WrongId(id)) => {
-                    self.c.wrong_id += 1;
-                    if self.c.wrong_id <= 3 {
-                        defmt::warn!("gyro init: WHO_AM_I {=u8:#04x}", id);
-                    }
-                }
-                Err(_) => {}
-            }
-            self.c.reinit_failures += 1;
-        }
-        false
-    }
-
-    fn reinit(&mut self, why: Why) {
-        self.c.reinits += 1;
-        if self.c.reinits <= 5 {
-            defmt::warn!("re-initialising the gyro ({}): {}", why, self.c);
-        }
-        self.init();
-    }
-
-    fn failure(&mut self) {
-        self.fails += 1;
-        if self.fails >= REINIT_AFTER {
-            self.reinit(Why::Failures);
-        }
-    }
-
-    fn poll(&mut self) -> bool {
-        watchdog_feed();
-        if self.exhausted() {
-            return false;
-        }
-        match self.gyro.wait_data_ready(&mut NoDelay, POLL_US, MAX_POLLS) {
-            Ok(()) => {}
-            Err(Error::Timeout) => {
-                self.c.timeouts += 1;
-                self.failure();
-                return !self.exhausted();
-            }
-            Err(_) => {
-                self.c.bus_errors += 1;
-                self.failure();
-                return true;
-            }
-        }
-        let raw = match self.gyro.read_gyro_raw() {
-            Ok(raw) => raw,
-            Err(Error::InvalidSample) => {
-                self.c.invalid += 1;
-                self.failure();
-                return true;
-            }
-            Err(_) => {
-                self.c.bus_errors += 1;
-                self.failure();
-                return true;
-            }
-        };
-        if self.last_raw == Some(raw) {
-            self.repeats += 1;
-            if self.repeats >= STALLED_AFTER {
-                self.c.stalled += 1;
-                self.reinit(Why::Stalled);
-                return true;
-            }
-        } else {
-            self.repeats = 0;
-        }
-        self.last_raw = Some(raw);
-        let now = self.latched();
-        let dt = now.wrapping_sub(self.clock) as f32 * self.period;
-        self.clock = now;
-        let omega = raw3_to_rad_s(raw, self.gyro.full_scale());
-        self.since_accepted += dt;
-        if let Some(prev) = self.last_accepted {
-            let limit = MAX_ACCEL * self.since_accepted + GATE_MARGIN;
-            if (0..3).any(|i| (omega[i] - prev[i]).abs() > limit) {
-                self.c.implausible += 1;
-                self.id.step([f32::NAN; 3], dt);
-                return true;
-            }
-        }
-        self.last_accepted = Some(omega);
-        self.since_accepted = 0.0;
-        self.id.step(omega, dt);
-        self.c.steps += 1;
-        self.fails = 0;
-        if self.c.steps.is_multiple_of(HEALTH_EVERY) {
-            match self.gyro.who_am_i() {
-                Ok(reg::WHO_AM_I_VALUE) => {}
-                Ok(_) => {
-                    self.c.wrong_id += 1;
-                    self.reinit(Why::WrongId);
-                }
-                Err(_) => self.c.bus_errors += 1,
-            }
-        }
-        true
-    }
-}
+// The flight firmware's own sample loop (`firmware::SampleLoop`: plausibility gate, dt from a
+// sample clock, re-initialisation after repeated failures, a wrong WHO_AM_I or stalled data,
+// periodic WHO_AM_I check), fed by the faulty part; the watchdog is fed once per iteration.
 
 struct Outcome {
     rms: f32,
@@ -539,20 +348,45 @@ fn replay(seed: u32, faults: Faults) -> Option<Outcome> {
         stalled_data: None,
         injected: Injected::default(),
     };
-    let mut lp = SampleLoop::new(spi)?;
-    lp.c.reinits = 0;
+    let config = Config::identifier();
+    // The simulated part models no time: the loop's clock is its count of latched samples.
+    let period_us = config.odr.period_us();
+    let clock = move |i: &SpiInterface<FaultySpi<Motion>>| {
+        i.bus().inner.stats().samples.wrapping_mul(period_us)
+    };
+    let mut lp = match SampleLoop::new(Icm42688::new_spi(spi), &mut NoDelay, config, clock) {
+        Ok(lp) => lp,
+        Err(e) => {
+            defmt::error!("gyro init: {}", e);
+            return None;
+        }
+    };
+    let latched = |lp: &SampleLoop<_, _>| -> u32 {
+        let i: &SpiInterface<FaultySpi<Motion>> = lp.gyro().interface();
+        i.bus().inner.stats().samples
+    };
     let (mut sum, mut count) = (0.0f32, 0u32);
     let from = (SECONDS - 10) * RATE as u32;
-    while lp.poll() {
-        if lp.latched() >= from {
-            let e = lp.id.estimate();
+    let mut reinits = 0;
+    while !lp.gyro().interface().bus().inner.exhausted() {
+        watchdog_feed();
+        lp.poll(&mut NoDelay);
+        let c = lp.counters();
+        if c.reinits != reinits {
+            reinits = c.reinits;
+            if reinits <= 5 {
+                defmt::warn!("the gyro was re-initialised: {}", c);
+            }
+        }
+        if latched(&lp) >= from {
+            let e = lp.identifier().estimate();
             for i in 0..3 {
                 sum += (e[i] - A[i]) * (e[i] - A[i]);
             }
             count += 3;
         }
     }
-    let e = lp.id.estimate();
+    let e = lp.identifier().estimate();
     let mut final_err = 0.0f32;
     for i in 0..3 {
         final_err = final_err.max((e[i] - A[i]).abs());
@@ -560,8 +394,8 @@ fn replay(seed: u32, faults: Faults) -> Option<Outcome> {
     Some(Outcome {
         rms: sqrt(sum / count.max(1) as f32),
         final_err,
-        c: lp.c,
-        injected: lp.part().injected,
+        c: lp.counters(),
+        injected: lp.gyro().interface().bus().injected,
     })
 }
 
@@ -598,9 +432,11 @@ fn scenarios() -> [(&'static str, Faults); 7] {
             },
         ),
         (
-            "no data-ready for 400 transfers",
+            // The firmware waits two sample periods for data-ready, 200 polls of 10 us; the
+            // simulated part latches a sample per poll, so one wait takes 200 transfers.
+            "no data-ready for 2000 transfers",
             Faults {
-                no_data_ready: Some((AT, AT + 400)),
+                no_data_ready: Some((AT, AT + 2000)),
                 ..none
             },
         ),
