@@ -625,6 +625,54 @@ mod tests {
     }
 
     #[test]
+    fn gate_sample_clock_and_stall_are_counted_and_handled() {
+        // A glitch at sample 500 (a jump no torque-free motion can make in 1 ms), data frozen
+        // for 30 samples from 1000, and the clock jumping 5 periods at sample 2000 (samples
+        // lost on the way).
+        let mut inner = spin(3000);
+        let (mut k, mut held) = (0u32, [0.0f32; 3]);
+        let source = move || {
+            let w = inner()?;
+            k += 1;
+            if k == 1000 {
+                held = w;
+            }
+            Some(match k {
+                500 => [w[0] + 2.0, w[1], w[2]],
+                1000..=1029 => held,
+                _ => w,
+            })
+        };
+        let clock = |i: &SpiInterface<SimIcm42688<_>>| {
+            let n = i.bus().stats().samples;
+            n.wrapping_mul(1000) + if n >= 2000 { 5000 } else { 0 }
+        };
+        let sim = SimIcm42688::new(source);
+        let mut lp = SampleLoop::new(
+            Icm42688::new_spi(sim),
+            &mut NoDelay,
+            Config::identifier(),
+            clock,
+        )
+        .unwrap();
+        while !lp.gyro().interface().bus().exhausted() {
+            lp.poll(&mut NoDelay);
+        }
+        let c = lp.counters();
+        assert_eq!(c.implausible, 1, "{c:?}");
+        assert_eq!((c.stalled, c.reinits, c.wrong_id), (1, 1, 0), "{c:?}");
+        assert!(c.missed >= 5, "{c:?}");
+        assert_eq!(c.bus_errors + c.invalid, 0, "{c:?}");
+        // The time base includes the lost periods.
+        let latched = lp.gyro().interface().bus().stats().samples;
+        assert!(lp.report().tick + 5 >= latched, "{}", lp.report().tick);
+        let a = [0.9f32, 0.4 / 1.54, -0.94];
+        for (x, t) in lp.refined().estimate().iter().zip(a) {
+            assert!((x - t).abs() < 1e-2, "{:?}", lp.refined().estimate());
+        }
+    }
+
+    #[test]
     fn refined_settings_follow_the_part_and_the_odr() {
         let config = Config::identifier();
         let s = refined_settings(&config);
