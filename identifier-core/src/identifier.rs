@@ -66,7 +66,12 @@ impl Identifier {
     /// A new identifier; refuses settings that fail [`Settings::validate`].
     pub fn new(settings: Settings) -> Result<Self, SettingsError> {
         settings.validate()?;
-        Ok(Identifier {
+        Ok(Self::fresh(settings))
+    }
+
+    /// The state before the first sample, for settings already validated.
+    fn fresh(settings: Settings) -> Self {
+        Identifier {
             settings,
             delta: settings.initial_estimate,
             anchor: None,
@@ -74,21 +79,12 @@ impl Identifier {
             branch: 0.0,
             monitor: ConvergenceMonitor::new(),
             counters: Counters::default(),
-        })
+        }
     }
 
     /// Forgets everything learnt and starts again from the settings' initial estimate.
     pub fn reset(&mut self) {
-        let settings = self.settings;
-        *self = Identifier {
-            settings,
-            delta: settings.initial_estimate,
-            anchor: None,
-            pending_dt: 0.0,
-            branch: 0.0,
-            monitor: ConvergenceMonitor::new(),
-            counters: Counters::default(),
-        };
+        *self = Self::fresh(self.settings);
     }
 
     /// Forgets the last sample (a new toss, a new log) but keeps the estimate and counters, so
