@@ -1,0 +1,72 @@
+//! One [`Recording`] comes out of every reader: time, gyro, and the optional accelerometer and
+//! rotor-speed channels, in SI units and in the log's own sensor axes (as logged, never
+//! re-oriented: the tensor is reported in that frame).
+
+/// Rotor speed as a log gives it.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RotorSpeed {
+    /// Electrical revolutions per minute (the ESC telemetry's eRPM, already scaled to true
+    /// eRPM): mechanical rad/s = `erpm / (poles / 2) * 2 pi / 60`.
+    Erpm(Vec<f32>),
+    /// Mechanical speed, rad/s.
+    RadPerSec(Vec<f32>),
+}
+
+impl RotorSpeed {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        match self {
+            RotorSpeed::Erpm(v) | RotorSpeed::RadPerSec(v) => v.len(),
+        }
+    }
+
+    /// True when there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Mechanical speed in rad/s; `poles` is needed for eRPM (`None` when it is missing or
+    /// zero for an eRPM channel).
+    pub fn rad_per_sec(&self, poles: Option<u32>) -> Option<Vec<f32>> {
+        match self {
+            RotorSpeed::RadPerSec(v) => Some(v.clone()),
+            RotorSpeed::Erpm(v) => {
+                let pairs = poles.filter(|&p| p >= 2)? as f32 / 2.0;
+                let k = 2.0 * core::f32::consts::PI / 60.0 / pairs;
+                Some(v.iter().map(|e| e * k).collect())
+            }
+        }
+    }
+}
+
+/// A gyro log in SI units: `t` in seconds (strictly increasing), `gyro` in rad/s, `accel` in
+/// m/s^2 (specific force, as an accelerometer reads it), all in the log's sensor axes.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Recording {
+    /// Where it came from (file and format), for messages.
+    pub source: String,
+    /// Sample times, seconds, strictly increasing.
+    pub t: Vec<f64>,
+    /// Angular rate, rad/s.
+    pub gyro: Vec<[f32; 3]>,
+    /// Specific force, m/s^2, same length as `gyro` when present.
+    pub accel: Option<Vec<[f32; 3]>>,
+    /// Rotor (flywheel, motor) speed of the first rotor, same length as `gyro` when present.
+    pub rotor: Option<RotorSpeed>,
+    /// Gyro full scale in rad/s when the log states it (saturation detection), else infinite.
+    pub gyro_full_scale: f32,
+    /// Warnings raised while reading (unit guesses, skipped rows), for the user.
+    pub warnings: Vec<String>,
+}
+
+impl Recording {
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// True when there are no samples.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+}
