@@ -11,6 +11,7 @@ cargo fmt --all -- --check
 
 log "cargo clippy -D warnings (host crates)"
 cargo clippy --all-targets -- -D warnings
+scripts/check-msrv.sh
 
 log "identifier-core for thumbv7em-none-eabihf"
 cargo build -p identifier-core --release --target thumbv7em-none-eabihf
@@ -21,6 +22,10 @@ RUSTDOCFLAGS="-D warnings" cargo doc -p identifier-core --no-deps
 
 log "host tests"
 cargo test --release --workspace
+
+log "doctests of identifier-core; its host example on a generated CSV"
+cargo test --release --doc -p identifier-core
+scripts/example-csv.sh
 
 # ---- reliability (robustness issue): no panic path on the MCU, faults under QEMU, fuzzing ----
 # The proptest properties (host-tests/tests/robustness*.rs, readers_robustness.rs) already ran
@@ -52,6 +57,16 @@ for features in qemu stm32f405; do
     cargo clippy -p firmware --bins --features "$features" --target thumbv7em-none-eabihf --profile firmware -- -D warnings
 done
 cargo clippy -p firmware --all-targets -- -D warnings
+
+# The board examples are standalone crates (excluded from the workspace, own lock files).
+for ex in embassy-stm32f405 rtic-stm32f405; do
+    log "examples/$ex for thumbv7em-none-eabihf, fmt, clippy -D warnings"
+    ex_args=(--manifest-path "examples/$ex/Cargo.toml" --release --target thumbv7em-none-eabihf
+        --target-dir "${CARGO_TARGET_DIR:-$ROOT/target}/examples")
+    cargo fmt --manifest-path "examples/$ex/Cargo.toml" -- --check
+    cargo build "${ex_args[@]}"
+    cargo clippy "${ex_args[@]}" -- -D warnings
+done
 
 log "docs of the driver and the firmware library without warnings"
 RUSTDOCFLAGS="-D warnings" cargo doc -p icm42688 -p firmware --no-deps --features icm42688/sim
