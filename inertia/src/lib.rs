@@ -2,6 +2,8 @@
 //! identifies the inertia tensor with the same `f32` code the firmware runs
 //! (`identifier-core`).
 
+pub mod readers;
 pub mod recording;
 
+pub use readers::{read, Format, GyroUnit, ReadError, ReadOptions, TimeUnit};
 pub use recording::{Recording, RotorSpeed};

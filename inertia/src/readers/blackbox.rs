@@ -1,0 +1,296 @@
+//! Betaflight blackbox logs (`.BFL`/`.BBL`), INDIflight's included, decoded with the
+//! `blackbox-log` crate.
+//!
+//! Fields read from the main (I/P) frames, kept in the board's axes as logged:
+//!
+//! | field | unit in the log | in the [`Recording`] |
+//! |---|---|---|
+//! | frame time | microseconds | `t`, seconds |
+//! | `gyroADC[0..2]` | raw counts, 16.384 LSB per deg/s (+-2000 deg/s) | `gyro`, rad/s |
+//! | `accSmooth[0..2]` | counts, `acc_1G` per g (2048 when the header lacks it) | `accel`, m/s^2 |
+//! | `erpm[0]` | eRPM / 100 | `rotor`, [`RotorSpeed::Erpm`] (true eRPM) |
+//!
+//! The unit trap: the header's `gyro_scale` says 1.0, yet INDIflight logs `gyroADC` in raw
+//! counts of the +-2000 deg/s range; trusting the header gives rates 16.4x too large. The
+//! header is therefore ignored for the gyro.
+
+use std::path::Path;
+
+use blackbox_log::frame::{Frame, FrameDef};
+use blackbox_log::{File, Headers, ParserEvent};
+
+use super::{guard, Location, ReadError, RotorWrap, Samples, BLACKBOX_MARKER};
+use crate::recording::{Recording, RotorSpeed};
+
+/// Raw gyro counts per deg/s (16-bit over +-2000 deg/s).
+pub const GYRO_LSB_PER_DEG_S: f64 = 16.384;
+/// Gyro full scale, rad/s (2000 deg/s).
+pub const GYRO_FULL_SCALE_RAD_S: f32 = 2000.0 * core::f32::consts::PI / 180.0;
+/// Accelerometer counts per g when the header has no `acc_1G`.
+pub const DEFAULT_ACC_1G: f64 = 2048.0;
+/// Standard gravity, m/s^2.
+pub const G: f64 = 9.80665;
+/// `erpm[0]` is logged divided by this.
+pub const ERPM_LOG_FACTOR: f32 = 100.0;
+
+/// The revision handed to `blackbox-log` in place of one it does not know.
+const STAND_IN_REVISION: &[u8] = b"Betaflight 4.5.0";
+const REVISION_KEY: &[u8] = b"H Firmware revision:";
+
+/// Rewrites, in the header block of every log in `data`, a `Firmware revision` that is neither
+/// Betaflight nor INAV to a Betaflight revision; returns the new bytes and the revisions
+/// replaced.
+///
+/// Why: `blackbox-log` refuses any firmware name but Betaflight (4.2 to 4.5) and INAV (5 to
+/// 8), and INDIflight (a Betaflight 4 fork) writes `Indiflight 5.0.0 ...`. The frame layout
+/// (field names, predictors, encodings) is fully described by the `H Field ...` headers,
+/// which the fork keeps in Betaflight's format; the firmware name only selects the meaning of
+/// flag and mode enumerations, none of which this reader uses. Checked against an independent
+/// decoder (`scripts/check-blackbox-reader.sh`). The file on disk is never touched.
+pub fn rewrite_unknown_firmware(data: &[u8]) -> (Vec<u8>, Vec<String>) {
+    let mut out = Vec::with_capacity(data.len() + 64);
+    let mut replaced = Vec::new();
+    let mut copied = 0;
+    let mut pos = 0;
+    while let Some(start) = find(&data[pos..], BLACKBOX_MARKER).map(|i| pos + i) {
+        // The header block: consecutive lines beginning with "H ".
+        let mut line = start;
+        while data[line..].starts_with(b"H ") {
+            let end = data[line..]
+                .iter()
+                .position(|&b| b == b'\n')
+                .map_or(data.len(), |i| line + i);
+            if let Some(value) = data[line..end].strip_prefix(REVISION_KEY) {
+                let name = value.split(|&b| b == b' ').next().unwrap_or_default();
+                let known =
+                    name.eq_ignore_ascii_case(b"betaflight") || name.eq_ignore_ascii_case(b"inav");
+                if !known {
+                    out.extend_from_slice(&data[copied..line]);
+                    out.extend_from_slice(REVISION_KEY);
+                    out.extend_from_slice(STAND_IN_REVISION);
+                    copied = end;
+                    replaced.push(String::from_utf8_lossy(value).trim().to_string());
+                }
+            }
+            if end >= data.len() {
+                break;
+            }
+            line = end + 1;
+        }
+        pos = line.max(start + 1);
+        if pos >= data.len() {
+            break;
+        }
+    }
+    out.extend_from_slice(&data[copied..]);
+    (out, replaced)
+}
+
+fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
+    hay.windows(needle.len()).position(|w| w == needle)
+}
+
+/// Field positions in a main frame (as `Frame::get_raw` indexes them).
+struct Fields {
+    gyro: [usize; 3],
+    gyro_signed: [bool; 3],
+    acc: Option<[usize; 3]>,
+    acc_signed: [bool; 3],
+    erpm: Option<usize>,
+}
+
+fn fields(headers: &Headers) -> Result<Fields, String> {
+    let def = headers.main_frame_def();
+    let mut gyro = [None; 3];
+    let mut acc = [None; 3];
+    let mut gyro_signed = [true; 3];
+    let mut acc_signed = [true; 3];
+    let mut erpm = None;
+    for (i, f) in def.iter().enumerate() {
+        for k in 0..3 {
+            if f.name == ["gyroADC[0]", "gyroADC[1]", "gyroADC[2]"][k] {
+                gyro[k] = Some(i);
+                gyro_signed[k] = f.signed;
+            }
+            if f.name == ["accSmooth[0]", "accSmooth[1]", "accSmooth[2]"][k] {
+                acc[k] = Some(i);
+                acc_signed[k] = f.signed;
+            }
+        }
+        if f.name == "erpm[0]" {
+            erpm = Some(i);
+        }
+    }
+    let [Some(g0), Some(g1), Some(g2)] = gyro else {
+        return Err("the main frames have no gyroADC[0..2] fields".into());
+    };
+    let acc = match acc {
+        [Some(a0), Some(a1), Some(a2)] => Some([a0, a1, a2]),
+        _ => None,
+    };
+    Ok(Fields {
+        gyro: [g0, g1, g2],
+        gyro_signed,
+        acc,
+        acc_signed,
+        erpm,
+    })
+}
+
+fn value(raw: u32, signed: bool) -> f64 {
+    if signed {
+        f64::from(raw as i32)
+    } else {
+        f64::from(raw)
+    }
+}
+
+/// Reads a blackbox log file. A file holding several logs (several arming periods) gives its
+/// longest one, with a warning.
+pub fn read_blackbox(path: &Path) -> Result<Recording, ReadError> {
+    let data =
+        std::fs::read(path).map_err(|e| ReadError::new(path, format!("cannot read: {e}")))?;
+    guard(path, "blackbox", || read_bytes(path, &data))?
+}
+
+/// Reads blackbox bytes (`path` only names them in messages).
+pub fn read_bytes(path: &Path, data: &[u8]) -> Result<Recording, ReadError> {
+    if !data.starts_with(BLACKBOX_MARKER) {
+        return Err(ReadError::at(
+            path,
+            Location::Line(1),
+            "not a blackbox log: it does not start with \"H Product:Blackbox flight data recorder\"",
+        ));
+    }
+    let (data, replaced) = rewrite_unknown_firmware(data);
+    let file = File::new(&data);
+    let count = file.log_count();
+    let mut best: Option<(usize, Result<Recording, ReadError>)> = None;
+    let mut header_errors = Vec::new();
+    for index in 0..count {
+        let headers = match file.parse(index) {
+            Some(Ok(h)) => h,
+            Some(Err(e)) => {
+                header_errors.push(format!("log {}: bad headers: {e}", index + 1));
+                continue;
+            }
+            None => continue,
+        };
+        let (frames, rec) = read_log(path, &headers);
+        if best.as_ref().is_none_or(|(n, _)| frames > *n) {
+            best = Some((frames, rec));
+        }
+    }
+    let Some((_, rec)) = best else {
+        let why = if header_errors.is_empty() {
+            "no log in the file".to_string()
+        } else {
+            header_errors.join("; ")
+        };
+        return Err(ReadError::new(path, why));
+    };
+    let mut rec = rec?;
+    let mut notes = Vec::new();
+    for r in replaced {
+        notes.push(format!(
+            "firmware revision {r:?} read as a Betaflight 4 log (same frame format); gyroADC \
+             taken as raw counts, {GYRO_LSB_PER_DEG_S} per deg/s"
+        ));
+    }
+    if count > 1 {
+        notes.push(format!(
+            "the file holds {count} logs; the one with the most main frames was read"
+        ));
+    }
+    notes.append(&mut rec.warnings);
+    rec.warnings = notes;
+    Ok(rec)
+}
+
+/// Decodes one log: the number of main frames seen and the recording (or the error).
+fn read_log(path: &Path, headers: &Headers) -> (usize, Result<Recording, ReadError>) {
+    let f = match fields(headers) {
+        Ok(f) => f,
+        Err(e) => return (0, Err(ReadError::new(path, e))),
+    };
+    let acc_1g = headers
+        .unknown()
+        .get("acc_1G")
+        .and_then(|s| s.trim().parse::<f64>().ok())
+        .filter(|&g| g > 0.0)
+        .unwrap_or(DEFAULT_ACC_1G);
+    let kw = (1.0 / GYRO_LSB_PER_DEG_S).to_radians();
+    let ka = G / acc_1g;
+    let mut samples = Samples::new(path);
+    let mut parser = headers.data_parser();
+    let mut n = 0usize;
+    let mut failed = None;
+    while let Some(event) = parser.next() {
+        let ParserEvent::Main(frame) = event else {
+            continue;
+        };
+        let at = Location::Frame(n);
+        n += 1;
+        if failed.is_some() {
+            continue;
+        }
+        let read3 = |cols: [usize; 3], signed: [bool; 3], k: f64| -> Option<[f64; 3]> {
+            let mut out = [0.0; 3];
+            for (o, (&c, s)) in out.iter_mut().zip(cols.iter().zip(signed)) {
+                *o = frame.get_raw(c).map(|r| value(r, s))? * k;
+            }
+            Some(out)
+        };
+        let Some(w) = read3(f.gyro, f.gyro_signed, kw) else {
+            failed = Some(ReadError::at(path, at, "frame lacks a gyro field"));
+            continue;
+        };
+        // A missing value becomes NaN, which `Samples::push` refuses naming the frame.
+        let a = f
+            .acc
+            .map(|cols| read3(cols, f.acc_signed, ka).unwrap_or([f64::NAN; 3]));
+        let r = f.erpm.map(|c| {
+            frame
+                .get_raw(c)
+                .map_or(f64::NAN, |v| value(v, false) * f64::from(ERPM_LOG_FACTOR))
+        });
+        let t = frame.time_raw() as f64 * 1e-6;
+        if let Err(e) = samples.push(at, t, w, a, r) {
+            failed = Some(e);
+        }
+    }
+    if let Some(e) = failed {
+        return (n, Err(e));
+    }
+    let rotor = f.erpm.map(|_| RotorSpeed::Erpm as RotorWrap);
+    let source = format!(
+        "{} (blackbox, {})",
+        path.display(),
+        headers.firmware_revision()
+    );
+    (
+        n,
+        samples.finish(source, rotor, GYRO_FULL_SCALE_RAD_S, Vec::new()),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rewrites_only_unknown_revisions_in_headers() {
+        let log = b"H Product:Blackbox flight data recorder by Nicholas Sherlock\nH Firmware revision:Indiflight 5.0.0 (x) STM32H743\nH a:b\nI\x00H Firmware revision:Indiflight\n";
+        let (out, r) = rewrite_unknown_firmware(log);
+        assert_eq!(r, vec!["Indiflight 5.0.0 (x) STM32H743".to_string()]);
+        let s = String::from_utf8_lossy(&out);
+        assert!(
+            s.contains("H Firmware revision:Betaflight 4.5.0\nH a:b\n"),
+            "{s}"
+        );
+        // After the header block, bytes are data: left alone.
+        assert!(s.ends_with("I\u{0}H Firmware revision:Indiflight\n"), "{s}");
+        let bf = b"H Product:Blackbox flight data recorder by Nicholas Sherlock\nH Firmware revision:Betaflight 4.4.2\n";
+        assert_eq!(rewrite_unknown_firmware(bf), (bf.to_vec(), vec![]));
+    }
+}

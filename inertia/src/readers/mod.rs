@@ -1,0 +1,528 @@
+//! Log readers: every format comes out as one [`Recording`] in SI units and the log's own
+//! sensor axes.
+//!
+//! [`read`] detects the format from the content, never from the file name:
+//!
+//! | format | recognised by | module |
+//! |---|---|---|
+//! | Betaflight blackbox (also INDIflight) | first line `H Product:Blackbox flight data recorder` | [`blackbox`] |
+//! | PX4 ULog | magic bytes `ULog` `0x01 0x12 0x35` | [`ulog`] |
+//! | phyphox export | a folder holding `Raw Data.csv`, or that file (`"Time (s)",...`) | [`phyphox`] |
+//! | CSV with named columns | any other text: `t`/`time`, `wx,wy,wz` or `gx,gy,gz`, ... | [`csv`] |
+//!
+//! Every malformed input comes back as a [`ReadError`] naming the file and, where one is to
+//! blame, the line (text formats) or the frame/record (binary formats); nothing here panics.
+//! Checks shared by all formats: time strictly increasing (an exact duplicate timestamp is
+//! dropped with a warning, time going backwards is an error), every value finite, at least two
+//! samples; warnings in [`Recording::warnings`] when the units look wrong (rates above
+//! 50 rad/s sustained look like deg/s; a median time step below 1e-5 s or above 1 s looks like
+//! the wrong time unit).
+
+pub mod blackbox;
+pub mod csv;
+pub mod phyphox;
+pub mod ulog;
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use crate::recording::{Recording, RotorSpeed};
+
+/// Where in a file a problem is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Location {
+    /// 1-based text line.
+    Line(usize),
+    /// 0-based main frame (blackbox) or data record (ULog) in the order of the file.
+    Frame(usize),
+}
+
+/// A malformed or unreadable log: which file, where (when one place is to blame) and what.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReadError {
+    /// The file (for a phyphox folder, its `Raw Data.csv`).
+    pub file: PathBuf,
+    /// The line or frame, if the problem is at one place.
+    pub at: Option<Location>,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl ReadError {
+    /// An error about `file` as a whole.
+    pub fn new(file: &Path, message: impl Into<String>) -> Self {
+        ReadError {
+            file: file.to_path_buf(),
+            at: None,
+            message: message.into(),
+        }
+    }
+
+    /// An error at one place of `file`.
+    pub fn at(file: &Path, at: Location, message: impl Into<String>) -> Self {
+        ReadError {
+            file: file.to_path_buf(),
+            at: Some(at),
+            message: message.into(),
+        }
+    }
+
+    /// The 1-based line, for text formats.
+    pub fn line(&self) -> Option<usize> {
+        match self.at {
+            Some(Location::Line(l)) => Some(l),
+            _ => None,
+        }
+    }
+
+    /// The 0-based frame or record, for binary formats.
+    pub fn frame(&self) -> Option<usize> {
+        match self.at {
+            Some(Location::Frame(f)) => Some(f),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for ReadError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.at {
+            Some(Location::Line(l)) => write!(f, "{}:{}: {}", self.file.display(), l, self.message),
+            Some(Location::Frame(n)) => {
+                write!(f, "{}: frame {}: {}", self.file.display(), n, self.message)
+            }
+            None => write!(f, "{}: {}", self.file.display(), self.message),
+        }
+    }
+}
+
+impl std::error::Error for ReadError {}
+
+/// Unit of the gyro columns of a CSV.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GyroUnit {
+    /// rad/s (the default).
+    #[default]
+    RadPerSec,
+    /// deg/s.
+    DegPerSec,
+}
+
+impl GyroUnit {
+    /// Factor from this unit to rad/s.
+    pub fn to_rad_per_sec(self) -> f64 {
+        match self {
+            GyroUnit::RadPerSec => 1.0,
+            GyroUnit::DegPerSec => core::f64::consts::PI / 180.0,
+        }
+    }
+}
+
+/// Unit of the time column of a CSV.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TimeUnit {
+    /// Seconds (the default).
+    #[default]
+    S,
+    /// Milliseconds.
+    Ms,
+    /// Microseconds.
+    Us,
+}
+
+impl TimeUnit {
+    /// Factor from this unit to seconds.
+    pub fn to_seconds(self) -> f64 {
+        match self {
+            TimeUnit::S => 1.0,
+            TimeUnit::Ms => 1e-3,
+            TimeUnit::Us => 1e-6,
+        }
+    }
+}
+
+/// Options for formats that do not state their units (the named-column CSV). The binary
+/// formats and phyphox state theirs and ignore these.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReadOptions {
+    /// Gyro unit of a CSV; `None` means rad/s.
+    pub gyro_unit: Option<GyroUnit>,
+    /// Time unit of a CSV; `None` means seconds.
+    pub time_unit: Option<TimeUnit>,
+}
+
+/// The formats [`read`] knows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// Betaflight blackbox (`.BFL`, `.BBL`), INDIflight included.
+    Blackbox,
+    /// PX4 ULog.
+    Ulog,
+    /// phyphox export (`Raw Data.csv` or its folder).
+    Phyphox,
+    /// CSV with named columns.
+    Csv,
+}
+
+impl fmt::Display for Format {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Format::Blackbox => "blackbox",
+            Format::Ulog => "ulog",
+            Format::Phyphox => "phyphox",
+            Format::Csv => "csv",
+        })
+    }
+}
+
+/// The first line of every blackbox log.
+pub(crate) const BLACKBOX_MARKER: &[u8] = b"H Product:Blackbox flight data recorder";
+/// The ULog file magic (with the version-independent bytes after `ULog`).
+pub(crate) const ULOG_MAGIC: &[u8] = &[0x55, 0x4c, 0x6f, 0x67, 0x01, 0x12, 0x35];
+
+/// A phyphox export may be given as its folder: then its `Raw Data.csv` is meant.
+pub(crate) fn data_file(path: &Path) -> PathBuf {
+    if path.is_dir() {
+        path.join("Raw Data.csv")
+    } else {
+        path.to_path_buf()
+    }
+}
+
+/// Which format the file (or phyphox folder) at `path` is, from its first bytes.
+pub fn detect(path: &Path) -> Result<Format, ReadError> {
+    use std::io::Read;
+    if path.is_dir() {
+        let f = path.join("Raw Data.csv");
+        return if f.is_file() {
+            Ok(Format::Phyphox)
+        } else {
+            Err(ReadError::new(
+                path,
+                "a folder is read only as a phyphox export, and it has no \"Raw Data.csv\"",
+            ))
+        };
+    }
+    let mut head = Vec::with_capacity(256);
+    std::fs::File::open(path)
+        .and_then(|f| f.take(256).read_to_end(&mut head))
+        .map_err(|e| ReadError::new(path, format!("cannot read: {e}")))?;
+    if head.starts_with(BLACKBOX_MARKER) {
+        return Ok(Format::Blackbox);
+    }
+    if head.starts_with(ULOG_MAGIC) {
+        return Ok(Format::Ulog);
+    }
+    if head.is_empty() {
+        return Err(ReadError::new(path, "empty file"));
+    }
+    let head = head.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&head);
+    let first_line = head.split(|&b| b == b'\n').next().unwrap_or_default();
+    let first = String::from_utf8_lossy(first_line);
+    if fields(&first)
+        .first()
+        .is_some_and(|c| c.starts_with("Time (s)"))
+    {
+        return Ok(Format::Phyphox);
+    }
+    if first_line.contains(&0) || std::str::from_utf8(first_line).is_err() {
+        return Err(ReadError::at(
+            path,
+            Location::Line(1),
+            "unknown format: binary content that is neither a blackbox log nor a ULog",
+        ));
+    }
+    Ok(Format::Csv)
+}
+
+/// Reads the log at `path` (a file, or a phyphox export's folder), its format detected from
+/// the content.
+pub fn read(path: &Path, opts: &ReadOptions) -> Result<Recording, ReadError> {
+    match detect(path)? {
+        Format::Blackbox => blackbox::read_blackbox(path),
+        Format::Ulog => ulog::read_ulog(path),
+        Format::Phyphox => phyphox::read_phyphox(path),
+        Format::Csv => csv::read_csv(path, opts),
+    }
+}
+
+// ---- shared text helpers (phyphox and CSV) ----
+
+/// The file's lines, refusing non-UTF-8 bytes (with the line), stripping a BOM and `\r`.
+pub(crate) fn read_lines(path: &Path) -> Result<Vec<String>, ReadError> {
+    let bytes =
+        std::fs::read(path).map_err(|e| ReadError::new(path, format!("cannot read: {e}")))?;
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(&bytes);
+    let mut lines = Vec::new();
+    for (i, raw) in bytes.split(|&b| b == b'\n').enumerate() {
+        let s = std::str::from_utf8(raw).map_err(|e| {
+            ReadError::at(path, Location::Line(i + 1), format!("not valid UTF-8: {e}"))
+        })?;
+        lines.push(s.trim_end_matches('\r').to_string());
+    }
+    // A final newline leaves one empty piece; a missing one leaves none.
+    if lines.last().is_some_and(|l| l.is_empty()) {
+        lines.pop();
+    }
+    Ok(lines)
+}
+
+/// The fields of a line: `,`, `;` (then with decimal commas) or tab as separator, taken from
+/// the line itself; quotes and surrounding spaces removed.
+pub(crate) fn fields(line: &str) -> Vec<String> {
+    let (sep, decimal_comma) = if line.contains(';') {
+        (';', true)
+    } else if line.contains('\t') {
+        ('\t', false)
+    } else {
+        (',', false)
+    };
+    line.split(sep)
+        .map(|f| {
+            let f = f.trim().trim_matches('"').trim();
+            if decimal_comma {
+                f.replace(',', ".")
+            } else {
+                f.to_string()
+            }
+        })
+        .collect()
+}
+
+/// `s` for an error message: at most 40 characters, marked when cut.
+pub(crate) fn quote(s: &str) -> String {
+    const MAX: usize = 40;
+    if s.chars().count() <= MAX {
+        format!("{s:?}")
+    } else {
+        let head: String = s.chars().take(MAX).collect();
+        format!("{head:?}... ({} bytes)", s.len())
+    }
+}
+
+/// A finite number from a text field.
+pub(crate) fn number(path: &Path, line: usize, what: &str, s: &str) -> Result<f64, ReadError> {
+    let at = Location::Line(line);
+    let v: f64 = s
+        .parse()
+        .map_err(|_| ReadError::at(path, at, format!("{what}: {} is not a number", quote(s))))?;
+    if !v.is_finite() {
+        return Err(ReadError::at(
+            path,
+            at,
+            format!("{what}: {} is not finite", quote(s)),
+        ));
+    }
+    Ok(v)
+}
+
+// ---- the checks every reader shares ----
+
+/// Collects samples in SI units, checking each as it comes: values finite (also once in
+/// `f32`), time strictly increasing (an exact duplicate is dropped and counted, going
+/// backwards is an error).
+pub(crate) struct Samples {
+    file: PathBuf,
+    t: Vec<f64>,
+    gyro: Vec<[f32; 3]>,
+    accel: Vec<[f32; 3]>,
+    rotor: Vec<f32>,
+    duplicates: usize,
+    first_duplicate: Option<Location>,
+}
+
+/// How a reader's rotor values become a [`RotorSpeed`] (`RotorSpeed::Erpm` or `RadPerSec`).
+pub(crate) type RotorWrap = fn(Vec<f32>) -> RotorSpeed;
+
+const AXES: [&str; 3] = ["x", "y", "z"];
+
+impl Samples {
+    pub(crate) fn new(file: &Path) -> Self {
+        Samples {
+            file: file.to_path_buf(),
+            t: Vec::new(),
+            gyro: Vec::new(),
+            accel: Vec::new(),
+            rotor: Vec::new(),
+            duplicates: 0,
+            first_duplicate: None,
+        }
+    }
+
+    fn finite(&self, at: Location, what: &str, v: f64) -> Result<f32, ReadError> {
+        let x = v as f32;
+        if x.is_finite() {
+            Ok(x)
+        } else {
+            Err(ReadError::at(
+                &self.file,
+                at,
+                format!("{what} = {v} is not finite (or beyond f32)"),
+            ))
+        }
+    }
+
+    fn vec3(&self, at: Location, what: &str, v: [f64; 3]) -> Result<[f32; 3], ReadError> {
+        let mut out = [0.0; 3];
+        for k in 0..3 {
+            out[k] = self.finite(at, &format!("{what} {}", AXES[k]), v[k])?;
+        }
+        Ok(out)
+    }
+
+    /// Adds one sample. `accel` and `rotor` must be given for every sample or for none.
+    pub(crate) fn push(
+        &mut self,
+        at: Location,
+        t: f64,
+        gyro: [f64; 3],
+        accel: Option<[f64; 3]>,
+        rotor: Option<f64>,
+    ) -> Result<(), ReadError> {
+        if !t.is_finite() {
+            return Err(ReadError::at(
+                &self.file,
+                at,
+                format!("time = {t} is not finite"),
+            ));
+        }
+        let g = self.vec3(at, "gyro", gyro)?;
+        let a = accel.map(|a| self.vec3(at, "accel", a)).transpose()?;
+        let r = rotor
+            .map(|r| self.finite(at, "rotor speed", r))
+            .transpose()?;
+        if let Some(&prev) = self.t.last() {
+            if t == prev {
+                self.duplicates += 1;
+                self.first_duplicate.get_or_insert(at);
+                return Ok(());
+            }
+            if t < prev {
+                return Err(ReadError::at(
+                    &self.file,
+                    at,
+                    format!("time goes backwards: {t} s after {prev} s"),
+                ));
+            }
+        }
+        self.t.push(t);
+        self.gyro.push(g);
+        if let Some(a) = a {
+            self.accel.push(a);
+        }
+        if let Some(r) = r {
+            self.rotor.push(r);
+        }
+        Ok(())
+    }
+
+    /// The recording, with the duplicate and unit warnings. `rotor` says how the rotor values
+    /// are to be wrapped (`None`: no rotor channel).
+    pub(crate) fn finish(
+        self,
+        source: String,
+        rotor: Option<RotorWrap>,
+        gyro_full_scale: f32,
+        mut warnings: Vec<String>,
+    ) -> Result<Recording, ReadError> {
+        let n = self.t.len();
+        if n < 2 {
+            return Err(ReadError::new(
+                &self.file,
+                format!("fewer than two samples ({n})"),
+            ));
+        }
+        if self.duplicates > 0 {
+            let at = match self.first_duplicate {
+                Some(Location::Line(l)) => format!(" (first at line {l})"),
+                Some(Location::Frame(f)) => format!(" (first at frame {f})"),
+                None => String::new(),
+            };
+            warnings.push(format!(
+                "dropped {} sample(s) repeating the previous timestamp{at}",
+                self.duplicates
+            ));
+        }
+        let accel = (self.accel.len() == n).then_some(self.accel);
+        let rotor = match rotor {
+            Some(wrap) if self.rotor.len() == n => Some(wrap(self.rotor)),
+            _ => None,
+        };
+        let mut rec = Recording {
+            source,
+            t: self.t,
+            gyro: self.gyro,
+            accel,
+            rotor,
+            gyro_full_scale,
+            warnings,
+        };
+        rec.warnings.extend(unit_warnings(&rec.t, &rec.gyro));
+        Ok(rec)
+    }
+}
+
+/// Rates above this, sustained, look like deg/s read as rad/s.
+pub const DEG_PER_SEC_SUSPECT_RAD_S: f32 = 50.0;
+/// How long the rate must stay above [`DEG_PER_SEC_SUSPECT_RAD_S`] to count as sustained, s.
+pub const SUSTAINED_S: f64 = 0.1;
+
+/// Unit sanity warnings: sustained rates above 50 rad/s (deg/s read as rad/s?) and a median
+/// time step outside `[1e-5 s, 1 s]` (wrong time unit?).
+pub fn unit_warnings(t: &[f64], gyro: &[[f32; 3]]) -> Vec<String> {
+    let mut out = Vec::new();
+    // Longest run of samples whose rate magnitude exceeds the threshold.
+    let mut best: Option<(usize, usize)> = None;
+    let mut start: Option<usize> = None;
+    for (i, w) in gyro.iter().enumerate() {
+        let norm = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+        if norm > DEG_PER_SEC_SUSPECT_RAD_S {
+            let s = *start.get_or_insert(i);
+            let span = t[i] - t[s];
+            if best.is_none_or(|(b0, b1)| span > t[b1] - t[b0]) {
+                best = Some((s, i));
+            }
+        } else {
+            start = None;
+        }
+    }
+    if let Some((i0, i1)) = best {
+        let span = t[i1] - t[i0];
+        if span >= SUSTAINED_S {
+            out.push(format!(
+                "gyro rate stays above {DEG_PER_SEC_SUSPECT_RAD_S} rad/s for {span:.3} s \
+                 (from t = {:.3} s): that looks like deg/s read as rad/s; check the gyro unit",
+                t[i0]
+            ));
+        }
+    }
+    if t.len() >= 2 {
+        let mut dt: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+        let mid = dt.len() / 2;
+        let (_, median, _) = dt.select_nth_unstable_by(mid, f64::total_cmp);
+        let median = *median;
+        if median < 1e-5 {
+            out.push(format!(
+                "median time step {median:.3e} s is below 1e-5 s: is the time in ms or us \
+                 read as seconds? check the time unit"
+            ));
+        } else if median > 1.0 {
+            out.push(format!(
+                "median time step {median:.3e} s is above 1 s: is the time in ms or us read \
+                 as seconds? check the time unit"
+            ));
+        }
+    }
+    out
+}
+
+/// Runs a third-party parser, turning a panic inside it into a [`ReadError`]: the readers
+/// promise never to panic on malformed input, and the crates do not all promise that.
+pub(crate) fn guard<T>(file: &Path, what: &str, f: impl FnOnce() -> T) -> Result<T, ReadError> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).map_err(|_| {
+        ReadError::new(
+            file,
+            format!("the {what} parser failed on malformed input (it panicked)"),
+        )
+    })
+}

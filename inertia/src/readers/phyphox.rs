@@ -1,0 +1,192 @@
+//! phyphox exports: `Raw Data.csv` (`"Time (s)","Gyroscope x (rad/s)",...`) in a folder that
+//! may also hold `meta/segments.csv` (hand-marked free-flight windows).
+//!
+//! Moved here from `host-tests`' `log_input` (same tolerance of real exports: quoted headers,
+//! `;` separators with decimal commas, a BOM, `\r\n`, leading spaces, no final newline).
+
+use std::path::{Path, PathBuf};
+
+use super::{data_file, fields, number, quote, read_lines, Location, ReadError, Samples};
+use crate::recording::Recording;
+
+/// Reads a phyphox gyroscope export (`Raw Data.csv`, or its folder): time in seconds, rates
+/// in rad/s, the phone's axes.
+pub fn read_phyphox(path: &Path) -> Result<Recording, ReadError> {
+    let file = data_file(path);
+    let lines = read_lines(&file)?;
+    let Some(h) = lines.first() else {
+        return Err(ReadError::new(&file, "empty file"));
+    };
+    let f = fields(h);
+    let ok = f.len() >= 4
+        && f[0].starts_with("Time (s)")
+        && f[1..4]
+            .iter()
+            .zip(["x", "y", "z"])
+            .all(|(c, a)| c.contains(&format!(" {a} ")) && c.contains("rad/s"));
+    if !ok {
+        return Err(ReadError::at(
+            &file,
+            Location::Line(1),
+            format!("not a phyphox gyroscope header: {}", quote(h)),
+        ));
+    }
+    let mut samples = Samples::new(&file);
+    for (i, line) in lines.iter().enumerate().skip(1) {
+        let n = i + 1;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let f = fields(line);
+        if f.len() < 4 {
+            return Err(ReadError::at(
+                &file,
+                Location::Line(n),
+                format!(
+                    "truncated row: {} field(s), need 4 (t, wx, wy, wz)",
+                    f.len()
+                ),
+            ));
+        }
+        let t = number(&file, n, "time", &f[0])?;
+        let w = [
+            number(&file, n, "wx", &f[1])?,
+            number(&file, n, "wy", &f[2])?,
+            number(&file, n, "wz", &f[3])?,
+        ];
+        samples.push(Location::Line(n), t, w, None, None)?;
+    }
+    samples.finish(
+        format!("{} (phyphox)", file.display()),
+        None,
+        f32::INFINITY,
+        Vec::new(),
+    )
+}
+
+/// A free-flight window `[start, end]` in the log's time base, seconds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Segment {
+    /// Label (the `segment` column, or its rank).
+    pub label: String,
+    /// Start time, seconds.
+    pub start: f64,
+    /// End time, seconds.
+    pub end: f64,
+}
+
+/// The `meta/segments.csv` beside a phyphox export (`path` is the folder or its
+/// `Raw Data.csv`), if there is one.
+pub fn segments_file(path: &Path) -> Option<PathBuf> {
+    let dir = if path.is_dir() {
+        path.to_path_buf()
+    } else {
+        path.parent().map(Path::to_path_buf).unwrap_or_default()
+    };
+    let p = dir.join("meta").join("segments.csv");
+    p.is_file().then_some(p)
+}
+
+/// Reads a phyphox `segments.csv` (`segment,start,end,keep,comment`; leading spaces, quotes
+/// and a missing final newline tolerated). Rows with `keep` false are dropped; the rest are
+/// returned sorted by start.
+pub fn read_segments(path: &Path) -> Result<Vec<Segment>, ReadError> {
+    let lines = read_lines(path)?;
+    let Some(h) = lines.first() else {
+        return Err(ReadError::new(path, "empty file"));
+    };
+    let head = fields(h);
+    let col = |name: &str| head.iter().position(|c| c.eq_ignore_ascii_case(name));
+    let (Some(cs), Some(ce)) = (col("start"), col("end")) else {
+        return Err(ReadError::at(
+            path,
+            Location::Line(1),
+            format!("header needs start and end columns, found {}", quote(h)),
+        ));
+    };
+    let (cl, ck) = (col("segment"), col("keep"));
+    let mut out = Vec::new();
+    for (i, line) in lines.iter().enumerate().skip(1) {
+        let n = i + 1;
+        let at = Location::Line(n);
+        if line.trim().is_empty() {
+            continue;
+        }
+        let f = fields(line);
+        let get = |c: usize| f.get(c).map(String::as_str);
+        let (Some(s), Some(e)) = (get(cs), get(ce)) else {
+            return Err(ReadError::at(
+                path,
+                at,
+                "truncated row: missing start or end",
+            ));
+        };
+        let start = number(path, n, "start", s)?;
+        let end = number(path, n, "end", e)?;
+        if end <= start {
+            return Err(ReadError::at(
+                path,
+                at,
+                format!("end {end} is not after start {start}"),
+            ));
+        }
+        let keep = match ck.and_then(get).map(str::to_ascii_lowercase).as_deref() {
+            None | Some("") | Some("true") | Some("1") | Some("yes") => true,
+            Some("false") | Some("0") | Some("no") => false,
+            Some(other) => {
+                return Err(ReadError::at(
+                    path,
+                    at,
+                    format!("keep must be true/false/empty, found {}", quote(other)),
+                ))
+            }
+        };
+        if keep {
+            let label = cl
+                .and_then(get)
+                .map_or_else(|| format!("{}", out.len()), str::to_string);
+            out.push(Segment { label, start, end });
+        }
+    }
+    out.sort_by(|a, b| a.start.total_cmp(&b.start));
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tmp(name: &str, bytes: &[u8]) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("inertia_phyphox_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join(name);
+        std::fs::write(&p, bytes).unwrap();
+        p
+    }
+
+    #[test]
+    fn semicolons_and_decimal_commas() {
+        let p = tmp(
+            "semi.csv",
+            "\u{feff}\"Time (s)\";\"Gyroscope x (rad/s)\";\"Gyroscope y (rad/s)\";\"Gyroscope z (rad/s)\"\r\n0,01;1,5;2;3\r\n0,02;1;2;3\r\n"
+                .as_bytes(),
+        );
+        let r = read_phyphox(&p).unwrap();
+        assert_eq!(r.t, vec![0.01, 0.02]);
+        assert_eq!(r.gyro[0], [1.5, 2.0, 3.0]);
+    }
+
+    #[test]
+    fn segments_with_spaces_no_newline_and_rejections() {
+        let p = tmp(
+            "seg.csv",
+            b"segment,start,end,keep,comment\n1, 2.5,3.0,,x\n0, 1.0,1.5,false,no\n2, 0.5,0.9,,y",
+        );
+        let s = read_segments(&p).unwrap();
+        assert_eq!(s.len(), 2);
+        assert_eq!(s[0].label, "2");
+        assert_eq!(s[1].start, 2.5);
+        let p = tmp("segbad.csv", b"segment,start,end\n1,3.0,2.0\n");
+        assert_eq!(read_segments(&p).unwrap_err().line(), Some(2));
+    }
+}

@@ -1,0 +1,159 @@
+//! PX4 ULog files, decoded with the `px4-ulog` crate.
+//!
+//! | topic, field | unit | in the [`Recording`] |
+//! |---|---|---|
+//! | `sensor_combined.timestamp` | microseconds | `t`, seconds |
+//! | `sensor_combined.gyro_rad[0..2]` | rad/s | `gyro` |
+//! | `sensor_combined.accelerometer_m_s2[0..2]` | m/s^2 | `accel` |
+//! | `esc_status.esc[0].esc_rpm` (optional) | mechanical rpm | `rotor`, [`RotorSpeed::RadPerSec`], sample-and-hold onto the gyro times |
+//!
+//! The first instance (lowest multi id) of each topic is read. Axes are PX4's body frame as
+//! logged.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use px4_ulog::full_parser::{read_file, MultiId, SomeVec};
+
+use super::{guard, Location, ReadError, RotorWrap, Samples};
+use crate::recording::{Recording, RotorSpeed};
+
+/// One field of a topic as `f64`s (integers converted exactly up to 2^53).
+fn as_f64(v: &SomeVec) -> Vec<f64> {
+    match v {
+        SomeVec::Int8(x) => x.iter().map(|&a| f64::from(a)).collect(),
+        SomeVec::UInt8(x) => x.iter().map(|&a| f64::from(a)).collect(),
+        SomeVec::Int16(x) => x.iter().map(|&a| f64::from(a)).collect(),
+        SomeVec::UInt16(x) => x.iter().map(|&a| f64::from(a)).collect(),
+        SomeVec::Int32(x) => x.iter().map(|&a| f64::from(a)).collect(),
+        SomeVec::UInt32(x) => x.iter().map(|&a| f64::from(a)).collect(),
+        SomeVec::Int64(x) => x.iter().map(|&a| a as f64).collect(),
+        SomeVec::UInt64(x) => x.iter().map(|&a| a as f64).collect(),
+        SomeVec::Float(x) => x.iter().map(|&a| f64::from(a)).collect(),
+        SomeVec::Double(x) => x.clone(),
+        SomeVec::Bool(x) => x.iter().map(|&a| f64::from(u8::from(a))).collect(),
+        SomeVec::Char(x) => x.iter().map(|&a| f64::from(u32::from(a))).collect(),
+    }
+}
+
+type Topic = HashMap<String, SomeVec>;
+
+/// The first instance of a topic.
+fn first_instance<'a>(
+    messages: &'a HashMap<String, HashMap<MultiId, Topic>>,
+    name: &str,
+) -> Option<&'a Topic> {
+    let instances = messages.get(name)?;
+    instances
+        .iter()
+        .min_by_key(|(id, _)| id.value())
+        .map(|(_, t)| t)
+}
+
+fn column(
+    path: &Path,
+    topic: &Topic,
+    topic_name: &str,
+    field: &str,
+) -> Result<Vec<f64>, ReadError> {
+    topic.get(field).map(as_f64).ok_or_else(|| {
+        ReadError::new(
+            path,
+            format!("ULog topic {topic_name} has no field {field}"),
+        )
+    })
+}
+
+/// Reads a ULog file.
+pub fn read_ulog(path: &Path) -> Result<Recording, ReadError> {
+    let Some(name) = path.to_str() else {
+        return Err(ReadError::new(
+            path,
+            "the ULog reader needs a UTF-8 file name",
+        ));
+    };
+    let parsed = guard(path, "ULog", || read_file(name))?
+        .map_err(|e| ReadError::new(path, format!("not a readable ULog: {e}")))?;
+    let mut warnings = Vec::new();
+    if parsed.completeness.is_incomplete() {
+        warnings.push(format!(
+            "the ULog ends early ({:?}): read up to there",
+            parsed.completeness
+        ));
+    }
+    let sc = "sensor_combined";
+    let Some(topic) = first_instance(&parsed.messages, sc) else {
+        return Err(ReadError::new(path, "no sensor_combined data in the ULog"));
+    };
+    let t = column(path, topic, sc, "timestamp")?;
+    let mut gyro = Vec::new();
+    for k in 0..3 {
+        gyro.push(column(path, topic, sc, &format!("gyro_rad[{k}]"))?);
+    }
+    let accel: Option<Vec<Vec<f64>>> = (0..3)
+        .map(|k| topic.get(&format!("accelerometer_m_s2[{k}]")).map(as_f64))
+        .collect();
+    let n = t.len();
+    if gyro.iter().any(|g| g.len() != n)
+        || accel
+            .as_ref()
+            .is_some_and(|a| a.iter().any(|c| c.len() != n))
+    {
+        return Err(ReadError::new(
+            path,
+            "sensor_combined fields differ in length",
+        ));
+    }
+
+    // esc_status: esc[0].esc_rpm, sample-and-hold onto the gyro times.
+    let rotor = match first_instance(&parsed.messages, "esc_status") {
+        Some(esc) => {
+            let te = column(path, esc, "esc_status", "timestamp")?;
+            let rpm = column(path, esc, "esc_status", "esc[0].esc_rpm")?;
+            if te.len() != rpm.len() || te.is_empty() {
+                return Err(ReadError::new(
+                    path,
+                    "esc_status fields differ in length or are empty",
+                ));
+            }
+            if te.windows(2).any(|w| w[1] < w[0]) {
+                return Err(ReadError::new(path, "esc_status time goes backwards"));
+            }
+            if t.first().is_some_and(|&t0| te[0] > t0) {
+                warnings.push(format!(
+                    "esc_status starts {:.3} s after the gyro: its first value is held before",
+                    (te[0] - t[0]) * 1e-6
+                ));
+            }
+            let k = 2.0 * core::f64::consts::PI / 60.0;
+            let held: Vec<f64> = t
+                .iter()
+                .map(|&ti| {
+                    let j = te.partition_point(|&x| x <= ti).saturating_sub(1);
+                    rpm[j] * k
+                })
+                .collect();
+            Some(held)
+        }
+        None => None,
+    };
+
+    let mut samples = Samples::new(path);
+    for i in 0..n {
+        let a = accel.as_ref().map(|a| [a[0][i], a[1][i], a[2][i]]);
+        let r = rotor.as_ref().map(|r| r[i]);
+        samples.push(
+            Location::Frame(i),
+            t[i] * 1e-6,
+            [gyro[0][i], gyro[1][i], gyro[2][i]],
+            a,
+            r,
+        )?;
+    }
+    samples.finish(
+        format!("{} (ulog)", path.display()),
+        rotor.map(|_| RotorSpeed::RadPerSec as RotorWrap),
+        f32::INFINITY,
+        warnings,
+    )
+}

@@ -1,0 +1,470 @@
+//! The log readers on the measured data in `../shared/data` (skipped with a note when it is
+//! absent), on synthetic files of every format, and on truncated and garbage input (an error
+//! or a shorter recording, never a panic).
+
+use std::path::{Path, PathBuf};
+
+use inertia::readers::phyphox::{read_segments, segments_file};
+use inertia::readers::{detect, read, Format, GyroUnit, ReadOptions, TimeUnit};
+use inertia::{Recording, RotorSpeed};
+
+fn shared(sub: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/data")
+        .join(sub);
+    if p.is_dir() {
+        Some(p)
+    } else {
+        eprintln!("note: {} absent, test skipped", p.display());
+        None
+    }
+}
+
+fn tmp_dir() -> PathBuf {
+    let d = std::env::temp_dir().join(format!("inertia_readers_{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn tmp(name: &str, bytes: &[u8]) -> PathBuf {
+    let p = tmp_dir().join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+fn thrown_logs() -> Vec<PathBuf> {
+    let Some(root) = shared("thrown-fc") else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    for sub in ["device_only", "proof_body"] {
+        let mut v: Vec<PathBuf> = std::fs::read_dir(root.join(sub))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|e| e == "BFL"))
+            .collect();
+        v.sort();
+        out.extend(v);
+    }
+    assert_eq!(out.len(), 10, "{out:?}");
+    out
+}
+
+fn median_dt(r: &Recording) -> f64 {
+    let mut dt: Vec<f64> = r.t.windows(2).map(|w| w[1] - w[0]).collect();
+    dt.sort_by(f64::total_cmp);
+    dt[dt.len() / 2]
+}
+
+#[test]
+fn thrown_fc_blackbox_logs() {
+    for p in thrown_logs() {
+        assert_eq!(detect(&p).unwrap(), Format::Blackbox);
+        let r = read(&p, &ReadOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+        let n = r.len();
+        let rate = 1.0 / median_dt(&r);
+        let dur = r.t[n - 1] - r.t[0];
+        let peak = r
+            .gyro
+            .iter()
+            .flat_map(|w| w.iter())
+            .fold(0.0f32, |m, v| m.max(v.abs()));
+        // Accelerometer at rest: the first 0.2 s, on the bench.
+        let acc = r.accel.as_ref().expect("accSmooth");
+        let rest: Vec<f32> =
+            r.t.iter()
+                .zip(acc)
+                .take_while(|(t, _)| **t - r.t[0] < 0.2)
+                .map(|(_, a)| (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt())
+                .collect();
+        let g_rest = rest.iter().sum::<f32>() / rest.len() as f32;
+        let Some(RotorSpeed::Erpm(erpm)) = &r.rotor else {
+            panic!("{}: no eRPM", p.display());
+        };
+        let erpm_max = erpm.iter().fold(0.0f32, |m, v| m.max(*v));
+        println!(
+            "{}: {n} samples, {dur:.2} s, {rate:.0} Hz, gyro peak {peak:.2} rad/s, \
+             |a| at rest {g_rest:.3} m/s^2, eRPM max {erpm_max:.0}, warnings {:?}",
+            p.file_name().unwrap().to_string_lossy(),
+            r.warnings
+        );
+        assert!(n > 5_000, "{n}");
+        assert_eq!(erpm.len(), n);
+        assert_eq!(acc.len(), n);
+        assert!((3_500.0..4_500.0).contains(&rate), "{rate}");
+        assert!(peak < 35.0 && peak > 5.0, "{peak}");
+        assert!((g_rest - 9.81).abs() < 0.4, "{g_rest}");
+        assert!(erpm_max > 10_000.0, "{erpm_max}");
+        assert!(r.t.windows(2).all(|w| w[1] > w[0]));
+        assert!((r.gyro_full_scale - 34.9066).abs() < 1e-3);
+        assert!(r.warnings.iter().any(|w| w.contains("Indiflight")));
+        assert!(!r.warnings.iter().any(|w| w.contains("deg/s read as rad/s")));
+    }
+}
+
+#[test]
+fn thrown_fc_truncated_and_damaged_never_panic() {
+    let Some(p) = thrown_logs().into_iter().next() else {
+        return;
+    };
+    let bytes = std::fs::read(&p).unwrap();
+    let full = read(&p, &ReadOptions::default()).unwrap().len();
+    // Cut inside the header: an error naming the file.
+    for cut in [10, 200, 2_000] {
+        let q = tmp("cut_header.BFL", &bytes[..cut]);
+        match read(&q, &ReadOptions::default()) {
+            Err(e) => assert!(e.to_string().contains("cut_header.BFL"), "{e}"),
+            Ok(r) => panic!("cut at {cut}: read {} samples", r.len()),
+        }
+    }
+    // Cut inside the data: the frames before the cut.
+    let q = tmp("cut_data.BFL", &bytes[..bytes.len() / 2]);
+    let r = read(&q, &ReadOptions::default()).unwrap();
+    assert!(
+        r.len() > full / 3 && r.len() < full,
+        "{} of {full}",
+        r.len()
+    );
+    // Garbage in the data section: whatever comes out, no panic, and time still increases.
+    let mut damaged = bytes.clone();
+    let mut x = 12345u32;
+    for b in damaged[bytes.len() / 3..].iter_mut().step_by(97) {
+        x = x.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+        *b = (x >> 16) as u8;
+    }
+    let q = tmp("damaged.BFL", &damaged);
+    match read(&q, &ReadOptions::default()) {
+        Ok(r) => assert!(r.t.windows(2).all(|w| w[1] > w[0])),
+        Err(e) => println!("damaged log: {e}"),
+    }
+}
+
+#[test]
+fn blackbox_garbage_is_an_error() {
+    let mut g = b"H Product:Blackbox flight data recorder by Nicholas Sherlock\n".to_vec();
+    g.extend((0..5000u32).map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8));
+    let p = tmp("garbage.bbl", &g);
+    assert_eq!(detect(&p).unwrap(), Format::Blackbox);
+    let e = read(&p, &ReadOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("garbage.bbl"), "{e}");
+    let p = tmp(
+        "just_marker.bbl",
+        b"H Product:Blackbox flight data recorder",
+    );
+    assert!(read(&p, &ReadOptions::default()).is_err());
+}
+
+#[test]
+fn racquet_phyphox_exports() {
+    let Some(root) = shared("racquet") else {
+        return;
+    };
+    let mut dirs = Vec::new();
+    for round in std::fs::read_dir(&root).unwrap() {
+        let round = round.unwrap().path();
+        if round.is_dir() {
+            for d in std::fs::read_dir(&round).unwrap() {
+                dirs.push(d.unwrap().path());
+            }
+        }
+    }
+    dirs.sort();
+    assert_eq!(dirs.len(), 3, "{dirs:?}");
+    for d in dirs {
+        assert_eq!(detect(&d).unwrap(), Format::Phyphox);
+        let r = read(&d, &ReadOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+        // The csv file itself reads the same.
+        let f = read(&d.join("Raw Data.csv"), &ReadOptions::default()).unwrap();
+        assert_eq!(f.t, r.t);
+        let dt = median_dt(&r);
+        let peak = r
+            .gyro
+            .iter()
+            .map(|w| (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt())
+            .fold(0.0f32, f32::max);
+        let segs = read_segments(&segments_file(&d).unwrap()).unwrap();
+        println!(
+            "{}: {} samples, dt {dt:.4} s, |w| peak {peak:.1} rad/s, {} kept segments, warnings {:?}",
+            d.display(),
+            r.len(),
+            segs.len(),
+            r.warnings
+        );
+        assert!(r.len() > 1_000);
+        assert!((dt - 0.01002).abs() < 0.0005, "{dt}");
+        assert!(peak > 10.0 && peak < 50.0, "{peak}");
+        assert!(r.accel.is_none() && r.rotor.is_none());
+        assert!(!segs.is_empty());
+        for s in &segs {
+            assert!(s.start >= r.t[0] && s.end <= r.t[r.len() - 1], "{s:?}");
+        }
+    }
+}
+
+#[test]
+fn phyphox_truncated_and_garbage() {
+    let head = "\"Time (s)\",\"Gyroscope x (rad/s)\",\"Gyroscope y (rad/s)\",\"Gyroscope z (rad/s)\",\"Absolute (rad/s)\"\n";
+    let ok = format!("{head}0.0,1,2,3,4\n0.01,1,2,3,4\n0.02,1,2,3,4\n");
+    let dir = tmp_dir().join("phyphox_export");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("Raw Data.csv"), &ok).unwrap();
+    assert_eq!(read(&dir, &ReadOptions::default()).unwrap().len(), 3);
+    // Truncated in the middle of the last row, at every byte.
+    for cut in head.len()..ok.len() - 1 {
+        let p = tmp("phy_cut.csv", &ok.as_bytes()[..cut]);
+        if let Err(e) = read(&p, &ReadOptions::default()) {
+            assert!(e.to_string().contains("phy_cut.csv"), "{e}");
+        }
+    }
+    let cases: [(&str, String, Option<usize>); 4] = [
+        (
+            "phy_short.csv",
+            format!("{head}0.0,1,2,3\n0.01,1,2\n"),
+            Some(3),
+        ),
+        (
+            "phy_nan.csv",
+            format!("{head}0.0,1,2,3\n0.01,1,inf,3\n"),
+            Some(3),
+        ),
+        (
+            "phy_back.csv",
+            format!("{head}0.0,1,2,3\n0.02,1,2,3\n0.01,1,2,3\n"),
+            Some(4),
+        ),
+        ("phy_one.csv", format!("{head}0.0,1,2,3\n"), None),
+    ];
+    for (name, text, line) in cases {
+        let p = tmp(name, text.as_bytes());
+        let e = read(&p, &ReadOptions::default()).unwrap_err();
+        assert_eq!(e.line(), line, "{e}");
+        assert!(e.to_string().contains(name), "{e}");
+    }
+    let p = tmp("phy_bin.csv", b"\"Time (s)\",\xff\xfe\x00\x01\n");
+    assert!(read(&p, &ReadOptions::default()).is_err());
+    let empty = tmp_dir().join("empty_dir");
+    std::fs::create_dir_all(&empty).unwrap();
+    assert!(read(&empty, &ReadOptions::default()).is_err());
+}
+
+#[test]
+fn csv_units_converted() {
+    // 10 ms steps, 180 deg/s about z, accel and eRPM.
+    let mut s = String::from("time,gx,gy,gz,ax,ay,az,erpm\n");
+    for i in 0..50 {
+        s += &format!("{},0,90,180,0,0,9.81,{}\n", i * 10, 1000 * i);
+    }
+    let p = tmp("units.csv", s.as_bytes());
+    assert_eq!(detect(&p).unwrap(), Format::Csv);
+    let o = ReadOptions {
+        gyro_unit: Some(GyroUnit::DegPerSec),
+        time_unit: Some(TimeUnit::Ms),
+    };
+    let r = read(&p, &o).unwrap();
+    assert_eq!(r.len(), 50);
+    assert!((r.t[1] - 0.01).abs() < 1e-12 && (r.t[49] - 0.49).abs() < 1e-12);
+    assert!((r.gyro[3][2] - std::f32::consts::PI).abs() < 1e-6);
+    assert!((r.gyro[3][1] - std::f32::consts::FRAC_PI_2).abs() < 1e-6);
+    assert_eq!(r.accel.as_ref().unwrap()[7], [0.0, 0.0, 9.81]);
+    assert_eq!(r.rotor.as_ref().unwrap().len(), 50);
+    assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+
+    // Read with the defaults, the same file warns about both units.
+    let r = read(&p, &ReadOptions::default()).unwrap();
+    assert!(
+        r.warnings.iter().any(|w| w.contains("deg/s")),
+        "{:?}",
+        r.warnings
+    );
+    assert!(
+        r.warnings.iter().any(|w| w.contains("time unit")),
+        "{:?}",
+        r.warnings
+    );
+
+    // microseconds, rad/s, rotor in rad/s.
+    let p = tmp(
+        "us.csv",
+        b"t,wx,wy,wz,rotor_rad_s\n0,0.1,0.2,0.3,100\n2500,0.1,0.2,0.3,101\n5000,0.1,0.2,0.3,102\n",
+    );
+    let o = ReadOptions {
+        time_unit: Some(TimeUnit::Us),
+        ..ReadOptions::default()
+    };
+    let r = read(&p, &o).unwrap();
+    assert_eq!(r.t, vec![0.0, 0.0025, 0.005]);
+    assert_eq!(
+        r.rotor,
+        Some(RotorSpeed::RadPerSec(vec![100.0, 101.0, 102.0]))
+    );
+}
+
+#[test]
+fn csv_truncated_and_garbage() {
+    let ok = "t,wx,wy,wz\n0,1,2,3\n0.01,1,2,3\n0.02,1,2,3\n";
+    for cut in 0..ok.len() {
+        let p = tmp("csv_cut.csv", &ok.as_bytes()[..cut]);
+        if let Err(e) = read(&p, &ReadOptions::default()) {
+            assert!(e.to_string().contains("csv_cut.csv"), "{e}");
+        }
+    }
+    let cases: [(&str, &[u8], Option<usize>); 6] = [
+        ("c_nan.csv", b"t,wx,wy,wz\n0,1,2,3\n0.01,NaN,2,3\n", Some(3)),
+        (
+            "c_big.csv",
+            b"t,wx,wy,wz\n0,1,2,3\n0.01,1e300,2,3\n",
+            Some(3),
+        ),
+        (
+            "c_text.csv",
+            b"t,wx,wy,wz\n0,1,2,3\n0.01,abc,2,3\n",
+            Some(3),
+        ),
+        ("c_head.csv", b"time,a,b,c\n0,1,2,3\n", Some(1)),
+        (
+            "c_utf.csv",
+            b"t,wx,wy,wz\n0,1,2,3\n0.01,\xff,2,3\n",
+            Some(3),
+        ),
+        ("c_bin.csv", b"\x00\x01\x02\x03garbage", Some(1)),
+    ];
+    for (name, bytes, line) in cases {
+        let p = tmp(name, bytes);
+        let e = read(&p, &ReadOptions::default()).unwrap_err();
+        assert_eq!(e.line(), line, "{name}: {e}");
+        assert!(e.to_string().contains(name), "{e}");
+    }
+    let e = read(Path::new("/nonexistent/x.csv"), &ReadOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("x.csv"), "{e}");
+}
+
+// ---- ULog: a tiny file written by hand in the ULog binary format ----
+
+/// One ULog message: size (u16, little endian), type, payload.
+fn msg(out: &mut Vec<u8>, kind: u8, payload: &[u8]) {
+    out.extend_from_slice(&(payload.len() as u16).to_le_bytes());
+    out.push(kind);
+    out.extend_from_slice(payload);
+}
+
+/// A ULog with `n` sensor_combined samples at 1 kHz (gyro `(0.1 i, -0.2, 3)`, accel
+/// `(0, 0, -9.8)`) and esc_status at 100 Hz (rpm `1000 + 10 j`), starting 2 ms after the
+/// gyro.
+fn ulog(n: usize, nan_at: Option<usize>) -> Vec<u8> {
+    let mut f = b"ULog\x01\x12\x35".to_vec();
+    f.push(1); // version
+    f.extend_from_slice(&1_000u64.to_le_bytes()); // start timestamp, us
+                                                  // Flag bits: compat[8], incompat[8] (all clear), appended offsets[3] (none).
+    msg(&mut f, b'B', &[0u8; 40]);
+    msg(
+        &mut f,
+        b'F',
+        b"sensor_combined:uint64_t timestamp;float[3] gyro_rad;uint32_t gyro_integral_dt;float[3] accelerometer_m_s2;",
+    );
+    msg(
+        &mut f,
+        b'F',
+        b"esc_report:uint64_t timestamp;int32_t esc_rpm;float esc_voltage;",
+    );
+    msg(
+        &mut f,
+        b'F',
+        b"esc_status:uint64_t timestamp;uint8_t esc_count;esc_report[2] esc;",
+    );
+    // add_logged: multi_id, msg_id, name.
+    let mut a = vec![0u8];
+    a.extend_from_slice(&0u16.to_le_bytes());
+    a.extend_from_slice(b"sensor_combined");
+    msg(&mut f, b'A', &a);
+    let mut a = vec![0u8];
+    a.extend_from_slice(&1u16.to_le_bytes());
+    a.extend_from_slice(b"esc_status");
+    msg(&mut f, b'A', &a);
+    for i in 0..n {
+        let t = 10_000u64 + 1_000 * i as u64;
+        if i % 10 == 2 {
+            let j = (i / 10) as i32;
+            let mut d = 1u16.to_le_bytes().to_vec();
+            d.extend_from_slice(&t.to_le_bytes());
+            d.push(2);
+            for e in 0..2 {
+                d.extend_from_slice(&t.to_le_bytes());
+                d.extend_from_slice(&(1000 + 10 * j + e).to_le_bytes());
+                d.extend_from_slice(&12.0f32.to_le_bytes());
+            }
+            msg(&mut f, b'D', &d);
+        }
+        let mut d = 0u16.to_le_bytes().to_vec();
+        d.extend_from_slice(&t.to_le_bytes());
+        let gx = if nan_at == Some(i) {
+            f32::NAN
+        } else {
+            0.1 * i as f32
+        };
+        for v in [gx, -0.2, 3.0] {
+            d.extend_from_slice(&v.to_le_bytes());
+        }
+        d.extend_from_slice(&1000u32.to_le_bytes());
+        for v in [0.0f32, 0.0, -9.8] {
+            d.extend_from_slice(&v.to_le_bytes());
+        }
+        msg(&mut f, b'D', &d);
+    }
+    f
+}
+
+#[test]
+fn ulog_synthetic() {
+    let p = tmp("synthetic.ulg.bin", &ulog(100, None));
+    assert_eq!(detect(&p).unwrap(), Format::Ulog);
+    let r = read(&p, &ReadOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(r.len(), 100);
+    assert!((r.t[0] - 0.010).abs() < 1e-12 && (r.t[99] - 0.109).abs() < 1e-12);
+    assert!((r.gyro[5][0] - 0.5).abs() < 1e-6);
+    assert_eq!(r.gyro[5][1..], [-0.2, 3.0]);
+    assert_eq!(r.accel.as_ref().unwrap()[50], [0.0, 0.0, -9.8]);
+    let Some(RotorSpeed::RadPerSec(w)) = &r.rotor else {
+        panic!("{:?}", r.rotor);
+    };
+    let k = 2.0 * std::f32::consts::PI / 60.0;
+    // Held: sample 0 and 1 precede the first esc_status (value held backwards), 2..11 see
+    // j = 0, 12..21 see j = 1, ...
+    assert!((w[0] - 1000.0 * k).abs() < 1e-3);
+    assert!((w[11] - 1000.0 * k).abs() < 1e-3);
+    assert!((w[12] - 1010.0 * k).abs() < 1e-3);
+    assert!((w[99] - 1090.0 * k).abs() < 1e-3);
+    assert!(
+        r.warnings.iter().any(|w| w.contains("esc_status starts")),
+        "{:?}",
+        r.warnings
+    );
+}
+
+#[test]
+fn ulog_non_finite_truncated_and_garbage() {
+    let p = tmp("nan.ulg", &ulog(30, Some(17)));
+    let e = read(&p, &ReadOptions::default()).unwrap_err();
+    assert_eq!(e.frame(), Some(17), "{e}");
+    assert!(e.to_string().contains("frame 17"), "{e}");
+
+    let full = ulog(40, None);
+    for cut in 0..full.len() {
+        let p = tmp("cut.ulg", &full[..cut]);
+        match read(&p, &ReadOptions::default()) {
+            Ok(r) => assert!(r.len() <= 40 && r.len() >= 2),
+            Err(e) => assert!(e.to_string().contains("cut.ulg"), "{e}"),
+        }
+    }
+    let mut g = b"ULog\x01\x12\x35\x01".to_vec();
+    g.extend((0..3000u32).map(|i| (i.wrapping_mul(2_654_435_761) >> 11) as u8));
+    let p = tmp("garbage.ulg", &g);
+    assert_eq!(detect(&p).unwrap(), Format::Ulog);
+    assert!(read(&p, &ReadOptions::default()).is_err());
+    // Damaged bytes inside a valid file: an error or a recording, never a panic.
+    for k in (16..full.len()).step_by(7) {
+        let mut d = full.clone();
+        d[k] ^= 0xA5;
+        let p = tmp("flip.ulg", &d);
+        let _ = read(&p, &ReadOptions::default());
+    }
+}
