@@ -42,6 +42,8 @@ mod linalg;
 pub mod refined;
 pub mod settings;
 pub mod status;
+pub mod symmetric;
+pub mod tensor;
 
 pub use convergence::{Convergence, ConvergenceMonitor};
 pub use extended::{
@@ -52,3 +54,7 @@ pub use inertia::{consistency, InertiaRatios};
 pub use refined::{Refined, RefinedSettings};
 pub use settings::{GainMatrix, Settings, SettingsError, SignChangeCorrection};
 pub use status::{Counters, Estimate, SampleStatus};
+pub use status::{Exposure, Trust, Verdict};
+pub use tensor::{
+    TensorCounters, TensorEstimate, TensorEstimator, TensorModel, TensorSettings, TensorStatus,
+};

@@ -1,0 +1,1166 @@
+//! The full inertia tensor `J` in the sensor frame, with a known rotor momentum as an input.
+//!
+//! # Model
+//!
+//! Euler's equation of a rigid body carrying rotors of known angular momentum `h(t)` (rotor
+//! inertia times speed along the rotor axis, summed over rotors), torque-free:
+//!
+//! ```text
+//! J w' + w x (J w + h) = 0                                                      (T1)
+//! ```
+//!
+//! is linear in the six entries `j = (Jxx, Jyy, Jzz, Jxy, Jxz, Jyz)`. Integrated from the
+//! start `t0` of a stretch of data to every later sample `t` it needs no derivative of the
+//! gyro:
+//!
+//! ```text
+//! J w(t) + h(t) + integral_t0^t w x (J w + h) dt = c                            (T2)
+//! ```
+//!
+//! with `c = J w(t0) + h(t0)` the body-frame angular momentum at `t0`, an unknown constant per
+//! stretch (the intercept). `w x J w` is linear in `j` with coefficients that are integrals of
+//! the six products `w_a w_b`, so (T2) reads, per sample and per axis `r`:
+//!
+//! ```text
+//! P_r(t) . j - c_r = y_r(t),      y(t) = -(h(t) + integral w x h dt)            (T3)
+//! P_x = (wx, -Qyz, Qyz, wy - Qxz, wz + Qxy, Qyy - Qzz)
+//! P_y = (Qxz, wy, -Qxz, wx + Qyz, Qzz - Qxx, wz - Qxy)
+//! P_z = (-Qxy, Qxy, wz, Qxx - Qyy, wx - Qyz, wy + Qxz)
+//! Q_ab(t) = integral_t0^t w_a w_b dt   (trapezoid with the Euler-Maclaurin end correction)
+//! ```
+//!
+//! # Estimator
+//!
+//! One information matrix over all three axes and all six entries (a joint least-squares fit,
+//! not three filters). Per sample the estimator adds the outer products of the rows (T3),
+//! kept per axis so that a weight per axis can be applied later; the intercept `c` of a stretch
+//! is eliminated exactly (Schur complement of its block, which is diagonal) when the stretch
+//! closes. The residual of (T3) is `J n(t)` for gyro noise `n`, so axis `r` is weighted by
+//! `1 / (J J^T)_rr` from the current estimate. A stretch closes at a gap, a saturated or bad
+//! sample, an external [`TensorEstimator::end_stretch`] (release, catch), or when the integral's
+//! own noise, which grows like `sigma^2 sum dt^2 |w|^2`, reaches
+//! [`TensorSettings::stretch_noise`] times the white noise (the integral's noise is correlated
+//! from sample to sample; a new stretch starts it afresh).
+//!
+//! Solutions (all from the same information, [`TensorEstimator::estimate`]):
+//! - with a rotor momentum that carries information, `J` in kg m^2 from `Lambda j = eta`;
+//! - always, `J` up to scale, normalised to trace 1: the equations without `h` under
+//!   `Jxx + Jyy + Jzz = 1` (five free entries);
+//! - the principal-axis model (products of inertia zero) is used instead of the full tensor
+//!   when a Wald test finds the three products of inertia jointly insignificant
+//!   (chi-square with 3 degrees of freedom below [`TensorSettings::products_chi2`]);
+//! - standard deviations from the inverse information times the residual variance per
+//!   equation, floored at the gyro noise;
+//! - principal moments and axes ([`crate::symmetric::eigen_symmetric3`]), the paper's ratios
+//!   `a1 = (A2 - A3)/A1, ...` with the principal moments assigned to the sensor axes they lie
+//!   closest to, and their standard deviations by first-order propagation
+//!   (`d lambda_i = v_i^T dJ v_i`).
+
+// Loop indices below are bounded by the fixed array sizes; the link-time no-panic check
+// (scripts/check-no-panic.sh) proves no bounds check survives in the firmware build.
+#![allow(
+    clippy::indexing_slicing,
+    clippy::needless_range_loop,
+    clippy::neg_cmp_op_on_partial_ord
+)]
+
+use crate::status::SampleStatus;
+use crate::symmetric::{cholesky, cholesky_inverse, cholesky_solve, eigen_symmetric3, sqrt, Sym};
+
+/// Samples summed in `f32` before they are added to the stretch's sums (two-level summation
+/// keeps the rounding error of long stretches near that of `BLOCK + n / BLOCK` additions).
+const BLOCK: u16 = 64;
+
+/// Tuning of [`TensorEstimator`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TensorSettings {
+    /// Gyro white noise per sample, rad/s: the floor of the residual's standard deviation.
+    /// Must be finite and `> 0`.
+    pub noise_std: f32,
+    /// Gyro full scale, rad/s: a sample with any component at or beyond it is saturated and
+    /// ends the stretch (a clipped rate breaks the integral). `INFINITY` for none.
+    pub full_scale: f32,
+    /// Rates above this (rad/s) are not physical for a thrown or tumbling vehicle: the data
+    /// are taken to be in the wrong unit (deg/s) and the estimate is never trusted.
+    pub max_plausible_rate: f32,
+    /// Longest time step still integrated, s; a longer one starts a new stretch.
+    pub max_dt: f32,
+    /// Ratio of the integral's noise to the gyro's white noise at which a stretch is closed
+    /// and a new one started (see the module docs). `> 0`.
+    pub stretch_noise: f32,
+    /// Largest standard deviation of every `a_i` (and relative standard deviation of every
+    /// principal moment) for [`TensorStatus::Converged`].
+    pub tolerance: f32,
+    /// Fewest samples used before any estimate is given.
+    pub min_samples: u32,
+    /// Chi-square (3 degrees of freedom) below which the products of inertia are taken as zero
+    /// (16.27: 0.1 % false-alarm rate). `0` forces the full tensor, `INFINITY` the
+    /// principal-axis model.
+    pub products_chi2: f32,
+    /// Residual standard deviation over the gyro noise beyond which the model does not describe
+    /// the data (wrong time step, contact, thrust): [`TensorStatus::ModelMismatch`].
+    pub mismatch_ratio: f32,
+    /// Least [`TensorEstimate::excitation`] for an estimate to be given at all (below it:
+    /// [`TensorStatus::NoExcitation`]). Pure gyro noise gives about 1.
+    pub min_excitation: f32,
+}
+
+impl TensorSettings {
+    /// Defaults: `noise_std = 2e-3 rad/s`, no full scale, 75 rad/s plausible (beyond the widest MEMS gyro range, 4000 deg/s = 70 rad/s), `max_dt = 0.1 s`,
+    /// `stretch_noise = 1`, `tolerance = 0.01`, 200 samples, `products_chi2 = 16.27`,
+    /// `mismatch_ratio = 30`, `min_excitation = 100`.
+    pub const fn new() -> Self {
+        TensorSettings {
+            noise_std: 2e-3,
+            full_scale: f32::INFINITY,
+            max_plausible_rate: 75.0,
+            max_dt: 0.1,
+            stretch_noise: 1.0,
+            tolerance: 0.01,
+            min_samples: 200,
+            products_chi2: 16.27,
+            mismatch_ratio: 30.0,
+            min_excitation: 100.0,
+        }
+    }
+
+    /// Settings for a gyro sampled at `rate_hz` with white noise `noise_std` (rad/s per
+    /// sample): the longest step is ten sample periods; everything else is rate-independent.
+    /// Invalid inputs give settings that [`TensorEstimator::new`] refuses.
+    pub fn for_rate(rate_hz: f32, noise_std: f32) -> Self {
+        let mut s = Self::new();
+        s.noise_std = noise_std;
+        s.max_dt = 10.0 / rate_hz;
+        s
+    }
+
+    /// True when every field is usable.
+    pub fn is_valid(&self) -> bool {
+        let pos = |x: f32| x.is_finite() && x > 0.0;
+        pos(self.noise_std)
+            && !self.full_scale.is_nan()
+            && self.full_scale > 0.0
+            && !self.max_plausible_rate.is_nan()
+            && self.max_plausible_rate > 0.0
+            && pos(self.max_dt)
+            && pos(self.stretch_noise)
+            && pos(self.tolerance)
+            && !self.products_chi2.is_nan()
+            && self.products_chi2 >= 0.0
+            && pos(self.mismatch_ratio)
+            && pos(self.min_excitation)
+    }
+}
+
+impl Default for TensorSettings {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// Why an estimate is or is not to be trusted. Exactly one applies; the first in this order
+/// that holds is reported.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TensorStatus {
+    /// Fewer than [`TensorSettings::min_samples`] samples, or fewer equations than unknowns.
+    TooFewSamples,
+    /// Rates above [`TensorSettings::max_plausible_rate`] were seen: deg/s data read as rad/s?
+    UnitsLookWrong,
+    /// More than 1 % of the samples were saturated (a clipped throw).
+    Saturated,
+    /// The information matrix is singular: still, a pure spin about one axis, or too little
+    /// motion to separate the entries.
+    NoExcitation,
+    /// The residual is far above the gyro noise ([`TensorSettings::mismatch_ratio`]): wrong
+    /// time step, contact, thrust, or a model that does not fit.
+    ModelMismatch,
+    /// The estimate is not an inertia tensor by more than three standard deviations: not
+    /// positive definite, or a principal moment larger than the sum of the other two.
+    PhysicallyImpossible,
+    /// Valid so far but not yet within [`TensorSettings::tolerance`].
+    Converging,
+    /// Within tolerance, physically valid, from data that carried information.
+    Converged,
+}
+
+impl TensorStatus {
+    /// True only for [`TensorStatus::Converged`].
+    pub const fn trusted(self) -> bool {
+        matches!(self, TensorStatus::Converged)
+    }
+}
+
+/// Which model the estimate uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TensorModel {
+    /// Six entries, products of inertia included.
+    Full,
+    /// Products of inertia fixed at zero (sensor axes taken as principal axes).
+    Principal,
+}
+
+/// What [`TensorEstimator::estimate`] reports. Tensors are 3x3, rows and columns in the
+/// sensor's axis order.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TensorEstimate {
+    /// Why the estimate is or is not to be trusted.
+    pub status: TensorStatus,
+    /// Model used.
+    pub model: TensorModel,
+    /// `J` in kg m^2 when the rotor momentum determines the scale (relative standard
+    /// deviation of the trace below 10 %), else `None`.
+    pub tensor: Option<[[f32; 3]; 3]>,
+    /// Standard deviation of each entry of [`TensorEstimate::tensor`].
+    pub tensor_std: Option<[[f32; 3]; 3]>,
+    /// `J / trace(J)`, `None` before there is information.
+    pub normalized: Option<[[f32; 3]; 3]>,
+    /// Standard deviation of each entry of [`TensorEstimate::normalized`].
+    pub normalized_std: Option<[[f32; 3]; 3]>,
+    /// Principal moments, ascending (kg m^2 when `tensor` is given, else normalised).
+    pub principal_moments: Option<[f32; 3]>,
+    /// Unit principal axes in the sensor frame, `principal_axes[i]` for moment `i`.
+    pub principal_axes: Option<[[f32; 3]; 3]>,
+    /// The paper's `a = ((A2-A3)/A1, (A3-A1)/A2, (A1-A2)/A3)`, `A_k` the principal moment
+    /// closest to sensor axis `k`.
+    pub a: Option<[f32; 3]>,
+    /// Standard deviation of each `a_i`.
+    pub std_a: Option<[f32; 3]>,
+    /// Residual standard deviation per equation over the gyro noise (about 1 when the model
+    /// fits to the noise).
+    pub residual_ratio: f32,
+    /// Excitation: the information per equation about the least determined entry over the
+    /// gyro noise variance, `1 / (sigma^2 m max_i (Lambda^-1)_ii)` for `m` equations. Motion
+    /// much larger than the noise gives thousands; a still gyro gives about 1.
+    pub excitation: f32,
+    /// Samples used.
+    pub samples: u32,
+    /// Stretches closed so far (plus the open one).
+    pub stretches: u32,
+}
+
+/// Counters for diagnosis.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TensorCounters {
+    /// Samples added to the sums.
+    pub used: u32,
+    /// Samples refused as non-finite.
+    pub non_finite: u32,
+    /// Samples at or beyond the full scale.
+    pub saturated: u32,
+    /// Samples with a zero, negative or non-finite time step.
+    pub bad_dt: u32,
+    /// Gaps longer than `max_dt`.
+    pub gaps: u32,
+    /// Samples faster than the plausible rate.
+    pub implausible: u32,
+}
+
+/// Sums of one axis's rows (T3) over samples, relative to the stretch's first row
+/// (`dP = P - P0`, `dy = y - y0`: the intercept absorbs the shift and the sums stay small).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+struct RowSums {
+    pp: [f32; 21],
+    p: [f32; 6],
+    py: [f32; 6],
+    y: f32,
+    yy: f32,
+}
+
+impl RowSums {
+    const ZERO: RowSums = RowSums {
+        pp: [0.0; 21],
+        p: [0.0; 6],
+        py: [0.0; 6],
+        y: 0.0,
+        yy: 0.0,
+    };
+
+    #[inline(always)]
+    fn add(&mut self, d: &[f32; 6], dy: f32) {
+        let mut k = 0;
+        for (i, di) in d.iter().enumerate() {
+            for dj in d.iter().skip(i) {
+                if let Some(e) = self.pp.get_mut(k) {
+                    *e += di * dj;
+                }
+                k += 1;
+            }
+        }
+        for ((p, py), di) in self.p.iter_mut().zip(self.py.iter_mut()).zip(d.iter()) {
+            *p += di;
+            *py += di * dy;
+        }
+        self.y += dy;
+        self.yy += dy * dy;
+    }
+
+    fn absorb(&mut self, o: &RowSums) {
+        for (a, b) in self.pp.iter_mut().zip(o.pp.iter()) {
+            *a += b;
+        }
+        for (a, b) in self.p.iter_mut().zip(o.p.iter()) {
+            *a += b;
+        }
+        for (a, b) in self.py.iter_mut().zip(o.py.iter()) {
+            *a += b;
+        }
+        self.y += o.y;
+        self.yy += o.yy;
+    }
+}
+
+/// Normal equations `Lambda j = eta` with `yy = sum w y^2` and the number of equations.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+struct Normal {
+    lam: [f32; 21],
+    eta: [f32; 6],
+    yy: f32,
+    equations: u32,
+}
+
+impl Normal {
+    const ZERO: Normal = Normal {
+        lam: [0.0; 21],
+        eta: [0.0; 6],
+        yy: 0.0,
+        equations: 0,
+    };
+
+    /// Adds one stretch's rows of axis `r` with weight `w`, its intercept eliminated:
+    /// `Lambda += w (sum dP dP^T - s s^T / n)`, `eta += w (sum dP dy - s sum dy / n)`.
+    fn add_stretch(&mut self, rows: &RowSums, n: f32, w: f32) {
+        let inv_n = 1.0 / n;
+        let mut k = 0;
+        for i in 0..6 {
+            let si = rows.p.get(i).copied().unwrap_or(0.0);
+            for j in i..6 {
+                let sj = rows.p.get(j).copied().unwrap_or(0.0);
+                if let (Some(l), Some(pp)) = (self.lam.get_mut(k), rows.pp.get(k)) {
+                    *l += w * (pp - si * sj * inv_n);
+                }
+                k += 1;
+            }
+        }
+        for ((e, py), s) in self.eta.iter_mut().zip(rows.py.iter()).zip(rows.p.iter()) {
+            *e += w * (py - s * rows.y * inv_n);
+        }
+        self.yy += w * (rows.yy - rows.y * rows.y * inv_n);
+    }
+
+    fn add(&mut self, o: &Normal) {
+        for (a, b) in self.lam.iter_mut().zip(o.lam.iter()) {
+            *a += b;
+        }
+        for (a, b) in self.eta.iter_mut().zip(o.eta.iter()) {
+            *a += b;
+        }
+        self.yy += o.yy;
+        self.equations += o.equations;
+    }
+
+    fn full(&self) -> Sym<6> {
+        let mut m = [[0.0f32; 6]; 6];
+        let mut k = 0;
+        for i in 0..6 {
+            for j in i..6 {
+                let v = self.lam.get(k).copied().unwrap_or(0.0);
+                if let Some(e) = m.get_mut(i).and_then(|r| r.get_mut(j)) {
+                    *e = v;
+                }
+                if let Some(e) = m.get_mut(j).and_then(|r| r.get_mut(i)) {
+                    *e = v;
+                }
+                k += 1;
+            }
+        }
+        m
+    }
+}
+
+/// The open stretch: integrals, reference row and sums.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+struct Stretch {
+    /// Previous accepted sample `(w, h)`, `None` before the anchor.
+    last: Option<([f32; 3], [f32; 3])>,
+    /// `Q_ab`: xx, yy, zz, xy, xz, yz.
+    q: [f32; 6],
+    /// `integral w x h dt`.
+    wh: [f32; 3],
+    /// Rows and right-hand side at the anchor.
+    p0: [[f32; 6]; 3],
+    y0: [f32; 3],
+    /// `sum dt^2 |w|^2`, the integral's noise variance over `sigma^2`.
+    drift: f32,
+    n: u32,
+    block_n: u16,
+    block: [RowSums; 3],
+    sums: [RowSums; 3],
+}
+
+impl Stretch {
+    const EMPTY: Stretch = Stretch {
+        last: None,
+        q: [0.0; 6],
+        wh: [0.0; 3],
+        p0: [[0.0; 6]; 3],
+        y0: [0.0; 3],
+        drift: 0.0,
+        n: 0,
+        block_n: 0,
+        block: [RowSums::ZERO; 3],
+        sums: [RowSums::ZERO; 3],
+    };
+
+    fn flush_block(&mut self) {
+        for (s, b) in self.sums.iter_mut().zip(self.block.iter_mut()) {
+            s.absorb(b);
+            *b = RowSums::ZERO;
+        }
+        self.block_n = 0;
+    }
+}
+
+/// Rows (T3) at `w` with integrals `q`.
+#[inline(always)]
+fn rows(w: [f32; 3], q: &[f32; 6]) -> [[f32; 6]; 3] {
+    let [wx, wy, wz] = w;
+    let [qxx, qyy, qzz, qxy, qxz, qyz] = *q;
+    [
+        [wx, -qyz, qyz, wy - qxz, wz + qxy, qyy - qzz],
+        [qxz, wy, -qxz, wx + qyz, qzz - qxx, wz - qxy],
+        [-qxy, qxy, wz, qxx - qyy, wx - qyz, wy + qxz],
+    ]
+}
+
+#[inline(always)]
+fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+#[inline(always)]
+fn products(w: [f32; 3]) -> [f32; 6] {
+    let [x, y, z] = w;
+    [x * x, y * y, z * z, x * y, x * z, y * z]
+}
+
+/// `j` (xx, yy, zz, xy, xz, yz) as a symmetric 3x3 matrix.
+pub fn to_matrix(j: &[f32; 6]) -> [[f32; 3]; 3] {
+    let [xx, yy, zz, xy, xz, yz] = *j;
+    [[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]]
+}
+
+/// Standard deviations `sqrt(diag(C))` of `j` laid out as a 3x3 matrix.
+fn std_matrix(c: &Sym<6>) -> [[f32; 3]; 3] {
+    let d = |i: usize| sqrt(c.get(i).and_then(|r| r.get(i)).copied().unwrap_or(0.0));
+    to_matrix(&[d(0), d(1), d(2), d(3), d(4), d(5)])
+}
+
+/// `g^T C g`.
+fn quad(c: &Sym<6>, g: &[f32; 6]) -> f32 {
+    let mut s = 0.0;
+    for (row, gi) in c.iter().zip(g.iter()) {
+        for (cij, gj) in row.iter().zip(g.iter()) {
+            s += gi * cij * gj;
+        }
+    }
+    s
+}
+
+/// The on-board estimator of the inertia tensor: one [`TensorEstimator::step`] per gyro
+/// sample with the rotor momentum at that sample. Fixed size, no heap, no buffers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TensorEstimator {
+    settings: TensorSettings,
+    stretch: Stretch,
+    closed: Normal,
+    closed_stretches: u32,
+    /// Axis weights `trace^2 / (J J^T)_rr` from the latest estimate.
+    weights: [f32; 3],
+    pending_dt: f32,
+    restart: bool,
+    counters: TensorCounters,
+}
+
+impl TensorEstimator {
+    /// A new estimator, or `None` when the settings are not usable.
+    pub fn new(settings: TensorSettings) -> Option<Self> {
+        if !settings.is_valid() {
+            return None;
+        }
+        Some(TensorEstimator {
+            settings,
+            stretch: Stretch::EMPTY,
+            closed: Normal::ZERO,
+            closed_stretches: 0,
+            weights: [1.0; 3],
+            pending_dt: 0.0,
+            restart: false,
+            counters: TensorCounters::default(),
+        })
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &TensorSettings {
+        &self.settings
+    }
+
+    /// Counters for diagnosis.
+    pub fn counters(&self) -> &TensorCounters {
+        &self.counters
+    }
+
+    /// Forgets everything learnt.
+    pub fn reset(&mut self) {
+        let s = self.settings;
+        *self = TensorEstimator {
+            settings: s,
+            stretch: Stretch::EMPTY,
+            closed: Normal::ZERO,
+            closed_stretches: 0,
+            weights: [1.0; 3],
+            pending_dt: 0.0,
+            restart: false,
+            counters: TensorCounters::default(),
+        };
+    }
+
+    /// Adds one sample: `omega` the measured rate (rad/s), `h` the known rotor momentum in the
+    /// body (kg m^2/s; zeros without rotors), `dt` the time since the previous sample (s).
+    ///
+    /// Refused samples (non-finite, saturated, bad `dt`) are counted and end the stretch; a
+    /// gap longer than `max_dt` starts a new stretch at this sample.
+    pub fn step(&mut self, omega: [f32; 3], h: [f32; 3], dt: f32) -> SampleStatus {
+        if !omega.iter().chain(h.iter()).all(|x| x.is_finite()) {
+            self.counters.non_finite = self.counters.non_finite.saturating_add(1);
+            self.pending_dt += if dt.is_finite() && dt > 0.0 { dt } else { 0.0 };
+            return SampleStatus::NonFinite;
+        }
+        if omega.iter().any(|w| w.abs() >= self.settings.full_scale) {
+            self.counters.saturated = self.counters.saturated.saturating_add(1);
+            self.restart = true;
+            return SampleStatus::Saturated;
+        }
+        if !(dt.is_finite() && dt > 0.0) {
+            self.counters.bad_dt = self.counters.bad_dt.saturating_add(1);
+            self.restart = true;
+            return SampleStatus::InvalidTimeStep;
+        }
+        if omega
+            .iter()
+            .any(|w| w.abs() > self.settings.max_plausible_rate)
+        {
+            self.counters.implausible = self.counters.implausible.saturating_add(1);
+        }
+        let dt = dt + self.pending_dt;
+        self.pending_dt = 0.0;
+        if self.restart {
+            self.restart = false;
+            self.end_stretch();
+        }
+        let Some((w0, h0)) = self.stretch.last else {
+            self.anchor(omega, h);
+            self.counters.used = self.counters.used.saturating_add(1);
+            return SampleStatus::Anchored;
+        };
+        if dt > self.settings.max_dt {
+            self.counters.gaps = self.counters.gaps.saturating_add(1);
+            self.end_stretch();
+            self.anchor(omega, h);
+            self.counters.used = self.counters.used.saturating_add(1);
+            return SampleStatus::Gap;
+        }
+        let st = &mut self.stretch;
+        let half = 0.5 * dt;
+        let (qa, qb) = (products(w0), products(omega));
+        for ((q, a), b) in st.q.iter_mut().zip(qa.iter()).zip(qb.iter()) {
+            *q += half * (a + b);
+        }
+        let (ca, cb) = (cross(w0, h0), cross(omega, h));
+        for ((s, a), b) in st.wh.iter_mut().zip(ca.iter()).zip(cb.iter()) {
+            *s += half * (a + b);
+        }
+        // Euler-Maclaurin end correction: the trapezoid's error up to t telescopes to
+        // -dt^2/12 (f'(t) - f'(t0)); f'(t0) is a constant the intercept absorbs, and
+        // dt^2 f'(t) is taken as dt (f(t) - f(t_prev)), leaving an O(dt^3) error.
+        let k = dt * (1.0 / 12.0);
+        let mut qc = st.q;
+        for ((q, a), b) in qc.iter_mut().zip(qa.iter()).zip(qb.iter()) {
+            *q -= k * (b - a);
+        }
+        let mut whc = st.wh;
+        for ((s, a), b) in whc.iter_mut().zip(ca.iter()).zip(cb.iter()) {
+            *s -= k * (b - a);
+        }
+        let p = rows(omega, &qc);
+        for r in 0..3 {
+            let (Some(pr), Some(p0), Some(&y0), Some(&hr), Some(&whr), Some(blk)) = (
+                p.get(r),
+                st.p0.get(r),
+                st.y0.get(r),
+                h.get(r),
+                whc.get(r),
+                st.block.get_mut(r),
+            ) else {
+                continue;
+            };
+            let mut d = [0.0f32; 6];
+            for ((di, a), b) in d.iter_mut().zip(pr.iter()).zip(p0.iter()) {
+                *di = a - b;
+            }
+            blk.add(&d, -(hr + whr) - y0);
+        }
+        st.n += 1;
+        st.block_n += 1;
+        st.drift += dt * dt * (omega[0] * omega[0] + omega[1] * omega[1] + omega[2] * omega[2]);
+        st.last = Some((omega, h));
+        self.counters.used = self.counters.used.saturating_add(1);
+        if st.block_n >= BLOCK {
+            st.flush_block();
+        }
+        let limit = self.settings.stretch_noise * self.settings.stretch_noise;
+        if self.stretch.drift > limit {
+            // Close here and start afresh from this very sample, so no interval is lost.
+            self.end_stretch();
+            self.anchor(omega, h);
+        }
+        SampleStatus::Updated
+    }
+
+    /// Ends the open stretch (release, catch, or any break in the data); the next sample
+    /// anchors a new one. What the stretch taught is kept.
+    pub fn end_stretch(&mut self) {
+        self.stretch.flush_block();
+        if self.stretch.n >= 2 {
+            self.update_weights();
+            let mut add = Normal::ZERO;
+            let n = self.stretch.n as f32;
+            for (rows, &w) in self.stretch.sums.iter().zip(self.weights.iter()) {
+                add.add_stretch(rows, n, w);
+            }
+            add.equations = 3 * (self.stretch.n - 1);
+            self.closed.add(&add);
+            self.closed_stretches = self.closed_stretches.saturating_add(1);
+        }
+        self.stretch = Stretch::EMPTY;
+    }
+
+    fn anchor(&mut self, omega: [f32; 3], h: [f32; 3]) {
+        let st = &mut self.stretch;
+        *st = Stretch::EMPTY;
+        st.p0 = rows(omega, &[0.0; 6]);
+        st.y0 = [-h[0], -h[1], -h[2]];
+        st.last = Some((omega, h));
+        st.n = 1;
+    }
+
+    /// Weights `trace(J)^2 / (J J^T)_rr` from the current estimate, clamped to `[0.01, 100]`.
+    fn update_weights(&mut self) {
+        let Some(j) = self.solve_all().normalized else {
+            return;
+        };
+        let mut w = [1.0f32; 3];
+        for (wr, row) in w.iter_mut().zip(j.iter()) {
+            let s = row[0] * row[0] + row[1] * row[1] + row[2] * row[2];
+            if s > 0.0 && s.is_finite() {
+                let v = 1.0 / s;
+                *wr = v.clamp(0.01, 100.0);
+            }
+        }
+        self.weights = w;
+    }
+
+    /// Normal equations of everything so far: the closed stretches plus the open one with the
+    /// current weights.
+    fn normal(&self) -> (Normal, u32) {
+        let mut nrm = self.closed;
+        let mut st = self.stretch;
+        st.flush_block();
+        let mut stretches = self.closed_stretches;
+        if st.n >= 2 {
+            let n = st.n as f32;
+            let mut add = Normal::ZERO;
+            for (rows, &w) in st.sums.iter().zip(self.weights.iter()) {
+                add.add_stretch(rows, n, w);
+            }
+            add.equations = 3 * (st.n - 1);
+            nrm.add(&add);
+            stretches += 1;
+        }
+        (nrm, stretches)
+    }
+
+    /// The estimate from everything so far (see the module docs). Costs a few thousand
+    /// floating-point operations: call it at the report rate, not per sample.
+    pub fn estimate(&self) -> TensorEstimate {
+        self.solve_all()
+    }
+
+    fn solve_all(&self) -> TensorEstimate {
+        let (nrm, stretches) = self.normal();
+        let samples = self.counters.used;
+        let mut out = TensorEstimate {
+            status: TensorStatus::TooFewSamples,
+            model: TensorModel::Full,
+            tensor: None,
+            tensor_std: None,
+            normalized: None,
+            normalized_std: None,
+            principal_moments: None,
+            principal_axes: None,
+            a: None,
+            std_a: None,
+            residual_ratio: 0.0,
+            excitation: 0.0,
+            samples,
+            stretches,
+        };
+        if samples < self.settings.min_samples || nrm.equations < 12 {
+            return out;
+        }
+        let lam = nrm.full();
+        let sigma2 = self.settings.noise_std * self.settings.noise_std;
+
+        // Up to scale: the homogeneous equations under trace = 1, full and principal.
+        let full_n = solve_normalized(&lam, nrm.equations, false);
+        let princ_n = solve_normalized(&lam, nrm.equations, true);
+        let Some(full_n) = full_n else {
+            out.status = TensorStatus::NoExcitation;
+            return out;
+        };
+        let mut model = TensorModel::Full;
+        let mut chosen = full_n;
+        if let Some(p) = princ_n {
+            let chi2 = products_chi2(&full_n.j, &full_n.cov, sigma2, full_n.s2);
+            if chi2 < self.settings.products_chi2 {
+                model = TensorModel::Principal;
+                chosen = p;
+            }
+        }
+        let mut maxvar = 0.0f32;
+        for (i, row) in chosen.cov.iter().enumerate() {
+            maxvar = max(maxvar, row.get(i).copied().unwrap_or(0.0));
+        }
+        out.excitation = 1.0 / (sigma2 * nrm.equations as f32 * maxvar);
+        if !(out.excitation >= self.settings.min_excitation) {
+            out.status = TensorStatus::NoExcitation;
+            return out;
+        }
+        let s2n = max(chosen.s2, sigma2);
+        let mut cov_n = scale(&chosen.cov, s2n);
+
+        // Absolute, when the rotor momentum fixes the scale.
+        let mut absolute: Option<([f32; 6], Sym<6>)> = None;
+        if let Some(abs) = solve_absolute(&lam, &nrm, model == TensorModel::Principal) {
+            let tr = abs.j[0] + abs.j[1] + abs.j[2];
+            let s2a = max(abs.s2, sigma2 * tr * tr);
+            let cov = scale(&abs.cov, s2a);
+            let t = [1.0, 1.0, 1.0, 0.0, 0.0, 0.0];
+            let var_tr = quad(&cov, &t);
+            if tr > 0.0 && var_tr < 0.01 * tr * tr {
+                absolute = Some((abs.j, cov));
+                // Normalised from the absolute: N = J / tr, dN = (I - N t^T) dJ / tr.
+                let nj = [
+                    abs.j[0] / tr,
+                    abs.j[1] / tr,
+                    abs.j[2] / tr,
+                    abs.j[3] / tr,
+                    abs.j[4] / tr,
+                    abs.j[5] / tr,
+                ];
+                let mut d = [[0.0f32; 6]; 6];
+                for (i, row) in d.iter_mut().enumerate() {
+                    for (k, e) in row.iter_mut().enumerate() {
+                        let id = if i == k { 1.0 } else { 0.0 };
+                        let tk = if k < 3 { 1.0 } else { 0.0 };
+                        *e = (id - nj.get(i).copied().unwrap_or(0.0) * tk) / tr;
+                    }
+                }
+                cov_n = congruence(&d, &cov);
+                chosen.j = nj;
+                chosen.s2 = abs.s2 / (tr * tr);
+            }
+        }
+        out.model = model;
+        out.residual_ratio = sqrt(chosen.s2 / sigma2);
+        let nmat = to_matrix(&chosen.j);
+        out.normalized = Some(nmat);
+        out.normalized_std = Some(std_matrix(&cov_n));
+        if let Some((j, cov)) = absolute {
+            out.tensor = Some(to_matrix(&j));
+            out.tensor_std = Some(std_matrix(&cov));
+        }
+
+        // Principal moments and axes, ratios.
+        let Some(eig) = eigen_symmetric3(&nmat) else {
+            out.status = TensorStatus::NoExcitation;
+            return out;
+        };
+        let unit = match absolute {
+            Some((j, _)) => j[0] + j[1] + j[2],
+            None => 1.0,
+        };
+        out.principal_moments = Some([
+            eig.values[0] * unit,
+            eig.values[1] * unit,
+            eig.values[2] * unit,
+        ]);
+        out.principal_axes = Some(eig.vectors);
+        let grads = eig.vectors.map(|v| {
+            [
+                v[0] * v[0],
+                v[1] * v[1],
+                v[2] * v[2],
+                2.0 * v[0] * v[1],
+                2.0 * v[0] * v[2],
+                2.0 * v[1] * v[2],
+            ]
+        });
+        let var_l = grads.map(|g| quad(&cov_n, &g));
+        let (a, std_a) = ratios(&eig, &grads, &cov_n);
+        out.a = a;
+        out.std_a = std_a;
+
+        // Validity: positive definite and the triangle inequalities, to three sigma.
+        let [l0, l1, l2] = eig.values;
+        let sd0 = sqrt(var_l[0]);
+        let slack = l0 + l1 - l2;
+        let g_slack: [f32; 6] = core::array::from_fn(|k| {
+            grads[0].get(k).copied().unwrap_or(0.0) + grads[1].get(k).copied().unwrap_or(0.0)
+                - grads[2].get(k).copied().unwrap_or(0.0)
+        });
+        let sd_slack = sqrt(quad(&cov_n, &g_slack));
+        let impossible = l0 < -3.0 * sd0 || slack < -3.0 * sd_slack;
+        let valid = l0 > 0.0 && slack >= 0.0;
+
+        let c = &self.counters;
+        let seen = c.used.saturating_add(c.saturated);
+        out.status = if c.implausible > 0 {
+            TensorStatus::UnitsLookWrong
+        } else if c.saturated.saturating_mul(100) > seen {
+            TensorStatus::Saturated
+        } else if out.residual_ratio > self.settings.mismatch_ratio {
+            TensorStatus::ModelMismatch
+        } else if impossible {
+            TensorStatus::PhysicallyImpossible
+        } else if !valid {
+            TensorStatus::Converging
+        } else {
+            let tol = self.settings.tolerance;
+            let a_ok = std_a.is_some_and(|s| s.iter().all(|&x| x < tol));
+            let m_ok = eig
+                .values
+                .iter()
+                .zip(var_l.iter())
+                .all(|(&l, &v)| sqrt(v) < tol * l);
+            if a_ok && m_ok {
+                TensorStatus::Converged
+            } else {
+                TensorStatus::Converging
+            }
+        };
+        out
+    }
+}
+
+fn max(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+fn scale(c: &Sym<6>, s: f32) -> Sym<6> {
+    c.map(|row| row.map(|x| x * s))
+}
+
+/// `D C D^T`.
+fn congruence(d: &Sym<6>, c: &Sym<6>) -> Sym<6> {
+    let mut dc = [[0.0f32; 6]; 6];
+    for (dcr, dr) in dc.iter_mut().zip(d.iter()) {
+        for (k, e) in dcr.iter_mut().enumerate() {
+            let mut s = 0.0;
+            for (dri, cr) in dr.iter().zip(c.iter()) {
+                s += dri * cr.get(k).copied().unwrap_or(0.0);
+            }
+            *e = s;
+        }
+    }
+    let mut out = [[0.0f32; 6]; 6];
+    for (outr, dcr) in out.iter_mut().zip(dc.iter()) {
+        for (e, dr) in outr.iter_mut().zip(d.iter()) {
+            let mut s = 0.0;
+            for (a, b) in dcr.iter().zip(dr.iter()) {
+                s += a * b;
+            }
+            *e = s;
+        }
+    }
+    out
+}
+
+/// A solution `j` with its unscaled covariance (multiply by the residual variance) and the
+/// residual variance per equation `s2`.
+#[derive(Clone, Copy)]
+struct Solution {
+    j: [f32; 6],
+    cov: Sym<6>,
+    s2: f32,
+}
+
+/// Normalised solution: `j = e_zz + Z z` with `z = (Jxx, Jyy, Jxy, Jxz, Jyz)` (or the first two
+/// for the principal model), minimising `j^T Lambda j` (the equations without `h`).
+fn solve_normalized(lam: &Sym<6>, equations: u32, principal: bool) -> Option<Solution> {
+    // Z maps z to j: xx -> (e_xx - e_zz), yy -> (e_yy - e_zz), xy, xz, yz -> themselves.
+    let zcol = |c: usize| -> [f32; 6] {
+        match c {
+            0 => [1.0, 0.0, -1.0, 0.0, 0.0, 0.0],
+            1 => [0.0, 1.0, -1.0, 0.0, 0.0, 0.0],
+            2 => [0.0, 0.0, 0.0, 1.0, 0.0, 0.0],
+            3 => [0.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+            _ => [0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
+        }
+    };
+    let ezz = [0.0, 0.0, 1.0, 0.0, 0.0, 0.0];
+    let lz = |v: &[f32; 6]| -> [f32; 6] {
+        let mut o = [0.0f32; 6];
+        for (oi, row) in o.iter_mut().zip(lam.iter()) {
+            let mut s = 0.0;
+            for (a, b) in row.iter().zip(v.iter()) {
+                s += a * b;
+            }
+            *oi = s;
+        }
+        o
+    };
+    let dot6 = |a: &[f32; 6], b: &[f32; 6]| -> f32 {
+        let mut s = 0.0;
+        for (x, y) in a.iter().zip(b.iter()) {
+            s += x * y;
+        }
+        s
+    };
+    let l_ezz = lz(&ezz);
+    let (j, cov_small, p) = if principal {
+        let (z0, z1) = (zcol(0), zcol(1));
+        let (lz0, lz1) = (lz(&z0), lz(&z1));
+        let m: Sym<2> = [
+            [dot6(&z0, &lz0), dot6(&z0, &lz1)],
+            [dot6(&z1, &lz0), dot6(&z1, &lz1)],
+        ];
+        let b = [-dot6(&z0, &l_ezz), -dot6(&z1, &l_ezz)];
+        let l = cholesky(&m)?;
+        let z = cholesky_solve(&l, &b);
+        let inv = cholesky_inverse(&l);
+        let j = [z[0], z[1], 1.0 - z[0] - z[1], 0.0, 0.0, 0.0];
+        let mut cov = [[0.0f32; 6]; 6];
+        // cov_j = Z inv Z^T over the two columns.
+        let cols = [z0, z1];
+        for (r, row) in cov.iter_mut().enumerate() {
+            for (c, e) in row.iter_mut().enumerate() {
+                let mut s = 0.0;
+                for (a, ca) in cols.iter().enumerate() {
+                    for (b, cb) in cols.iter().enumerate() {
+                        let iab = inv.get(a).and_then(|x| x.get(b)).copied().unwrap_or(0.0);
+                        s += ca.get(r).copied().unwrap_or(0.0)
+                            * iab
+                            * cb.get(c).copied().unwrap_or(0.0);
+                    }
+                }
+                *e = s;
+            }
+        }
+        (j, cov, 2u32)
+    } else {
+        let cols: [[f32; 6]; 5] = core::array::from_fn(zcol);
+        let lcols: [[f32; 6]; 5] = cols.map(|c| lz(&c));
+        let mut m: Sym<5> = [[0.0; 5]; 5];
+        for (r, row) in m.iter_mut().enumerate() {
+            for (c, e) in row.iter_mut().enumerate() {
+                if let (Some(a), Some(b)) = (cols.get(r), lcols.get(c)) {
+                    *e = dot6(a, b);
+                }
+            }
+        }
+        let b: [f32; 5] =
+            core::array::from_fn(|r| cols.get(r).map(|c| -dot6(c, &l_ezz)).unwrap_or(0.0));
+        let l = cholesky(&m)?;
+        let z = cholesky_solve(&l, &b);
+        let inv = cholesky_inverse(&l);
+        let j = [z[0], z[1], 1.0 - z[0] - z[1], z[2], z[3], z[4]];
+        let mut cov = [[0.0f32; 6]; 6];
+        for (r, row) in cov.iter_mut().enumerate() {
+            for (c, e) in row.iter_mut().enumerate() {
+                let mut s = 0.0;
+                for (a, ca) in cols.iter().enumerate() {
+                    for (bb, cb) in cols.iter().enumerate() {
+                        let iab = inv.get(a).and_then(|x| x.get(bb)).copied().unwrap_or(0.0);
+                        s += ca.get(r).copied().unwrap_or(0.0)
+                            * iab
+                            * cb.get(c).copied().unwrap_or(0.0);
+                    }
+                }
+                *e = s;
+            }
+        }
+        (j, cov, 5u32)
+    };
+    let rss = dot6(&j, &lz(&j));
+    let dof = equations.checked_sub(p)?;
+    if dof == 0 {
+        return None;
+    }
+    let s2 = rss / dof as f32;
+    (j.iter().all(|x| x.is_finite()) && s2.is_finite()).then_some(Solution {
+        j,
+        cov: cov_small,
+        s2,
+    })
+}
+
+/// Absolute solution `Lambda j = eta` (full, or the diagonal block for the principal model).
+fn solve_absolute(lam: &Sym<6>, nrm: &Normal, principal: bool) -> Option<Solution> {
+    let eta = nrm.eta;
+    let eta_norm = eta.iter().fold(0.0f32, |s, e| s + e * e);
+    if !(eta_norm > 0.0) {
+        return None;
+    }
+    let (j, cov, p) = if principal {
+        let m: Sym<3> = [
+            [lam[0][0], lam[0][1], lam[0][2]],
+            [lam[1][0], lam[1][1], lam[1][2]],
+            [lam[2][0], lam[2][1], lam[2][2]],
+        ];
+        let l = cholesky(&m)?;
+        let x = cholesky_solve(&l, &[eta[0], eta[1], eta[2]]);
+        let inv = cholesky_inverse(&l);
+        let mut cov = [[0.0f32; 6]; 6];
+        for (r, row) in inv.iter().enumerate() {
+            for (c, v) in row.iter().enumerate() {
+                if let Some(e) = cov.get_mut(r).and_then(|x| x.get_mut(c)) {
+                    *e = *v;
+                }
+            }
+        }
+        ([x[0], x[1], x[2], 0.0, 0.0, 0.0], cov, 3u32)
+    } else {
+        let l = cholesky(lam)?;
+        (cholesky_solve(&l, &eta), cholesky_inverse(&l), 6u32)
+    };
+    // RSS = yy - 2 j.eta + j^T Lambda j = yy - j.eta at the optimum.
+    let mut jeta = 0.0;
+    for (a, b) in j.iter().zip(eta.iter()) {
+        jeta += a * b;
+    }
+    let rss = nrm.yy - jeta;
+    let dof = nrm.equations.checked_sub(p)?;
+    if dof == 0 {
+        return None;
+    }
+    let s2 = max(rss, 0.0) / dof as f32;
+    (j.iter().all(|x| x.is_finite()) && s2.is_finite()).then_some(Solution { j, cov, s2 })
+}
+
+/// Wald statistic of the three products of inertia: `z^T C_zz^-1 z` with `C` the normalised
+/// covariance scaled by the residual variance.
+fn products_chi2(j: &[f32; 6], cov: &Sym<6>, sigma2: f32, s2: f32) -> f32 {
+    let s = max(s2, sigma2);
+    let m: Sym<3> = [
+        [cov[3][3] * s, cov[3][4] * s, cov[3][5] * s],
+        [cov[4][3] * s, cov[4][4] * s, cov[4][5] * s],
+        [cov[5][3] * s, cov[5][4] * s, cov[5][5] * s],
+    ];
+    let z = [j[3], j[4], j[5]];
+    let Some(l) = cholesky(&m) else {
+        return f32::INFINITY;
+    };
+    let x = cholesky_solve(&l, &z);
+    let v = x[0] * z[0] + x[1] * z[1] + x[2] * z[2];
+    if v.is_finite() {
+        v
+    } else {
+        f32::INFINITY
+    }
+}
+
+/// `a_k = (A_{k+1} - A_{k+2}) / A_k` with `A_k` the principal moment whose axis lies closest to
+/// sensor axis `k`, and the standard deviations by first-order propagation.
+fn ratios(
+    eig: &crate::symmetric::Eigen3,
+    grads: &[[f32; 6]; 3],
+    cov: &Sym<6>,
+) -> (Option<[f32; 3]>, Option<[f32; 3]>) {
+    // Sensor axis of each principal axis.
+    let mut axis_of = [0usize; 3];
+    for (i, v) in eig.vectors.iter().enumerate() {
+        let mut big = 0;
+        for k in 1..3 {
+            if v[k].abs() > v[big].abs() {
+                big = k;
+            }
+        }
+        axis_of[i] = big;
+    }
+    let mut which = [usize::MAX; 3];
+    for (i, &k) in axis_of.iter().enumerate() {
+        if let Some(w) = which.get_mut(k) {
+            *w = i;
+        }
+    }
+    if which.iter().any(|&w| w > 2) {
+        return (None, None);
+    }
+    let m = |k: usize| -> f32 {
+        which
+            .get(k)
+            .and_then(|&i| eig.values.get(i))
+            .copied()
+            .unwrap_or(0.0)
+    };
+    let g = |k: usize| -> [f32; 6] {
+        which
+            .get(k)
+            .and_then(|&i| grads.get(i))
+            .copied()
+            .unwrap_or([0.0; 6])
+    };
+    let mut a = [0.0f32; 3];
+    let mut sd = [0.0f32; 3];
+    for k in 0..3 {
+        let (i1, i2, i3) = (k, (k + 1) % 3, (k + 2) % 3);
+        let (m1, m2, m3) = (m(i1), m(i2), m(i3));
+        if !(m1 > 0.0) {
+            return (None, None);
+        }
+        let ak = (m2 - m3) / m1;
+        let (g1, g2, g3) = (g(i1), g(i2), g(i3));
+        let gr: [f32; 6] = core::array::from_fn(|e| {
+            let (a1, a2, a3) = (
+                g1.get(e).copied().unwrap_or(0.0),
+                g2.get(e).copied().unwrap_or(0.0),
+                g3.get(e).copied().unwrap_or(0.0),
+            );
+            (a2 - a3 - ak * a1) / m1
+        });
+        a[k] = ak;
+        sd[k] = sqrt(quad(cov, &gr));
+    }
+    if a.iter().chain(sd.iter()).all(|x| x.is_finite()) {
+        (Some(a), Some(sd))
+    } else {
+        (None, None)
+    }
+}
