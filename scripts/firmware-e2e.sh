@@ -39,7 +39,8 @@ SEED="${SEED:-1}"
 TRUTH_TOL="${TRUTH_TOL:-0.03}"
 TRUTH_TOL_REFINED="${TRUTH_TOL_REFINED:-1e-4}"
 OUT="${OUT:-target/firmware-e2e}"
-ELF=target/thumbv7em-none-eabihf/firmware/firmware-qemu
+# The ELF under the target directory cargo uses (CARGO_TARGET_DIR when set).
+ELF="${CARGO_TARGET_DIR:-target}/thumbv7em-none-eabihf/firmware/firmware-qemu"
 
 ensure_thumb_target
 ensure_qemu

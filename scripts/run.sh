@@ -18,7 +18,8 @@ source "$(dirname "${BASH_SOURCE[0]}")/setup.sh"
 cd "$ROOT"
 
 OUT=target/firmware-run
-ELF=target/thumbv7em-none-eabihf/firmware/firmware-qemu
+# The ELF under the target directory cargo uses (CARGO_TARGET_DIR when set).
+ELF="${CARGO_TARGET_DIR:-target}/thumbv7em-none-eabihf/firmware/firmware-qemu"
 ensure_thumb_target
 ensure_qemu
 ensure_defmt_print

@@ -2,7 +2,7 @@
 //! one beside it); a report of both every 100 ms.
 
 use embedded_hal::delay::DelayNs;
-use icm42688::{Config, Error, Icm42688, RegisterInterface};
+use icm42688::{Config, Error, Icm42688, RawImu, RegisterInterface, Saturation};
 use identifier_core::{
     Convergence, Counters, Estimate, Identifier, InertiaRatios, Refined, RefinedSettings,
     SampleStatus, Settings, SettingsError,
@@ -81,9 +81,12 @@ impl DelayNs for NoDelay {
 /// Consecutive failures (bus errors, data-ready timeouts, samples the part marked invalid)
 /// after which the sensor is re-initialised.
 pub const REINIT_AFTER: u32 = 5;
-/// Identical consecutive raw samples (all three axes) after which the data counts as stalled
-/// and the sensor is re-initialised. With the part's noise (about 4 counts rms at 1 kHz and
-/// 500 dps) twenty repeats of all three axes practically never happen on live data.
+/// Identical consecutive raw samples (all three gyro axes) after which the data counts as
+/// stalled and the sensor is re-initialised. With the part's noise (about 1 count rms at 1 kHz
+/// and 2000 dps, and the accelerometer's noise beside it) twenty repeats of all six axes
+/// practically never happen on live data. Samples with a clipped gyro axis are saturated, not
+/// stalled: they never count toward this (a body spinning beyond the range on all three axes
+/// reads the same clipped counts again and again, and must not reset the part).
 pub const STALLED_AFTER: u32 = 20;
 /// `WHO_AM_I` is checked every this many accepted samples (10 times a second at 1 kHz).
 pub const HEALTH_EVERY: u32 = 100;
@@ -98,6 +101,48 @@ pub const GATE_MARGIN: f32 = 0.02;
 pub fn gate_rate_bound(config: &Config) -> f32 {
     let fs = icm42688::raw_to_rad_s(32767, config.full_scale);
     fs * fs
+}
+
+/// An optional rotor-speed input (reaction wheel, propeller, motor): the board implements it
+/// (from an ESC's telemetry, a Hall sensor, a DShot reply); the QEMU image reads it from the
+/// log. The speed goes with each sample to the estimators that model the rotor's angular
+/// momentum. `None`: not known for this sample (no rotor, or no fresh reading).
+pub trait RotorSpeedSource {
+    /// The rotor's speed about its axis, rad/s, signed, at the time of the current sample.
+    fn rotor_speed_rad_s(&mut self) -> Option<f32>;
+}
+
+/// No rotor input: every sample has `None`.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoRotor;
+
+impl RotorSpeedSource for NoRotor {
+    fn rotor_speed_rad_s(&mut self) -> Option<f32> {
+        None
+    }
+}
+
+impl<F: FnMut() -> Option<f32>> RotorSpeedSource for F {
+    fn rotor_speed_rad_s(&mut self) -> Option<f32> {
+        self()
+    }
+}
+
+/// The inputs of the last sample that went to the estimators: what the free-flight gate and
+/// the tensor estimator of identifier-core take per sample.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SampleInputs {
+    /// Angular rate, rad/s, sensor axes.
+    pub gyro: [f32; 3],
+    /// Specific force, m/s^2, sensor axes (zero in free flight).
+    pub accel: [f32; 3],
+    /// Rotor speed, rad/s, when the board provides one ([`RotorSpeedSource`]).
+    pub rotor_rad_s: Option<f32>,
+    /// Axes at the clip level.
+    pub saturated: Saturation,
+    /// The time step, s.
+    pub dt: f32,
 }
 
 /// The loop's time base: a free-running clock in microseconds (wrapping at `2^32`), read once
@@ -146,12 +191,33 @@ pub struct LoopCounters {
     pub wrong_id: u32,
     /// Stalled data seen ([`STALLED_AFTER`] identical samples).
     pub stalled: u32,
+    /// Samples with a gyro axis at the clip level (the identifiers reject them as
+    /// saturated). Counted apart from stalled data: they never re-initialise the part.
+    pub saturated: u32,
+    /// Samples with an accelerometer axis at the clip level (a catch, a crash).
+    pub accel_saturated: u32,
     /// Re-initialisations of the sensor (after [`REINIT_AFTER`] consecutive failures, a wrong
     /// `WHO_AM_I` or stalled data).
     pub reinits: u32,
     /// Initialisation attempts during re-initialisations that failed.
     pub reinit_failures: u32,
 }
+
+/// The sensor's state in a report.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum SensorStatus {
+    /// Samples are coming in.
+    Ok,
+    /// No sample for more than [`FAILED_REPORT_AFTER`] report periods: bus errors, timeouts,
+    /// invalid samples or re-initialisations. Reports go on at [`REPORT_HZ`] with the
+    /// estimates held and the counters moving.
+    Failed,
+}
+
+/// Report periods without a sample after which a report goes out anyway, marked
+/// [`SensorStatus::Failed`] (1.5: the normal stream is late by half a period).
+pub const FAILED_REPORT_AFTER: f32 = 1.5;
 
 /// What goes out at [`REPORT_HZ`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -175,6 +241,12 @@ pub struct Report {
     pub convergence_refined: Convergence,
     /// The loop's counters.
     pub counters: LoopCounters,
+    /// Samples with a clipped gyro axis since the previous report.
+    pub saturated_recent: u32,
+    /// The sensor's state.
+    pub sensor: SensorStatus,
+    /// The last rotor speed given with a sample, rad/s.
+    pub rotor_rad_s: Option<f32>,
 }
 
 /// Why the loop could not start.
@@ -219,9 +291,17 @@ pub enum Poll {
 /// against a misbehaving sensor or bus: a plausibility gate on samples, dt from the sample
 /// clock, re-initialisation after repeated failures, a wrong `WHO_AM_I` or stalled data, and
 /// a periodic `WHO_AM_I` check.
-pub struct SampleLoop<IF, C> {
+pub struct SampleLoop<IF, C, R = NoRotor> {
     gyro: Icm42688<IF>,
     clock: C,
+    rotor: R,
+    last_inputs: SampleInputs,
+    /// The clock at the last report (stepped or failed).
+    last_report_us: u32,
+    /// Microseconds without a report after which a failed-sensor report goes out.
+    failed_report_us: u32,
+    pending: Option<Report>,
+    saturated_at_report: u32,
     config: Config,
     identifier: Identifier,
     refined: Refined,
@@ -240,7 +320,7 @@ pub struct SampleLoop<IF, C> {
     max_polls: u32,
     /// Consecutive failures.
     fails: u32,
-    last_raw: Option<[i16; 3]>,
+    last_raw: Option<RawImu>,
     repeats: u32,
     last_accepted: Option<[f32; 3]>,
     /// Seconds since the last accepted sample.
@@ -250,7 +330,7 @@ pub struct SampleLoop<IF, C> {
     since_check: u32,
 }
 
-impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C> {
+impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
     /// Initialises the gyro with `config` (reset, identity, configuration; up to
     /// [`INIT_ATTEMPTS`] times, since a bus error or a slow reset is transient but a wrong
     /// identity is not), a fresh paper's identifier with [`identifier_settings`] and a fresh
@@ -275,9 +355,17 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C> {
         let refined = Refined::new(refined_settings(&config)).ok_or(InitError::RefinedSettings)?;
         let odr_hz = config.odr.hz() as u32;
         let last_us = clock.now_us(gyro.interface());
+        let report_every = (odr_hz / REPORT_HZ).max(1);
+        let report_us = report_every.saturating_mul(config.odr.period_us().max(1));
         Ok(SampleLoop {
             gyro,
             clock,
+            rotor: NoRotor,
+            last_inputs: SampleInputs::default(),
+            last_report_us: last_us,
+            failed_report_us: (report_us as f32 * FAILED_REPORT_AFTER) as u32,
+            pending: None,
+            saturated_at_report: 0,
             config,
             identifier,
             refined,
@@ -288,7 +376,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C> {
             last_us,
             tick: 0,
             since_report: 0,
-            report_every: (odr_hz / REPORT_HZ).max(1),
+            report_every,
             // Two sample periods of polling before a timeout.
             max_polls: (2 * config.odr.period_us() / POLL_US).max(2),
             fails: 0,
@@ -301,6 +389,41 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C> {
         })
     }
 
+    /// The same loop with a rotor-speed input, read once per sample.
+    pub fn with_rotor<R: RotorSpeedSource>(self, rotor: R) -> SampleLoop<IF, C, R> {
+        SampleLoop {
+            gyro: self.gyro,
+            clock: self.clock,
+            rotor,
+            last_inputs: self.last_inputs,
+            last_report_us: self.last_report_us,
+            failed_report_us: self.failed_report_us,
+            pending: self.pending,
+            saturated_at_report: self.saturated_at_report,
+            config: self.config,
+            identifier: self.identifier,
+            refined: self.refined,
+            counters: self.counters,
+            period: self.period,
+            period_us: self.period_us,
+            odr_hz: self.odr_hz,
+            last_us: self.last_us,
+            tick: self.tick,
+            since_report: self.since_report,
+            report_every: self.report_every,
+            max_polls: self.max_polls,
+            fails: self.fails,
+            last_raw: self.last_raw,
+            repeats: self.repeats,
+            last_accepted: self.last_accepted,
+            since_accepted: self.since_accepted,
+            gate_bound: self.gate_bound,
+            since_check: self.since_check,
+        }
+    }
+}
+
+impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<IF, C, R> {
     /// Waits for the next sample, reads it, screens it and steps both identifiers with it;
     /// re-initialises the sensor when it stops making sense.
     pub fn poll(&mut self, delay: &mut impl DelayNs) -> Poll {
@@ -328,8 +451,9 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C> {
                 return Poll::BusError;
             }
         }
-        let raw = match self.gyro.read_gyro_raw() {
-            Ok(raw) => raw,
+        // Accelerometer and gyro of the same sample, one 12-byte burst.
+        let imu = match self.gyro.read_imu_raw() {
+            Ok(imu) => imu,
             Err(Error::InvalidSample) => {
                 self.counters.invalid = self.counters.invalid.saturating_add(1);
                 self.failure(delay);
@@ -341,8 +465,20 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C> {
                 return Poll::BusError;
             }
         };
-        // Stalled data: the same three counts again and again.
-        if self.last_raw == Some(raw) {
+        let raw = imu.gyro;
+        let saturation = imu.saturation();
+        if saturation.gyro_any() {
+            self.counters.saturated = self.counters.saturated.saturating_add(1);
+        }
+        if saturation.accel_any() {
+            self.counters.accel_saturated = self.counters.accel_saturated.saturating_add(1);
+        }
+        // Stalled data: the same six counts again and again. A clipped gyro axis is
+        // saturation, not a stall: such samples neither count nor break a run.
+        if saturation.gyro_any() {
+            self.repeats = 0;
+            self.last_raw = None;
+        } else if self.last_raw == Some(imu) {
             self.repeats = self.repeats.saturating_add(1);
             if self.repeats >= STALLED_AFTER {
                 self.counters.stalled = self.counters.stalled.saturating_add(1);
@@ -351,8 +487,8 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C> {
             }
         } else {
             self.repeats = 0;
+            self.last_raw = Some(imu);
         }
-        self.last_raw = Some(raw);
 
         // dt from the sample clock, in whole periods.
         let now = self.clock.now_us(self.gyro.interface());
@@ -369,6 +505,13 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C> {
         let dt = periods as f32 * self.period;
 
         let omega = icm42688::raw3_to_rad_s(raw, self.gyro.full_scale());
+        self.last_inputs = SampleInputs {
+            gyro: omega,
+            accel: icm42688::raw3_to_m_s2(imu.accel, self.gyro.accel_full_scale()),
+            rotor_rad_s: self.rotor.rotor_speed_rad_s(),
+            saturated: saturation,
+            dt,
+        };
         // The plausibility gate.
         self.since_accepted += dt;
         if let Some(prev) = self.last_accepted {
@@ -395,7 +538,10 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C> {
 
         let report = if self.since_report >= self.report_every {
             self.since_report %= self.report_every;
-            Some(self.report())
+            self.last_report_us = now;
+            let r = self.report();
+            self.saturated_at_report = self.counters.saturated;
+            Some(r)
         } else {
             None
         };
@@ -422,12 +568,37 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C> {
         }
     }
 
-    /// One more consecutive failure; [`REINIT_AFTER`] of them re-initialise the sensor.
+    /// One more consecutive failure; [`REINIT_AFTER`] of them re-initialise the sensor. When
+    /// no report has gone out for [`FAILED_REPORT_AFTER`] report periods (by the sample
+    /// clock), a report marked [`SensorStatus::Failed`] is queued
+    /// ([`SampleLoop::take_failed_report`]): the 10 Hz stream goes on while the sensor is
+    /// down.
     fn failure(&mut self, delay: &mut impl DelayNs) {
         self.fails = self.fails.saturating_add(1);
         if self.fails >= REINIT_AFTER {
             self.reinit(delay);
         }
+        let now = self.clock.now_us(self.gyro.interface());
+        if now.wrapping_sub(self.last_report_us) >= self.failed_report_us {
+            // The next one is due a report period from now.
+            self.last_report_us = now.wrapping_sub(self.failed_report_us / 3);
+            let mut r = self.report();
+            r.sensor = SensorStatus::Failed;
+            self.saturated_at_report = self.counters.saturated;
+            self.pending = Some(r);
+        }
+    }
+
+    /// A report queued while the sensor is failing (see [`SensorStatus::Failed`]), once:
+    /// call after every [`SampleLoop::poll`] and send it like a periodic one.
+    pub fn take_failed_report(&mut self) -> Option<Report> {
+        self.pending.take()
+    }
+
+    /// The inputs of the last sample given to the estimators (gyro, accelerometer, rotor
+    /// speed, saturation, dt).
+    pub fn last_inputs(&self) -> SampleInputs {
+        self.last_inputs
     }
 
     /// Resets and reconfigures the part (up to [`INIT_ATTEMPTS`] times; if all fail, the
@@ -477,6 +648,12 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C> {
             consistency: identifier_core::consistency(a),
             convergence_refined: self.refined.convergence(),
             counters: self.counters,
+            saturated_recent: self
+                .counters
+                .saturated
+                .wrapping_sub(self.saturated_at_report),
+            sensor: SensorStatus::Ok,
+            rotor_rad_s: self.last_inputs.rotor_rad_s,
         }
     }
 
@@ -515,13 +692,23 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C> {
 /// read).
 #[cfg(feature = "defmt")]
 pub fn log_report(r: &Report) {
+    if r.saturated_recent > 0 {
+        defmt::warn!(
+            "{=u32} saturated gyro samples (at the clip level) since the last report; {=u32} in all",
+            r.saturated_recent,
+            r.counters.saturated
+        );
+    }
+    if r.sensor == SensorStatus::Failed {
+        defmt::warn!("sensor failed: no sample for over 150 ms; estimates held");
+    }
     let (q2, q3) = r
         .ratios
         .map_or((f32::NAN, f32::NAN), |q| (q.a2_over_a1, q.a3_over_a1));
     let c = &r.counters;
     let (p, f) = (&r.a_paper, &r.a_refined);
     defmt::info!(
-        "t={=f32}s a_paper=[{=f32}, {=f32}, {=f32}] {} a_refined=[{=f32}, {=f32}, {=f32}] {} A2/A1={=f32} A3/A1={=f32} consistency={=f32} samples={=u32} skipped={=u32} bus_errors={=u32} invalid={=u32} timeouts={=u32} implausible={=u32} missed={=u32} wrong_id={=u32} stalled={=u32} reinits={=u32} reinit_failures={=u32}",
+        "t={=f32}s a_paper=[{=f32}, {=f32}, {=f32}] {} a_refined=[{=f32}, {=f32}, {=f32}] {} A2/A1={=f32} A3/A1={=f32} consistency={=f32} samples={=u32} skipped={=u32} bus_errors={=u32} invalid={=u32} timeouts={=u32} implausible={=u32} missed={=u32} wrong_id={=u32} stalled={=u32} reinits={=u32} reinit_failures={=u32} saturated={=u32} accel_saturated={=u32} sensor={}",
         r.t,
         p[0],
         p[1],
@@ -544,7 +731,10 @@ pub fn log_report(r: &Report) {
         c.wrong_id,
         c.stalled,
         c.reinits,
-        c.reinit_failures
+        c.reinit_failures,
+        c.saturated,
+        c.accel_saturated,
+        r.sensor
     );
 }
 
@@ -723,9 +913,85 @@ mod tests {
     }
 
     #[test]
+    fn clipped_readings_on_all_axes_are_saturation_not_stall() {
+        // 200 samples of a spin beyond +-2000 dps on every axis: identical clipped readings.
+        let mut k = 0;
+        let source = move || {
+            k += 1;
+            (k <= 300).then_some(if (50..250).contains(&k) {
+                [40.0, -40.0, 40.0]
+            } else {
+                [1.0 + k as f32 * 1e-3, 1.0, 1.0]
+            })
+        };
+        let mut lp = SampleLoop::new(
+            Icm42688::new_spi(SimIcm42688::new(source)),
+            &mut NoDelay,
+            Config::identifier(),
+            sim_clock,
+        )
+        .unwrap()
+        .with_rotor(|| Some(12.5f32));
+        let mut warned = 0;
+        while !lp.gyro().interface().bus().exhausted() {
+            if let Poll::Stepped {
+                report: Some(r), ..
+            } = lp.poll(&mut NoDelay)
+            {
+                warned += u32::from(r.saturated_recent > 0);
+                assert_eq!(r.sensor, SensorStatus::Ok);
+            }
+        }
+        let c = lp.counters();
+        assert_eq!(c.saturated, 200, "{c:?}");
+        assert_eq!((c.stalled, c.reinits), (0, 0), "{c:?}");
+        assert!(warned >= 2, "{warned}");
+        assert_eq!(lp.last_inputs().rotor_rad_s, Some(12.5));
+        assert_eq!(lp.report().rotor_rad_s, Some(12.5));
+        assert_eq!(lp.last_inputs().accel, [0.0; 3]);
+    }
+
+    #[test]
+    fn reports_go_on_at_10_hz_while_the_sensor_is_dead() {
+        // A clock that runs on while every transfer fails (bus dead after 500 samples).
+        use core::cell::Cell;
+        let t = Cell::new(0u32);
+        let clock = |_: &SpiInterface<SimIcm42688<_>>| {
+            t.set(t.get() + 100);
+            t.get()
+        };
+        let sim = SimIcm42688::new(spin(500));
+        let mut lp = SampleLoop::new(
+            Icm42688::new_spi(sim),
+            &mut NoDelay,
+            Config::identifier(),
+            clock,
+        )
+        .unwrap();
+        let (mut ok, mut failed) = (0, 0);
+        // 50 000 polls at 100 us of clock each: 5 s, most of it after the log ended.
+        for _ in 0..50_000 {
+            if let Poll::Stepped {
+                report: Some(_), ..
+            } = lp.poll(&mut NoDelay)
+            {
+                ok += 1;
+            }
+            if let Some(r) = lp.take_failed_report() {
+                assert_eq!(r.sensor, SensorStatus::Failed);
+                failed += 1;
+            }
+        }
+        assert!(ok >= 1, "{ok}");
+        // About 10 a second once the sensor is silent.
+        assert!((30..=60).contains(&failed), "{failed}");
+        assert!(lp.counters().timeouts > 0);
+    }
+
+    #[test]
     fn settings_reject_clipped_readings() {
         let s = identifier_settings(&Config::identifier());
-        let clip = icm42688::raw_to_rad_s(32767, icm42688::GyroFullScale::Dps500);
+        let clip = icm42688::raw_to_rad_s(32767, icm42688::GyroFullScale::Dps2000);
         assert_eq!(s.full_scale, clip);
         let mut id = Identifier::new(s).unwrap();
         assert_eq!(

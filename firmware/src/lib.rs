@@ -63,6 +63,6 @@ pub mod log_format;
 pub mod stack;
 
 pub use app::{
-    gate_rate_bound, identifier_settings, refined_settings, InitError, LoopCounters, NoDelay, Poll,
-    Report, SampleClock, SampleLoop,
+    gate_rate_bound, identifier_settings, refined_settings, InitError, LoopCounters, NoDelay,
+    NoRotor, Poll, Report, RotorSpeedSource, SampleClock, SampleInputs, SampleLoop, SensorStatus,
 };

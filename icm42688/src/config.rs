@@ -1,5 +1,6 @@
-//! Full-scale range and output data rate of the gyro, and the one conversion from raw counts
-//! to rad/s used everywhere (driver on the MCU, driver on the host, simulated device).
+//! Full-scale ranges and output data rate of the gyro and the accelerometer, and the one
+//! conversion from raw counts to rad/s (and to m/s^2) used everywhere (driver on the MCU,
+//! driver on the host, simulated device).
 
 /// `GYRO_FS_SEL` of `GYRO_CONFIG0`: the measurement range in degrees per second.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -65,6 +66,56 @@ impl GyroFullScale {
             5 => GyroFullScale::Dps62_5,
             6 => GyroFullScale::Dps31_25,
             _ => GyroFullScale::Dps15_625,
+        }
+    }
+}
+
+/// Standard gravity, m/s^2: the unit `g` of the accelerometer's ranges.
+pub const STANDARD_GRAVITY: f32 = 9.806_65;
+
+/// `ACCEL_FS_SEL` of `ACCEL_CONFIG0`: the accelerometer's range in g.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum AccelFullScale {
+    /// +-16 g (2048 LSB/g).
+    G16 = 0,
+    /// +-8 g.
+    G8 = 1,
+    /// +-4 g.
+    G4 = 2,
+    /// +-2 g.
+    G2 = 3,
+}
+
+impl AccelFullScale {
+    /// The range in g.
+    pub const fn g(self) -> f32 {
+        match self {
+            AccelFullScale::G16 => 16.0,
+            AccelFullScale::G8 => 8.0,
+            AccelFullScale::G4 => 4.0,
+            AccelFullScale::G2 => 2.0,
+        }
+    }
+
+    /// m/s^2 per count: full scale over 2^15.
+    pub const fn m_s2_per_lsb(self) -> f32 {
+        self.g() * STANDARD_GRAVITY / 32768.0
+    }
+
+    /// The `ACCEL_FS_SEL` field value (bits 7:5 of `ACCEL_CONFIG0`).
+    pub const fn bits(self) -> u8 {
+        self as u8
+    }
+
+    /// The range for an `ACCEL_FS_SEL` field value (low three bits; codes 4-7 are reserved and
+    /// read as +-2 g here).
+    pub const fn from_bits(bits: u8) -> Self {
+        match bits & 0b111 {
+            0 => AccelFullScale::G16,
+            1 => AccelFullScale::G8,
+            2 => AccelFullScale::G4,
+            _ => AccelFullScale::G2,
         }
     }
 }
@@ -159,7 +210,9 @@ impl GyroOdr {
 pub struct Config {
     /// Gyro range.
     pub full_scale: GyroFullScale,
-    /// Gyro output data rate.
+    /// Accelerometer range.
+    pub accel_full_scale: AccelFullScale,
+    /// Output data rate of the gyro and of the accelerometer.
     pub odr: GyroOdr,
     /// Route data-ready to the INT1 pin (push-pull, active high, pulsed), for boards that wire
     /// it to an EXTI line. Polling `INT_STATUS` works either way.
@@ -167,11 +220,14 @@ pub struct Config {
 }
 
 impl Config {
-    /// The identifier's configuration: 1 kHz and +-500 dps, a range that covers a tumbling
-    /// body at up to 8.7 rad/s with 0.27 mrad/s counts (below a typical 1 mrad/s noise floor).
+    /// The identifier's configuration: 1 kHz, +-2000 dps and +-16 g. +-2000 dps (34.9 rad/s)
+    /// covers a hand toss (about 12 rad/s) and the racquet data (35 rad/s peaks), with
+    /// 1.07 mrad/s counts, about the part's noise at 1 kHz; +-16 g covers the throw and the
+    /// catch.
     pub const fn identifier() -> Self {
         Config {
-            full_scale: GyroFullScale::Dps500,
+            full_scale: GyroFullScale::Dps2000,
+            accel_full_scale: AccelFullScale::G16,
             odr: GyroOdr::Hz1000,
             data_ready_int1: true,
         }
@@ -180,6 +236,12 @@ impl Config {
     /// The value written to `GYRO_CONFIG0`.
     pub const fn gyro_config0(&self) -> u8 {
         (self.full_scale.bits() << 5) | self.odr.bits()
+    }
+
+    /// The value written to `ACCEL_CONFIG0`: range and the gyro's ODR code (the codes this
+    /// driver offers mean the same rates for both sensors).
+    pub const fn accel_config0(&self) -> u8 {
+        (self.accel_full_scale.bits() << 5) | self.odr.bits()
     }
 }
 
@@ -205,14 +267,40 @@ pub fn raw3_to_rad_s(raw: [i16; 3], fs: GyroFullScale) -> [f32; 3] {
     ]
 }
 
+/// Converts three raw accelerometer counts to m/s^2 at `fs`.
+pub fn raw3_to_m_s2(raw: [i16; 3], fs: AccelFullScale) -> [f32; 3] {
+    raw.map(|r| f32::from(r) * fs.m_s2_per_lsb())
+}
+
+/// True when a raw count is at the clip level (`+-32767`, or `-32768`): the true value may be
+/// beyond the range.
+pub const fn is_clipped(raw: i16) -> bool {
+    raw >= crate::registers::CLIP || raw <= -crate::registers::CLIP
+}
+
+/// Which axes of a raw triple are at the clip level ([`is_clipped`]).
+pub const fn clipped3(raw: [i16; 3]) -> [bool; 3] {
+    [is_clipped(raw[0]), is_clipped(raw[1]), is_clipped(raw[2])]
+}
+
+/// The count an accelerometer at `fs` reports for `a` m/s^2: rounded, clipped to `+-32767`;
+/// NaN gives the invalid marker. Used by the simulated device.
+pub fn m_s2_to_raw(a: f32, fs: AccelFullScale) -> i16 {
+    counts_to_raw(a, fs.m_s2_per_lsb())
+}
+
 /// The count a gyro at `fs` reports for `rate` rad/s: rounded to nearest, clipped to
 /// `+-32767` (full scale). NaN gives [`crate::registers::INVALID_SAMPLE`], as the real part
 /// reports for an invalid sample. Used by the simulated device.
 pub fn rad_s_to_raw(rate: f32, fs: GyroFullScale) -> i16 {
-    if rate.is_nan() {
+    counts_to_raw(rate, fs.rad_per_lsb())
+}
+
+fn counts_to_raw(x: f32, per_lsb: f32) -> i16 {
+    if x.is_nan() {
         return crate::registers::INVALID_SAMPLE;
     }
-    let counts = rate / fs.rad_per_lsb();
+    let counts = x / per_lsb;
     let rounded = if counts >= 0.0 {
         counts + 0.5
     } else {

@@ -1,10 +1,13 @@
-//! The driver: reset, identity check, configuration, data-ready polling, sample and FIFO reads.
+//! The driver: reset, identity check, configuration, data-ready polling, sample and FIFO reads
+//! (accelerometer and gyro of one sample together), saturation flags.
 
 use embedded_hal::delay::DelayNs;
 use embedded_hal::i2c::I2c;
 use embedded_hal::spi::SpiDevice;
 
-use crate::config::{raw3_to_rad_s, Config, GyroFullScale, GyroOdr};
+use crate::config::{
+    clipped3, raw3_to_m_s2, raw3_to_rad_s, AccelFullScale, Config, GyroFullScale, GyroOdr,
+};
 use crate::interface::{I2cAddress, I2cInterface, RegisterInterface, SpiInterface};
 use crate::registers as reg;
 
@@ -32,6 +35,95 @@ pub enum Error<E> {
     InvalidSample,
     /// A FIFO packet header this driver did not configure (the FIFO is then flushed).
     FifoCorrupt(u8),
+}
+
+/// Which axes of a sample are at the clip level (`+-32767`): the true value may lie beyond the
+/// range. Reported beside the sample, never as an error: a clipped reading is a real reading of
+/// a fast motion (and identical clipped readings are not stalled data).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Saturation {
+    /// Accelerometer X, Y, Z at the clip level.
+    pub accel: [bool; 3],
+    /// Gyro X, Y, Z at the clip level.
+    pub gyro: [bool; 3],
+}
+
+impl Saturation {
+    /// Any gyro axis clipped.
+    pub fn gyro_any(&self) -> bool {
+        self.gyro.iter().any(|&c| c)
+    }
+
+    /// Any accelerometer axis clipped.
+    pub fn accel_any(&self) -> bool {
+        self.accel.iter().any(|&c| c)
+    }
+
+    /// Any axis of either sensor clipped.
+    pub fn any(&self) -> bool {
+        self.gyro_any() || self.accel_any()
+    }
+}
+
+/// One sample of both sensors in raw counts, sensor axes, as read in one burst or one FIFO
+/// packet.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RawImu {
+    /// Accelerometer X, Y, Z.
+    pub accel: [i16; 3],
+    /// Gyro X, Y, Z.
+    pub gyro: [i16; 3],
+}
+
+impl RawImu {
+    /// Decodes 12 big-endian bytes: accel X Y Z then gyro X Y Z. [`Error::InvalidSample`] when
+    /// an axis carries the part's invalid marker (-32768).
+    fn decode<E>(b: &[u8; 12]) -> Result<Self, Error<E>> {
+        let v = |i: usize| {
+            let hi = b.get(2 * i).copied().unwrap_or(0);
+            let lo = b.get(2 * i + 1).copied().unwrap_or(0);
+            i16::from_be_bytes([hi, lo])
+        };
+        let s = RawImu {
+            accel: [v(0), v(1), v(2)],
+            gyro: [v(3), v(4), v(5)],
+        };
+        if s.accel.contains(&reg::INVALID_SAMPLE) || s.gyro.contains(&reg::INVALID_SAMPLE) {
+            return Err(Error::InvalidSample);
+        }
+        Ok(s)
+    }
+
+    /// Which axes are at the clip level.
+    pub fn saturation(&self) -> Saturation {
+        Saturation {
+            accel: clipped3(self.accel),
+            gyro: clipped3(self.gyro),
+        }
+    }
+
+    /// Converted at the given ranges.
+    pub fn convert(&self, gyro_fs: GyroFullScale, accel_fs: AccelFullScale) -> Imu {
+        Imu {
+            accel: raw3_to_m_s2(self.accel, accel_fs),
+            gyro: raw3_to_rad_s(self.gyro, gyro_fs),
+            saturated: self.saturation(),
+        }
+    }
+}
+
+/// One sample of both sensors in SI units, with its saturation flags.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Imu {
+    /// Specific force, m/s^2, sensor axes (zero in free fall).
+    pub accel: [f32; 3],
+    /// Angular rate, rad/s, sensor axes.
+    pub gyro: [f32; 3],
+    /// Axes at the clip level.
+    pub saturated: Saturation,
 }
 
 /// Bounded waits, in microseconds of `DelayNs`.
@@ -98,6 +190,11 @@ impl<IF> Icm42688<IF> {
         self.config.full_scale
     }
 
+    /// Accelerometer range in force, which the conversion to m/s^2 uses.
+    pub fn accel_full_scale(&self) -> AccelFullScale {
+        self.config.accel_full_scale
+    }
+
     /// Output data rate in force.
     pub fn odr(&self) -> GyroOdr {
         self.config.odr
@@ -160,9 +257,9 @@ impl<IF: RegisterInterface> Icm42688<IF> {
     }
 
     /// Resets the part, checks its identity and configures it: on SPI the I2C interface off
-    /// (`INTF_CONFIG0`), full scale and ODR
-    /// (`GYRO_CONFIG0`), optionally data-ready on INT1, gyro in low-noise mode with the
-    /// accelerometer off (`PWR_MGMT0`). Configuration registers are read back and compared.
+    /// (`INTF_CONFIG0`), gyro full scale and ODR (`GYRO_CONFIG0`), accelerometer full scale
+    /// and the same ODR (`ACCEL_CONFIG0`), optionally data-ready on INT1, gyro and
+    /// accelerometer in low-noise mode (`PWR_MGMT0`). Configuration registers are read back and compared.
     /// Returns once the gyro's start-up time has passed.
     pub fn init(
         &mut self,
@@ -184,13 +281,15 @@ impl<IF: RegisterInterface> Icm42688<IF> {
             self.write_checked(reg::INT_SOURCE0, reg::INT_SOURCE0_DRDY_INT1)?;
         }
         self.write_checked(reg::GYRO_CONFIG0, config.gyro_config0())?;
-        self.write(reg::PWR_MGMT0, reg::PWR_MGMT0_GYRO_LN)?;
+        self.write_checked(reg::ACCEL_CONFIG0, config.accel_config0())?;
+        let power = reg::PWR_MGMT0_GYRO_LN | reg::PWR_MGMT0_ACCEL_LN;
+        self.write(reg::PWR_MGMT0, power)?;
         delay.delay_us(POWER_ON_QUIET_US);
         let found = self.read(reg::PWR_MGMT0)?;
-        if found != reg::PWR_MGMT0_GYRO_LN {
+        if found != power {
             return Err(Error::ConfigMismatch {
                 register: reg::PWR_MGMT0,
-                expected: reg::PWR_MGMT0_GYRO_LN,
+                expected: power,
                 found,
             });
         }
@@ -244,11 +343,28 @@ impl<IF: RegisterInterface> Icm42688<IF> {
         Ok(raw3_to_rad_s(raw, self.config.full_scale))
     }
 
-    /// Puts gyro samples (with temperature, 8-byte "packet 1") into the FIFO in
-    /// stream-to-FIFO mode, and flushes it. For loops that cannot keep up with every
-    /// data-ready: read batches with [`Icm42688::read_fifo_raw`].
+    /// One 12-byte burst read of `ACCEL_DATA_X1..GYRO_DATA_Z0`: accelerometer and gyro of the
+    /// same sample, raw counts. [`Error::InvalidSample`] when an axis reads -32768 (a sensor
+    /// off or starting); clipped axes are flagged by [`RawImu::saturation`], not refused.
+    pub fn read_imu_raw(&mut self) -> Result<RawImu, Error<IF::Error>> {
+        let mut b = [0u8; reg::IMU_BURST_LEN];
+        self.iface
+            .read_registers(reg::ACCEL_DATA_X1, &mut b)
+            .map_err(Error::Bus)?;
+        RawImu::decode(&b)
+    }
+
+    /// The latest sample of both sensors in SI units with its saturation flags.
+    pub fn read_imu(&mut self) -> Result<Imu, Error<IF::Error>> {
+        let raw = self.read_imu_raw()?;
+        Ok(raw.convert(self.config.full_scale, self.config.accel_full_scale))
+    }
+
+    /// Puts accelerometer, gyro and temperature samples (16-byte "packet 3" with a
+    /// timestamp) into the FIFO in stream-to-FIFO mode, and flushes it. For loops that cannot
+    /// keep up with every data-ready: read batches with [`Icm42688::read_fifo_raw`].
     pub fn enable_fifo(&mut self) -> Result<(), Error<IF::Error>> {
-        self.write_checked(reg::FIFO_CONFIG1, reg::FIFO_CONFIG1_GYRO_TEMP)?;
+        self.write_checked(reg::FIFO_CONFIG1, reg::FIFO_CONFIG1_ACCEL_GYRO_TEMP)?;
         self.write_checked(reg::FIFO_CONFIG, reg::FIFO_CONFIG_STREAM)?;
         self.flush_fifo()
     }
@@ -272,15 +388,15 @@ impl<IF: RegisterInterface> Icm42688<IF> {
         Ok(u16::from_be_bytes(b))
     }
 
-    /// Pops up to `out.len()` gyro packets from the FIFO into `out` (raw counts) and returns
-    /// how many. A header that is not a gyro-only 16-bit packet flushes the FIFO and gives
-    /// [`Error::FifoCorrupt`]; an invalid sample gives [`Error::InvalidSample`] after the
-    /// packets before it were stored.
-    pub fn read_fifo_raw(&mut self, out: &mut [[i16; 3]]) -> Result<usize, Error<IF::Error>> {
-        let available = usize::from(self.fifo_count()?) / reg::FIFO_PACKET1_LEN;
+    /// Pops up to `out.len()` 16-byte packets (header, accel, gyro, temperature, timestamp)
+    /// from the FIFO into `out` (raw counts) and returns how many. A header that is not a
+    /// 16-bit accel + gyro packet flushes the FIFO and gives [`Error::FifoCorrupt`]; an invalid
+    /// sample gives [`Error::InvalidSample`] after the packets before it were stored.
+    pub fn read_fifo_raw(&mut self, out: &mut [RawImu]) -> Result<usize, Error<IF::Error>> {
+        let available = usize::from(self.fifo_count()?) / reg::FIFO_PACKET3_LEN;
         let mut n = 0;
         for slot in out.iter_mut().take(available) {
-            let mut p = [0u8; reg::FIFO_PACKET1_LEN];
+            let mut p = [0u8; reg::FIFO_PACKET3_LEN];
             self.iface
                 .read_registers(reg::FIFO_DATA, &mut p)
                 .map_err(Error::Bus)?;
@@ -288,21 +404,16 @@ impl<IF: RegisterInterface> Icm42688<IF> {
             if header & reg::FIFO_HEADER_EMPTY != 0 {
                 break;
             }
-            let wanted = reg::FIFO_HEADER_GYRO;
-            let unwanted = reg::FIFO_HEADER_ACCEL | reg::FIFO_HEADER_20BIT;
-            if header & wanted == 0 || header & unwanted != 0 {
+            let wanted = reg::FIFO_HEADER_GYRO | reg::FIFO_HEADER_ACCEL;
+            if header & wanted != wanted || header & reg::FIFO_HEADER_20BIT != 0 {
                 self.flush_fifo()?;
                 return Err(Error::FifoCorrupt(header));
             }
-            let raw = [
-                i16::from_be_bytes([p[1], p[2]]),
-                i16::from_be_bytes([p[3], p[4]]),
-                i16::from_be_bytes([p[5], p[6]]),
-            ];
-            if raw.contains(&reg::INVALID_SAMPLE) {
-                return Err(Error::InvalidSample);
+            let mut data = [0u8; 12];
+            for (d, b) in data.iter_mut().zip(p.iter().skip(1)) {
+                *d = *b;
             }
-            *slot = raw;
+            *slot = RawImu::decode(&data)?;
             n += 1;
         }
         Ok(n)

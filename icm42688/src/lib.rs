@@ -1,4 +1,4 @@
-//! Driver for the TDK InvenSense ICM-42688-P 6-axis IMU, gyro only, generic over
+//! Driver for the TDK InvenSense ICM-42688-P 6-axis IMU (gyro and accelerometer), generic over
 //! embedded-hal 1.0 ([`embedded_hal::spi::SpiDevice`] or [`embedded_hal::i2c::I2c`]).
 //!
 //! Why this part: it is the gyro on most current flight-controller boards (and a direct
@@ -9,12 +9,16 @@
 //! What the driver does, all from the datasheet:
 //! * [`Icm42688::reset`]: `DEVICE_CONFIG.SOFT_RESET_CONFIG`, 1 ms, then `INT_STATUS.RESET_DONE`;
 //! * identity: `WHO_AM_I` = 0x47, anything else is [`Error::WrongId`];
-//! * [`Icm42688::init`]: bank 0, `GYRO_CONFIG0` full scale and ODR, data-ready on INT1,
-//!   `PWR_MGMT0` gyro low-noise mode, read-back of what was written, start-up wait;
-//! * samples: poll `INT_STATUS.DATA_RDY` ([`Icm42688::wait_data_ready`]) and burst-read
-//!   `GYRO_DATA_X1..Z0` ([`Icm42688::read_gyro`]), or batch through the FIFO
+//! * [`Icm42688::init`]: bank 0, `GYRO_CONFIG0` full scale (+-15.625 to +-2000 dps, default
+//!   +-2000 dps) and ODR, `ACCEL_CONFIG0` range (default +-16 g), data-ready on INT1,
+//!   `PWR_MGMT0` gyro and accelerometer in low-noise mode, read-back of what was written,
+//!   start-up wait;
+//! * samples: poll `INT_STATUS.DATA_RDY` ([`Icm42688::wait_data_ready`]) and burst-read both
+//!   sensors, `ACCEL_DATA_X1..GYRO_DATA_Z0` in 12 bytes ([`Icm42688::read_imu`]), or the gyro
+//!   alone ([`Icm42688::read_gyro`]), or batch through the FIFO's 16-byte packets
 //!   ([`Icm42688::enable_fifo`], [`Icm42688::read_fifo_raw`]);
-//! * [`raw_to_rad_s`]: the one conversion from counts to rad/s.
+//! * saturation: every axis at the clip level is flagged ([`Saturation`]) beside the sample;
+//! * [`raw_to_rad_s`] and [`raw3_to_m_s2`]: the one conversion from counts to SI units.
 //!
 //! Every failure is a value of [`Error`]: bus errors, a wrong identity, timeouts of the
 //! bounded waits, read-back mismatches, samples the part marks invalid. Nothing panics.
@@ -39,6 +43,9 @@ pub mod registers;
 #[cfg(feature = "sim")]
 pub mod sim;
 
-pub use config::{raw3_to_rad_s, raw_to_rad_s, Config, GyroFullScale, GyroOdr};
-pub use driver::{Error, Icm42688};
+pub use config::{
+    clipped3, is_clipped, raw3_to_m_s2, raw3_to_rad_s, raw_to_rad_s, AccelFullScale, Config,
+    GyroFullScale, GyroOdr, STANDARD_GRAVITY,
+};
+pub use driver::{Error, Icm42688, Imu, RawImu, Saturation};
 pub use interface::{I2cAddress, I2cInterface, RegisterInterface, SpiInterface};

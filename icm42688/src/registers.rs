@@ -23,6 +23,16 @@ pub const FIFO_CONFIG_STREAM: u8 = 0b01 << 6;
 /// Bypass mode in `FIFO_CONFIG` (FIFO off, its reset value).
 pub const FIFO_CONFIG_BYPASS: u8 = 0;
 
+/// `TEMP_DATA1`: temperature, big-endian, before the accelerometer data.
+pub const TEMP_DATA1: u8 = 0x1D;
+
+/// `ACCEL_DATA_X1`: first of six accelerometer data registers X1 X0 Y1 Y0 Z1 Z0, directly
+/// followed by the six gyro data registers: one 12-byte burst from here reads both sensors
+/// of the same sample.
+pub const ACCEL_DATA_X1: u8 = 0x1F;
+/// Length of the accelerometer + gyro burst from [`ACCEL_DATA_X1`].
+pub const IMU_BURST_LEN: usize = 12;
+
 /// `GYRO_DATA_X1`: first of six data registers X1 X0 Y1 Y0 Z1 Z0, big-endian two's complement
 /// (`INTF_CONFIG0.SENSOR_DATA_ENDIAN` = 1 after reset). A burst read auto-increments.
 pub const GYRO_DATA_X1: u8 = 0x25;
@@ -55,18 +65,28 @@ pub const INTF_CONFIG0_SPI_ONLY: u8 = 0b0011_0011;
 
 /// `PWR_MGMT0`: bits 3:2 `GYRO_MODE`, bits 1:0 `ACCEL_MODE` (00 = off), bit 5 `TEMP_DIS`.
 pub const PWR_MGMT0: u8 = 0x4E;
-/// `GYRO_MODE` = 11, low-noise mode, in `PWR_MGMT0`; the accelerometer stays off.
+/// `GYRO_MODE` = 11, low-noise mode, in `PWR_MGMT0`.
 pub const PWR_MGMT0_GYRO_LN: u8 = 0b11 << 2;
+/// `ACCEL_MODE` = 11, low-noise mode, in `PWR_MGMT0`.
+pub const PWR_MGMT0_ACCEL_LN: u8 = 0b11;
+/// Mask of `ACCEL_MODE` in `PWR_MGMT0`.
+pub const PWR_MGMT0_ACCEL_MASK: u8 = 0b11;
 /// Mask of `GYRO_MODE` in `PWR_MGMT0`.
 pub const PWR_MGMT0_GYRO_MASK: u8 = 0b11 << 2;
 
 /// `GYRO_CONFIG0`: bits 7:5 `GYRO_FS_SEL`, bits 3:0 `GYRO_ODR`.
 pub const GYRO_CONFIG0: u8 = 0x4F;
 
+/// `ACCEL_CONFIG0`: bits 7:5 `ACCEL_FS_SEL`, bits 3:0 `ACCEL_ODR` (same codes as `GYRO_ODR`
+/// for the rates this driver configures).
+pub const ACCEL_CONFIG0: u8 = 0x50;
+
 /// `FIFO_CONFIG1`: bit 1 `FIFO_GYRO_EN`, bit 0 `FIFO_ACCEL_EN`, bit 2 `FIFO_TEMP_EN`.
 pub const FIFO_CONFIG1: u8 = 0x5F;
 /// Gyro and temperature into the FIFO, accelerometer not: 8-byte "packet 1".
 pub const FIFO_CONFIG1_GYRO_TEMP: u8 = (1 << 2) | (1 << 1);
+/// Accelerometer, gyro and temperature into the FIFO: 16-byte "packet 3".
+pub const FIFO_CONFIG1_ACCEL_GYRO_TEMP: u8 = (1 << 2) | (1 << 1) | 1;
 
 /// `INT_CONFIG1`: bit 4 `INT_ASYNC_RESET` must be cleared for proper INT1/INT2 operation
 /// (datasheet, register description of `INT_CONFIG1`).
@@ -89,6 +109,9 @@ pub const REG_BANK_SEL: u8 = 0x76;
 
 /// Length of a FIFO "packet 1" with gyro data: header, X, Y, Z (16 bit each), temperature.
 pub const FIFO_PACKET1_LEN: usize = 8;
+/// Length of a FIFO "packet 3": header, accel X Y Z, gyro X Y Z (16 bit each), temperature
+/// (8 bit), timestamp (16 bit).
+pub const FIFO_PACKET3_LEN: usize = 16;
 /// FIFO header bit 7: the FIFO is empty (the read returned no packet).
 pub const FIFO_HEADER_EMPTY: u8 = 1 << 7;
 /// FIFO header bit 6: the packet holds accelerometer data.
@@ -97,6 +120,10 @@ pub const FIFO_HEADER_ACCEL: u8 = 1 << 6;
 pub const FIFO_HEADER_GYRO: u8 = 1 << 5;
 /// FIFO header bit 4: 20-bit (high-resolution) packet.
 pub const FIFO_HEADER_20BIT: u8 = 1 << 4;
+
+/// The largest count: a reading at `+32767` or `-32767` (or `-32768`) is at the sensor's
+/// clip level, the true value may be beyond it.
+pub const CLIP: i16 = i16::MAX;
 
 /// The value a data register pair reads when the sample is invalid (sensor off or starting,
 /// or an empty FIFO slot): -32768.

@@ -1,9 +1,10 @@
 //! A simulated ICM-42688-P behind `SpiDevice`, fed from a [`SampleSource`].
 //!
 //! It models what the driver relies on, from the datasheet: the `WHO_AM_I` value, soft reset
-//! to reset values with `RESET_DONE_INT`, clear-on-read `INT_STATUS`, the full-scale field of
-//! `GYRO_CONFIG0`, `PWR_MGMT0` gyro mode, big-endian data registers that read -32768 while the
-//! gyro is off, address auto-increment on burst reads, bit 7 of the address byte as the read
+//! to reset values with `RESET_DONE_INT`, clear-on-read `INT_STATUS`, the full-scale fields of
+//! `GYRO_CONFIG0` and `ACCEL_CONFIG0`, `PWR_MGMT0` gyro and accelerometer modes, big-endian
+//! data registers (accelerometer at `ACCEL_DATA_X1`, gyro right after) that read -32768 while
+//! their sensor is off, address auto-increment on burst reads, bit 7 of the address byte as the read
 //! flag. Bank selection is stored; only bank 0 holds registers.
 //!
 //! Time is not simulated: the part is always one sample ahead of the reader. Each read of
@@ -18,14 +19,21 @@
 
 use embedded_hal::spi::{self, ErrorKind, ErrorType, Operation, SpiDevice};
 
-use crate::config::{rad_s_to_raw, GyroFullScale};
+use crate::config::{m_s2_to_raw, rad_s_to_raw, AccelFullScale, GyroFullScale};
 use crate::registers as reg;
 
-/// Where the simulated gyro's samples come from (rad/s, sensor axes): a recorded log, a
+/// Where the simulated part's samples come from (rad/s, sensor axes): a recorded log, a
 /// simulator, a test vector. `None` ends the stream.
 pub trait SampleSource {
-    /// The next sample, or `None` at the end.
+    /// The next gyro sample, or `None` at the end.
     fn next_sample(&mut self) -> Option<[f32; 3]>;
+
+    /// The next sample of both sensors: `(gyro rad/s, accel m/s^2)`, or `None` at the end.
+    /// By default the gyro sample with a zero specific force (free fall, the body in free
+    /// flight); sources with accelerometer data override it.
+    fn next_imu(&mut self) -> Option<([f32; 3], [f32; 3])> {
+        self.next_sample().map(|g| (g, [0.0; 3]))
+    }
 }
 
 impl<F: FnMut() -> Option<[f32; 3]>> SampleSource for F {
@@ -56,6 +64,7 @@ fn reset_registers() -> [u8; 128] {
     set(&mut r, reg::WHO_AM_I, reg::WHO_AM_I_VALUE);
     set(&mut r, reg::INT_STATUS, reg::INT_STATUS_RESET_DONE);
     set(&mut r, reg::GYRO_CONFIG0, 0x06);
+    set(&mut r, reg::ACCEL_CONFIG0, 0x06);
     set(&mut r, reg::INT_CONFIG1, reg::INT_CONFIG1_ASYNC_RESET);
     set(&mut r, reg::INT_SOURCE0, 0x10);
     set(&mut r, reg::FIFO_CONFIG1, 0x00);
@@ -65,11 +74,12 @@ fn reset_registers() -> [u8; 128] {
 
 /// Registers whose value the simulated part keeps as written (the others are read-only or
 /// have side effects handled separately).
-const WRITABLE: [u8; 8] = [
+const WRITABLE: [u8; 9] = [
     reg::INT_CONFIG,
     reg::FIFO_CONFIG,
     reg::PWR_MGMT0,
     reg::GYRO_CONFIG0,
+    reg::ACCEL_CONFIG0,
     reg::FIFO_CONFIG1,
     reg::INT_CONFIG1,
     reg::INT_SOURCE0,
@@ -147,14 +157,22 @@ impl<S: SampleSource> SimIcm42688<S> {
         self.get(reg::PWR_MGMT0) & reg::PWR_MGMT0_GYRO_MASK != 0
     }
 
+    fn accel_on(&self) -> bool {
+        self.get(reg::PWR_MGMT0) & reg::PWR_MGMT0_ACCEL_MASK != 0
+    }
+
     fn full_scale(&self) -> GyroFullScale {
         GyroFullScale::from_bits(self.get(reg::GYRO_CONFIG0) >> 5)
     }
 
-    fn latch(&mut self, raw: [i16; 3]) {
+    fn accel_full_scale(&self) -> AccelFullScale {
+        AccelFullScale::from_bits(self.get(reg::ACCEL_CONFIG0) >> 5)
+    }
+
+    fn latch_at(&mut self, first: u8, raw: [i16; 3]) {
         for (i, v) in raw.iter().enumerate() {
             let [hi, lo] = v.to_be_bytes();
-            let a = reg::GYRO_DATA_X1 + 2 * i as u8;
+            let a = first + 2 * i as u8;
             self.set(a, hi);
             self.set(a + 1, lo);
         }
@@ -172,10 +190,12 @@ impl<S: SampleSource> SimIcm42688<S> {
                 let mut status = self.get(reg::INT_STATUS);
                 self.set(reg::INT_STATUS, 0);
                 if self.gyro_on() && !self.exhausted {
-                    match self.source.next_sample() {
-                        Some(w) => {
+                    match self.source.next_imu() {
+                        Some((w, acc)) => {
                             let fs = self.full_scale();
-                            self.latch(w.map(|x| rad_s_to_raw(x, fs)));
+                            self.latch_at(reg::GYRO_DATA_X1, w.map(|x| rad_s_to_raw(x, fs)));
+                            let afs = self.accel_full_scale();
+                            self.latch_at(reg::ACCEL_DATA_X1, acc.map(|x| m_s2_to_raw(x, afs)));
                             self.stats.samples = self.stats.samples.saturating_add(1);
                             status |= reg::INT_STATUS_DATA_RDY;
                         }
@@ -184,9 +204,13 @@ impl<S: SampleSource> SimIcm42688<S> {
                 }
                 status
             }
-            a if (reg::GYRO_DATA_X1..reg::GYRO_DATA_X1 + 6).contains(&a) && !self.gyro_on() => {
+            a if ((reg::GYRO_DATA_X1..reg::GYRO_DATA_X1 + 6).contains(&a) && !self.gyro_on())
+                || ((reg::ACCEL_DATA_X1..reg::ACCEL_DATA_X1 + 6).contains(&a)
+                    && !self.accel_on()) =>
+            {
                 let [hi, lo] = reg::INVALID_SAMPLE.to_be_bytes();
-                if (a - reg::GYRO_DATA_X1).is_multiple_of(2) {
+                // Both blocks start at an odd address: the high byte is at the odd ones.
+                if !a.is_multiple_of(2) {
                     hi
                 } else {
                     lo

@@ -173,6 +173,9 @@ fn main() -> ! {
         {
             firmware::app::log_report(&r);
         }
+        if let Some(r) = app.take_failed_report() {
+            firmware::app::log_report(&r);
+        }
     }
 
     let r = app.report();

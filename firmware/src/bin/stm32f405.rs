@@ -114,5 +114,8 @@ fn main() -> ! {
                 );
             }
         }
+        if let Some(r) = app.take_failed_report() {
+            firmware::app::log_report(&r);
+        }
     }
 }
