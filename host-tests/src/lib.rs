@@ -6,6 +6,7 @@
 
 pub mod close_loop;
 pub mod crb;
+pub mod crb_tensor;
 pub mod estimators;
 pub mod gyro;
 pub mod log_input;
@@ -14,3 +15,4 @@ pub mod plot;
 pub mod reference;
 pub mod replay;
 pub mod rigid_body;
+pub mod throw_sim;
