@@ -35,10 +35,12 @@
 
 pub mod convergence;
 pub mod extended;
+pub mod free_flight;
 pub mod identifier;
 pub mod inertia;
 pub mod invariant;
 mod linalg;
+pub mod pipeline;
 pub mod refined;
 pub mod settings;
 pub mod status;
@@ -49,8 +51,10 @@ pub use convergence::{Convergence, ConvergenceMonitor};
 pub use extended::{
     ExtendedEstimate, ExtendedIdentifier, ExtendedSettings, ExtendedStatus, ExtraEffect,
 };
+pub use free_flight::{FreeFlightGate, GateSettings, WindowFit};
 pub use identifier::Identifier;
 pub use inertia::{consistency, InertiaRatios};
+pub use pipeline::{Exit, FlightPipeline, Pending, Pipeline, PipelineSettings};
 pub use refined::{Refined, RefinedSettings};
 pub use settings::{GainMatrix, Settings, SettingsError, SignChangeCorrection};
 pub use status::{Counters, Estimate, SampleStatus};

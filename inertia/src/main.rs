@@ -1,5 +1,212 @@
-//! `inertia`: see `inertia --help`.
-fn main() {
-    eprintln!("inertia: no subcommand yet");
-    std::process::exit(2);
+//! `inertia`: the product's host tool. See `inertia --help` and the README.
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use inertia::identify::{identify, parse_axis, IdentifyOptions, Rotor};
+use inertia::{read, GyroUnit, ReadOptions, TimeUnit};
+
+#[derive(Parser)]
+#[command(
+    name = "inertia",
+    version,
+    about = "Inertia of a rigid body from the flight logs you already have"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Find the free flights in a log and identify the inertia tensor (per throw and pooled).
+    Identify(IdentifyArgs),
+}
+
+#[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
+struct IdentifyArgs {
+    /// The log: Betaflight/INDIflight blackbox, PX4 ULog, phyphox export or CSV (detected
+    /// from the content).
+    #[arg(long)]
+    input: PathBuf,
+    /// Rotor (flywheel) inertia about its axis, kg m^2: makes the tensor absolute.
+    #[arg(long)]
+    rotor_inertia: Option<f32>,
+    /// Rotor axis in the gyro frame: x, y, z, -x, -y or -z (direction of positive speed).
+    #[arg(long, value_parser = parse_axis, allow_hyphen_values = true)]
+    rotor_axis: Option<[f32; 3]>,
+    /// Motor poles, to turn eRPM into mechanical speed.
+    #[arg(long)]
+    rotor_poles: Option<u32>,
+    /// CSV of hand-chosen free flights, one `start_s,end_s` per line (log time).
+    #[arg(long)]
+    segments: Option<PathBuf>,
+    /// Gyro unit of a CSV: rad/s or deg/s.
+    #[arg(long, value_parser = parse_gyro_unit)]
+    gyro_unit: Option<GyroUnit>,
+    /// Time unit of a CSV: s, ms or us.
+    #[arg(long, value_parser = parse_time_unit)]
+    time_unit: Option<TimeUnit>,
+    /// Gyro white noise, rad/s (estimated from the data when absent).
+    #[arg(long)]
+    noise_std: Option<f32>,
+    /// Where to write the JSON report.
+    #[arg(long)]
+    json: PathBuf,
+    /// Directory for plots (SVG).
+    #[arg(long)]
+    plots: Option<PathBuf>,
+}
+
+fn parse_gyro_unit(s: &str) -> Result<GyroUnit, String> {
+    match s {
+        "rad/s" | "rad_s" | "rads" => Ok(GyroUnit::RadPerSec),
+        "deg/s" | "deg_s" | "dps" => Ok(GyroUnit::DegPerSec),
+        o => Err(format!("{o:?}: use rad/s or deg/s")),
+    }
+}
+
+fn parse_time_unit(s: &str) -> Result<TimeUnit, String> {
+    match s {
+        "s" => Ok(TimeUnit::S),
+        "ms" => Ok(TimeUnit::Ms),
+        "us" | "µs" => Ok(TimeUnit::Us),
+        o => Err(format!("{o:?}: use s, ms or us")),
+    }
+}
+
+fn parse_segments(path: &PathBuf) -> Result<Vec<(f64, f64)>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut out = Vec::new();
+    for (ln, line) in text.lines().enumerate() {
+        let l = line.trim();
+        if l.is_empty() || l.starts_with('#') || l.chars().next().is_some_and(|c| c.is_alphabetic())
+        {
+            continue;
+        }
+        let mut it = l.split([',', ';', ' ', '\t']).filter(|s| !s.is_empty());
+        let (Some(a), Some(b)) = (it.next(), it.next()) else {
+            return Err(format!(
+                "{}:{}: expected start_s,end_s",
+                path.display(),
+                ln + 1
+            ));
+        };
+        let (Ok(a), Ok(b)) = (a.parse::<f64>(), b.parse::<f64>()) else {
+            return Err(format!("{}:{}: not two numbers", path.display(), ln + 1));
+        };
+        if !(a.is_finite() && b.is_finite() && b > a) {
+            return Err(format!(
+                "{}:{}: need finite start < end",
+                path.display(),
+                ln + 1
+            ));
+        }
+        if out.iter().any(|&(s, e): &(f64, f64)| a < e && b > s) {
+            return Err(format!(
+                "{}:{}: overlaps an earlier segment",
+                path.display(),
+                ln + 1
+            ));
+        }
+        out.push((a, b));
+    }
+    if out.is_empty() {
+        return Err(format!("{}: no segment", path.display()));
+    }
+    Ok(out)
+}
+
+fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
+    let rotor = match (args.rotor_inertia, args.rotor_axis) {
+        (None, None) => None,
+        (Some(j), Some(axis)) => {
+            if !(j.is_finite() && j > 0.0) {
+                return Err(format!("--rotor-inertia {j} must be positive"));
+            }
+            Some(Rotor {
+                inertia: j,
+                axis,
+                poles: args.rotor_poles,
+            })
+        }
+        _ => return Err("--rotor-inertia and --rotor-axis go together".into()),
+    };
+    if let Some(s) = args.noise_std {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(format!("--noise-std {s} must be positive"));
+        }
+    }
+    let segments = args.segments.as_ref().map(parse_segments).transpose()?;
+    let opts = ReadOptions {
+        gyro_unit: args.gyro_unit,
+        time_unit: args.time_unit,
+    };
+    let rec = read(&args.input, &opts).map_err(|e| e.to_string())?;
+    let bar = if std::io::stderr().is_terminal() && rec.len() > 200_000 {
+        let b = indicatif::ProgressBar::new(rec.len() as u64);
+        b.set_style(
+            indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} samples {eta}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        Some(b)
+    } else {
+        None
+    };
+    let iopts = IdentifyOptions {
+        rotor,
+        segments,
+        noise_std: args.noise_std,
+    };
+    let report = identify(&rec, &iopts, |i| {
+        if let Some(b) = &bar {
+            b.set_position(i as u64);
+        }
+    })
+    .map_err(|e| e.to_string());
+    if let Some(b) = &bar {
+        b.finish_and_clear();
+    }
+    let report = report?;
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
+    }
+    let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
+    std::fs::write(&args.json, text).map_err(|e| format!("{}: {e}", args.json.display()))?;
+    if let Some(dir) = &args.plots {
+        inertia::plots::identify_plots(&rec, &report, dir).map_err(|e| e.to_string())?;
+    }
+    let p = &report.pooled;
+    eprintln!(
+        "{} free flight(s), {} samples pooled: status {}, a = {:?} +- {:?}{}",
+        report.throws.len(),
+        p.samples,
+        p.status,
+        p.a,
+        p.std_a,
+        p.tensor_kg_m2
+            .map(|t| format!(", J = {t:?} kg m^2"))
+            .unwrap_or_default()
+    );
+    if p.a.is_none() {
+        eprintln!("error: the data cannot determine the tensor ({})", p.status);
+        return Ok(ExitCode::from(4));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let r = match cli.command {
+        Command::Identify(a) => run_identify(a),
+    };
+    match r {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::from(3)
+        }
+    }
 }

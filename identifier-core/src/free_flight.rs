@@ -1,0 +1,380 @@
+//! Free-flight detection from the accelerometer and the gyro, and the gyro bias from still
+//! periods.
+//!
+//! # Physics
+//!
+//! In free flight the centre of mass falls freely, so an accelerometer at the offset `r` from
+//! the centre of mass reads only the rotation about it:
+//!
+//! ```text
+//! f = w x (w x r) + w' x r = K(w, w') r,     K = [w]x [w]x + [w']x            (F1)
+//! ```
+//!
+//! (`[v]x` the cross-product matrix). On a bench, in a hand or at the catch, gravity, the hand
+//! or the impact add a force that (F1) cannot explain with a small constant `r`. The gate fits
+//! `r` by least squares to the samples of a sliding window (`w` and `f` at the midpoint of
+//! consecutive samples, `w'` their difference over `dt`) and calls the window free when the
+//! fit's RMS residual is below [`GateSettings::max_residual`] and `|r|` is at most
+//! [`GateSettings::max_offset`]. A plain `|f| < threshold` test would fail: at 30 rad/s and
+//! 11 mm, (F1) exceeds 1 g.
+//!
+//! The window is made of blocks; per sample only the sums `K^T K`, `K^T f` and `|f|^2` of the
+//! open block are updated (about 60 floating-point operations), and one 3x3 solve is done per
+//! block.
+//!
+//! # Still periods and the gyro bias
+//!
+//! A window is still when the specific force stays within [`GateSettings::still_accel`] of
+//! one `g` and every rate stays below [`GateSettings::still_rate`]; the mean rate over the
+//! last still window is the gyro bias, subtracted by [`crate::pipeline::Pipeline`] before the
+//! estimator sees a sample.
+
+use crate::symmetric::{cholesky, cholesky_solve, sqrt};
+
+/// Standard gravity, m/s^2.
+pub const G: f32 = 9.806_65;
+
+/// Most blocks in a window.
+pub const MAX_WINDOW_BLOCKS: usize = 16;
+
+/// Tuning of [`FreeFlightGate`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct GateSettings {
+    /// Samples per block (1 to 1024).
+    pub block: u16,
+    /// Blocks per window (1 to [`MAX_WINDOW_BLOCKS`]).
+    pub window_blocks: u8,
+    /// Largest RMS residual of (F1) in a free window, m/s^2.
+    pub max_residual: f32,
+    /// Largest plausible distance from the accelerometer to the centre of mass, m.
+    pub max_offset: f32,
+    /// Still: `| |f| - g |` below this, m/s^2, on every sample of the window.
+    pub still_accel: f32,
+    /// Still: every rate component below this, rad/s.
+    pub still_rate: f32,
+}
+
+impl GateSettings {
+    /// Settings for a sample rate: blocks of about 2.5 ms, windows of about 40 ms (16 blocks),
+    /// residual 2 m/s^2 (0.2 g), offset up to 0.1 m, still within 0.5 m/s^2 and 0.2 rad/s.
+    pub fn for_rate(rate_hz: f32) -> Self {
+        let b = rate_hz * 0.0025;
+        let block = if b >= 1024.0 {
+            1024
+        } else if b >= 1.0 {
+            b as u16
+        } else {
+            1
+        };
+        GateSettings {
+            block,
+            window_blocks: MAX_WINDOW_BLOCKS as u8,
+            max_residual: 2.0,
+            max_offset: 0.1,
+            still_accel: 0.5,
+            still_rate: 0.2,
+        }
+    }
+
+    /// True when every field is usable.
+    pub fn is_valid(&self) -> bool {
+        let pos = |x: f32| x.is_finite() && x > 0.0;
+        self.block >= 1
+            && self.block <= 1024
+            && self.window_blocks >= 1
+            && self.window_blocks as usize <= MAX_WINDOW_BLOCKS
+            && pos(self.max_residual)
+            && pos(self.max_offset)
+            && pos(self.still_accel)
+            && pos(self.still_rate)
+    }
+}
+
+/// Sums over the samples of one block.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+struct BlockSums {
+    /// `K^T K`: xx, yy, zz, xy, xz, yz.
+    kk: [f32; 6],
+    kf: [f32; 3],
+    ff: f32,
+    w: [f32; 3],
+    n: u16,
+    /// Every sample still.
+    still: bool,
+}
+
+impl BlockSums {
+    const ZERO: BlockSums = BlockSums {
+        kk: [0.0; 6],
+        kf: [0.0; 3],
+        ff: 0.0,
+        w: [0.0; 3],
+        n: 0,
+        still: true,
+    };
+
+    fn add(&mut self, o: &BlockSums) {
+        for (a, b) in self.kk.iter_mut().zip(o.kk.iter()) {
+            *a += b;
+        }
+        for (a, b) in self.kf.iter_mut().zip(o.kf.iter()) {
+            *a += b;
+        }
+        for (a, b) in self.w.iter_mut().zip(o.w.iter()) {
+            *a += b;
+        }
+        self.ff += o.ff;
+        self.n = self.n.saturating_add(o.n);
+        self.still &= o.still;
+    }
+}
+
+/// What the gate concluded about the window that ended with the latest block.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WindowFit {
+    /// The window is in free flight.
+    pub free: bool,
+    /// The window is still (on a bench or held still).
+    pub still: bool,
+    /// RMS residual of (F1), m/s^2.
+    pub residual: f32,
+    /// Fitted accelerometer offset from the centre of mass, m.
+    pub offset: [f32; 3],
+    /// Samples in the window.
+    pub samples: u32,
+}
+
+/// The free-flight gate: one [`FreeFlightGate::step`] per sample with gyro and accelerometer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FreeFlightGate {
+    settings: GateSettings,
+    prev: Option<([f32; 3], [f32; 3])>,
+    open: BlockSums,
+    ring: [BlockSums; MAX_WINDOW_BLOCKS],
+    head: u8,
+    filled: u8,
+    last_fit: Option<WindowFit>,
+    bias: Option<[f32; 3]>,
+}
+
+impl FreeFlightGate {
+    /// A new gate, or `None` when the settings are not usable.
+    pub fn new(settings: GateSettings) -> Option<Self> {
+        settings.is_valid().then_some(FreeFlightGate {
+            settings,
+            prev: None,
+            open: BlockSums::ZERO,
+            ring: [BlockSums::ZERO; MAX_WINDOW_BLOCKS],
+            head: 0,
+            filled: 0,
+            last_fit: None,
+            bias: None,
+        })
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &GateSettings {
+        &self.settings
+    }
+
+    /// The latest window's fit, `None` before the first full window.
+    pub fn last_fit(&self) -> Option<WindowFit> {
+        self.last_fit
+    }
+
+    /// Gyro bias from the latest still window (rad/s), `None` before one was seen.
+    pub fn bias(&self) -> Option<[f32; 3]> {
+        self.bias
+    }
+
+    /// Forgets the window (after a gap or a bad sample: the next window starts afresh).
+    pub fn break_window(&mut self) {
+        self.prev = None;
+        self.open = BlockSums::ZERO;
+        self.filled = 0;
+        self.last_fit = None;
+    }
+
+    /// Adds one sample (`omega` rad/s, `accel` m/s^2, `dt` s since the previous one). Returns
+    /// the window's fit when this sample completed a block and the window is full.
+    pub fn step(&mut self, omega: [f32; 3], accel: [f32; 3], dt: f32) -> Option<WindowFit> {
+        let ok = omega.iter().chain(accel.iter()).all(|x| x.is_finite()) && dt > 0.0;
+        if !ok || !dt.is_finite() {
+            self.break_window();
+            return None;
+        }
+        let still = {
+            let fa = sqrt(accel[0] * accel[0] + accel[1] * accel[1] + accel[2] * accel[2]);
+            (fa - G).abs() < self.settings.still_accel
+                && omega.iter().all(|w| w.abs() < self.settings.still_rate)
+        };
+        self.open.still &= still;
+        for (s, w) in self.open.w.iter_mut().zip(omega.iter()) {
+            *s += w;
+        }
+        if let Some((w0, f0)) = self.prev {
+            let inv = 1.0 / dt;
+            let w = mid(w0, omega);
+            let f = mid(f0, accel);
+            let wd = [
+                (omega[0] - w0[0]) * inv,
+                (omega[1] - w0[1]) * inv,
+                (omega[2] - w0[2]) * inv,
+            ];
+            let k = kmatrix(w, wd);
+            add_normal(&mut self.open, &k, f);
+        }
+        self.prev = Some((omega, accel));
+        self.open.n = self.open.n.saturating_add(1);
+        if self.open.n < self.settings.block {
+            return None;
+        }
+        // Close the block into the ring.
+        let idx = (self.head as usize) % MAX_WINDOW_BLOCKS;
+        if let Some(slot) = self.ring.get_mut(idx) {
+            *slot = self.open;
+        }
+        self.open = BlockSums::ZERO;
+        let wb = self.settings.window_blocks;
+        self.head = ((idx + 1) % MAX_WINDOW_BLOCKS) as u8;
+        if self.filled < wb {
+            self.filled += 1;
+        }
+        if self.filled < wb {
+            return None;
+        }
+        let mut sum = BlockSums::ZERO;
+        for back in 0..wb as usize {
+            let i = (idx + MAX_WINDOW_BLOCKS - back) % MAX_WINDOW_BLOCKS;
+            if let Some(b) = self.ring.get(i) {
+                sum.add(b);
+            }
+        }
+        let fit = self.fit(&sum);
+        if fit.still && sum.n > 0 {
+            let n = sum.n as f32;
+            self.bias = Some([sum.w[0] / n, sum.w[1] / n, sum.w[2] / n]);
+        }
+        self.last_fit = Some(fit);
+        Some(fit)
+    }
+
+    fn fit(&self, s: &BlockSums) -> WindowFit {
+        let n = if s.n > 0 { s.n as f32 } else { 1.0 };
+        let [xx, yy, zz, xy, xz, yz] = s.kk;
+        // A small ridge keeps the solve defined when the body barely rotates (then r is not
+        // observable and the residual is simply |f|).
+        let ridge = 1e-6 * (xx + yy + zz) + 1e-9 * n;
+        let m = [
+            [xx + ridge, xy, xz],
+            [xy, yy + ridge, yz],
+            [xz, yz, zz + ridge],
+        ];
+        let r = cholesky(&m)
+            .map(|l| cholesky_solve(&l, &s.kf))
+            .unwrap_or([0.0; 3]);
+        let explained = r[0] * s.kf[0] + r[1] * s.kf[1] + r[2] * s.kf[2];
+        let rss = s.ff - explained;
+        let residual = sqrt(if rss > 0.0 { rss / n } else { 0.0 });
+        let rn = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
+        let free = residual < self.settings.max_residual
+            && rn <= self.settings.max_offset
+            && r.iter().all(|x| x.is_finite());
+        WindowFit {
+            free,
+            still: s.still,
+            residual,
+            offset: r,
+            samples: s.n as u32,
+        }
+    }
+}
+
+#[inline(always)]
+fn mid(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [
+        0.5 * (a[0] + b[0]),
+        0.5 * (a[1] + b[1]),
+        0.5 * (a[2] + b[2]),
+    ]
+}
+
+/// `K = [w]x [w]x + [w']x`, by rows.
+#[inline(always)]
+fn kmatrix(w: [f32; 3], wd: [f32; 3]) -> [[f32; 3]; 3] {
+    let [x, y, z] = w;
+    let [a, b, c] = wd;
+    // [w]x [w]x = w w^T - |w|^2 I.
+    let n2 = x * x + y * y + z * z;
+    [
+        [x * x - n2, x * y - c, x * z + b],
+        [y * x + c, y * y - n2, y * z - a],
+        [z * x - b, z * y + a, z * z - n2],
+    ]
+}
+
+#[inline(always)]
+fn add_normal(s: &mut BlockSums, k: &[[f32; 3]; 3], f: [f32; 3]) {
+    let [r0, r1, r2] = k;
+    let col = |j: usize| -> [f32; 3] {
+        [
+            r0.get(j).copied().unwrap_or(0.0),
+            r1.get(j).copied().unwrap_or(0.0),
+            r2.get(j).copied().unwrap_or(0.0),
+        ]
+    };
+    let (c0, c1, c2) = (col(0), col(1), col(2));
+    let d = |a: [f32; 3], b: [f32; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    s.kk[0] += d(c0, c0);
+    s.kk[1] += d(c1, c1);
+    s.kk[2] += d(c2, c2);
+    s.kk[3] += d(c0, c1);
+    s.kk[4] += d(c0, c2);
+    s.kk[5] += d(c1, c2);
+    s.kf[0] += d(c0, f);
+    s.kf[1] += d(c1, f);
+    s.kf[2] += d(c2, f);
+    s.ff += d(f, f);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn still_is_not_free_and_gives_bias() {
+        let mut g = FreeFlightGate::new(GateSettings::for_rate(1000.0)).unwrap();
+        let mut last = None;
+        for _ in 0..200 {
+            if let Some(f) = g.step([0.01, -0.02, 0.005], [0.0, 0.0, G], 1e-3) {
+                last = Some(f);
+            }
+        }
+        let f = last.unwrap();
+        assert!(!f.free && f.still);
+        let b = g.bias().unwrap();
+        assert!((b[0] - 0.01).abs() < 1e-6 && (b[1] + 0.02).abs() < 1e-6);
+    }
+
+    #[test]
+    fn spinning_free_body_is_free() {
+        // Constant spin about z with the accelerometer 15 mm off axis: f = -w^2 r_perp.
+        let mut g = FreeFlightGate::new(GateSettings::for_rate(1000.0)).unwrap();
+        let r = [0.015, 0.0, 0.005];
+        let w = [0.0, 0.0, 30.0];
+        let f = [-900.0 * r[0], -900.0 * r[1], 0.0];
+        let mut last = None;
+        for _ in 0..200 {
+            if let Some(x) = g.step(w, f, 1e-3) {
+                last = Some(x);
+            }
+        }
+        let fit = last.unwrap();
+        assert!(fit.free, "{fit:?}");
+        assert!(fit.residual < 0.1);
+    }
+}

@@ -1,0 +1,254 @@
+//! The sample path the firmware and the host tool share: free-flight gate, guard delay, gyro
+//! bias, tensor estimator.
+//!
+//! ```text
+//! sample -> FreeFlightGate (window fit of (F1)) -> delay line of `delay` samples
+//!        -> fed to TensorEstimator only if the gate has held free from `guard_release`
+//!           before the sample until `delay` samples after it
+//! ```
+//!
+//! A sample is committed to the estimator only once the gate has seen `delay` samples past it
+//! (the catch guard): a catch makes the window that contains it fail the fit within one block,
+//! and every sample still in the delay line is dropped, so no hand or impact sample reaches the
+//! estimator. At the release, samples are fed only from `guard_release` seconds after the
+//! start of the first free window. Without an accelerometer every sample is taken as free and
+//! the delay is zero.
+
+use crate::free_flight::{FreeFlightGate, GateSettings, WindowFit};
+use crate::status::SampleStatus;
+use crate::tensor::{TensorEstimate, TensorEstimator, TensorSettings};
+
+/// Tuning of [`Pipeline`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PipelineSettings {
+    /// The estimator.
+    pub tensor: TensorSettings,
+    /// The gate.
+    pub gate: GateSettings,
+    /// Seconds after the start of the first free window before samples are fed.
+    pub guard_release: f32,
+    /// Seconds a sample waits in the delay line (the catch guard), at most the line's capacity.
+    pub guard_catch: f32,
+    /// Nominal sample rate, Hz (turns the guards into sample counts).
+    pub rate_hz: f32,
+}
+
+impl PipelineSettings {
+    /// Settings for a gyro at `rate_hz` with white noise `noise_std` rad/s: guards of 20 ms
+    /// after the release and 30 ms before the catch.
+    pub fn for_rate(rate_hz: f32, noise_std: f32) -> Self {
+        PipelineSettings {
+            tensor: TensorSettings::for_rate(rate_hz, noise_std),
+            gate: GateSettings::for_rate(rate_hz),
+            guard_release: 0.02,
+            guard_catch: 0.03,
+            rate_hz,
+        }
+    }
+}
+
+/// One sample waiting in the delay line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Pending {
+    /// Index of the sample since the pipeline started (0-based).
+    pub index: u32,
+    /// Rate, rad/s, as measured.
+    pub omega: [f32; 3],
+    /// Rotor momentum, kg m^2/s.
+    pub h: [f32; 3],
+    /// Time step, s.
+    pub dt: f32,
+}
+
+/// What happened to the sample that left the delay line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Exit {
+    /// The sample, with the gyro bias removed when it was fed.
+    pub sample: Pending,
+    /// `Some(status)` when it was fed to the estimator, `None` when the gate held it back.
+    pub fed: Option<SampleStatus>,
+}
+
+/// Gate, delay line and estimator. `N` is the delay line's capacity in samples (the catch guard
+/// is at most `N` samples).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pipeline<const N: usize> {
+    settings: PipelineSettings,
+    gate: FreeFlightGate,
+    use_gate: bool,
+    estimator: TensorEstimator,
+    line: [Pending; N],
+    head: usize,
+    len: usize,
+    delay: usize,
+    guard_release: u32,
+    free_since: Option<u32>,
+    index: u32,
+    feeding: bool,
+    throws: u32,
+}
+
+/// The capacity used by the firmware and the host tool (so both give the same bits): 256
+/// samples, 32 ms at 8 kHz.
+pub type FlightPipeline = Pipeline<256>;
+
+impl<const N: usize> Pipeline<N> {
+    /// A pipeline, or `None` when the settings are not usable. `with_accel = false` (a log or
+    /// a board without an accelerometer) takes every sample as free flight.
+    pub fn new(settings: PipelineSettings, with_accel: bool) -> Option<Self> {
+        let gate = FreeFlightGate::new(settings.gate)?;
+        let estimator = TensorEstimator::new(settings.tensor)?;
+        let rate = settings.rate_hz;
+        if !(rate.is_finite() && rate > 0.0)
+            || !(settings.guard_release >= 0.0 && settings.guard_catch >= 0.0)
+        {
+            return None;
+        }
+        let block = settings.gate.block as f32;
+        let want = settings.guard_catch * rate + block;
+        let delay = if !with_accel {
+            0
+        } else if want >= N as f32 {
+            N
+        } else {
+            want as usize
+        };
+        let gr = settings.guard_release * rate;
+        let guard_release = if gr >= 1e6 { 1_000_000 } else { gr as u32 };
+        Some(Pipeline {
+            settings,
+            gate,
+            use_gate: with_accel,
+            estimator,
+            line: [Pending {
+                index: 0,
+                omega: [0.0; 3],
+                h: [0.0; 3],
+                dt: 0.0,
+            }; N],
+            head: 0,
+            len: 0,
+            delay,
+            guard_release,
+            free_since: if with_accel { None } else { Some(0) },
+            index: 0,
+            feeding: false,
+            throws: 0,
+        })
+    }
+
+    /// The settings.
+    pub fn settings(&self) -> &PipelineSettings {
+        &self.settings
+    }
+
+    /// The estimate from every sample fed so far.
+    pub fn estimate(&self) -> TensorEstimate {
+        self.estimator.estimate()
+    }
+
+    /// The estimator (for its counters).
+    pub fn estimator(&self) -> &TensorEstimator {
+        &self.estimator
+    }
+
+    /// The latest window fit of the gate.
+    pub fn gate_fit(&self) -> Option<WindowFit> {
+        self.gate.last_fit()
+    }
+
+    /// Gyro bias in use (from the latest still window), rad/s.
+    pub fn bias(&self) -> [f32; 3] {
+        self.gate.bias().unwrap_or([0.0; 3])
+    }
+
+    /// Free flights that reached the estimator so far.
+    pub fn throws(&self) -> u32 {
+        self.throws
+    }
+
+    /// True while the gate holds free flight.
+    pub fn in_free_flight(&self) -> bool {
+        self.free_since.is_some()
+    }
+
+    /// Adds one sample: rate (rad/s), specific force (m/s^2; ignored without an
+    /// accelerometer), rotor momentum (kg m^2/s), time step (s). Returns the sample that left
+    /// the delay line, if one did, and what was done with it.
+    pub fn step(&mut self, omega: [f32; 3], accel: [f32; 3], h: [f32; 3], dt: f32) -> Option<Exit> {
+        let index = self.index;
+        self.index = self.index.saturating_add(1);
+        if self.use_gate {
+            let bad = !omega.iter().chain(accel.iter()).all(|x| x.is_finite())
+                || !(dt.is_finite() && dt > 0.0);
+            if bad {
+                // A bad sample breaks the window: nothing is known to be free until a new
+                // window has been fitted.
+                self.free_since = None;
+            }
+            if let Some(fit) = self.gate.step(omega, accel, dt) {
+                if fit.free {
+                    if self.free_since.is_none() {
+                        let start = (index + 1).saturating_sub(fit.samples);
+                        self.free_since = Some(start);
+                    }
+                } else {
+                    self.free_since = None;
+                }
+            }
+        }
+        let pending = Pending {
+            index,
+            omega,
+            h,
+            dt,
+        };
+        if self.delay == 0 {
+            return Some(self.release(pending));
+        }
+        // Push into the ring.
+        let tail = (self.head + self.len) % N;
+        if let Some(slot) = self.line.get_mut(tail) {
+            *slot = pending;
+        }
+        self.len += 1;
+        if self.len <= self.delay {
+            return None;
+        }
+        let out = self.line.get(self.head).copied();
+        self.head = (self.head + 1) % N;
+        self.len -= 1;
+        out.map(|p| self.release(p))
+    }
+
+    /// Feeds `p` to the estimator when the gate allows it.
+    fn release(&mut self, mut p: Pending) -> Exit {
+        let allowed = self
+            .free_since
+            .is_some_and(|s| p.index >= s.saturating_add(self.guard_release));
+        if !allowed {
+            if self.feeding {
+                self.estimator.end_stretch();
+                self.feeding = false;
+            }
+            return Exit {
+                sample: p,
+                fed: None,
+            };
+        }
+        if !self.feeding {
+            self.feeding = true;
+            self.throws = self.throws.saturating_add(1);
+        }
+        let b = self.bias();
+        p.omega = [p.omega[0] - b[0], p.omega[1] - b[1], p.omega[2] - b[2]];
+        let status = self.estimator.step(p.omega, p.h, p.dt);
+        Exit {
+            sample: p,
+            fed: Some(status),
+        }
+    }
+}

@@ -1,0 +1,360 @@
+//! `inertia identify`: a [`Recording`] through the shared on-board pipeline
+//! ([`identifier_core::FlightPipeline`]: free-flight gate, guard delay, gyro bias, tensor
+//! estimator), per throw and pooled.
+//!
+//! The pooled result is the pipeline's own estimate after the whole log, which is what the
+//! firmware computes on board from the same samples (same `f32` code, same order of
+//! operations). Per-throw results re-run a fresh [`TensorEstimator`] over exactly the samples
+//! the pipeline fed during that throw.
+
+use identifier_core::{
+    FlightPipeline, PipelineSettings, TensorEstimate, TensorEstimator, TensorStatus,
+};
+use serde::Serialize;
+
+use crate::recording::Recording;
+
+/// A rotor (flywheel, motor) whose momentum is a known input.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Rotor {
+    /// Rotor inertia about its axis, kg m^2.
+    pub inertia: f32,
+    /// Unit axis in the sensor frame (the direction of positive speed).
+    pub axis: [f32; 3],
+    /// Motor poles (for eRPM channels).
+    pub poles: Option<u32>,
+}
+
+/// Parses `x|y|z|-x|-y|-z`.
+pub fn parse_axis(s: &str) -> Result<[f32; 3], String> {
+    match s.trim() {
+        "x" | "+x" => Ok([1.0, 0.0, 0.0]),
+        "y" | "+y" => Ok([0.0, 1.0, 0.0]),
+        "z" | "+z" => Ok([0.0, 0.0, 1.0]),
+        "-x" => Ok([-1.0, 0.0, 0.0]),
+        "-y" => Ok([0.0, -1.0, 0.0]),
+        "-z" => Ok([0.0, 0.0, -1.0]),
+        o => Err(format!(
+            "rotor axis {o:?} is not one of x, y, z, -x, -y, -z"
+        )),
+    }
+}
+
+/// One estimate as written to JSON. Tensors are 3x3 in the log's gyro axes as logged.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct EstimateJson {
+    /// First sample used, s (log time).
+    pub start_s: f64,
+    /// Last sample used, s.
+    pub end_s: f64,
+    /// Samples used.
+    pub samples: u32,
+    /// Why it is or is not to be trusted (`Converged` only when it is).
+    pub status: String,
+    /// `Full` or `Principal` (products of inertia insignificant and set to zero).
+    pub model: String,
+    /// `J`, kg m^2, when a rotor momentum fixes the scale; else null.
+    pub tensor_kg_m2: Option<[[f32; 3]; 3]>,
+    /// Standard deviation of each entry of `tensor_kg_m2`.
+    pub tensor_std_kg_m2: Option<[[f32; 3]; 3]>,
+    /// `J / trace(J)`.
+    pub tensor_normalized: Option<[[f32; 3]; 3]>,
+    /// Standard deviation of each entry of `tensor_normalized`.
+    pub tensor_normalized_std: Option<[[f32; 3]; 3]>,
+    /// The paper's ratios `a`.
+    pub a: Option<[f32; 3]>,
+    /// Standard deviations of `a`.
+    pub std_a: Option<[f32; 3]>,
+    /// Principal moments, ascending (kg m^2 with a tensor, else normalised).
+    pub principal_moments: Option<[f32; 3]>,
+    /// Principal axes, one unit vector per moment.
+    pub principal_axes: Option<[[f32; 3]; 3]>,
+    /// Residual over the gyro noise.
+    pub residual_ratio: f32,
+    /// Information per equation over the noise (about 1 for a still gyro).
+    pub excitation: f32,
+}
+
+impl EstimateJson {
+    fn from(e: &TensorEstimate, start_s: f64, end_s: f64) -> Self {
+        EstimateJson {
+            start_s,
+            end_s,
+            samples: e.samples,
+            status: format!("{:?}", e.status),
+            model: format!("{:?}", e.model),
+            tensor_kg_m2: e.tensor,
+            tensor_std_kg_m2: e.tensor_std,
+            tensor_normalized: e.normalized,
+            tensor_normalized_std: e.normalized_std,
+            a: e.a,
+            std_a: e.std_a,
+            principal_moments: e.principal_moments,
+            principal_axes: e.principal_axes,
+            residual_ratio: e.residual_ratio,
+            excitation: e.excitation,
+        }
+    }
+}
+
+/// The whole report.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Report {
+    /// The input file and format.
+    pub input: String,
+    /// Samples in the log.
+    pub log_samples: usize,
+    /// Median sample rate, Hz.
+    pub rate_hz: f32,
+    /// Gyro white noise used as the floor of the uncertainty, rad/s.
+    pub noise_std: f32,
+    /// Gyro bias removed (from the last still window before the last throw), rad/s.
+    pub gyro_bias: [f32; 3],
+    /// Whether the free flights were found from the accelerometer (else the whole log or the
+    /// given segments were taken).
+    pub free_flight_detection: bool,
+    /// Every free flight.
+    pub throws: Vec<EstimateJson>,
+    /// All throws together (the on-board result).
+    pub pooled: EstimateJson,
+    /// Warnings for the user.
+    pub warnings: Vec<String>,
+}
+
+/// Why no estimate could be given at all.
+#[derive(Debug, PartialEq)]
+pub enum IdentifyError {
+    /// Too few samples to do anything.
+    TooShort,
+    /// The gate found no free flight.
+    NoFreeFlight,
+    /// A rotor was given but the log has no rotor-speed channel, or eRPM without poles.
+    Rotor(String),
+    /// Settings could not be built (rate or noise not finite).
+    Settings(String),
+}
+
+impl std::fmt::Display for IdentifyError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            IdentifyError::TooShort => write!(f, "the log has fewer than 10 samples"),
+            IdentifyError::NoFreeFlight => write!(
+                f,
+                "no free flight found: the accelerometer never read pure rotation about the \
+                 centre of mass (give --segments to choose the stretches by hand)"
+            ),
+            IdentifyError::Rotor(m) => write!(f, "{m}"),
+            IdentifyError::Settings(m) => write!(f, "{m}"),
+        }
+    }
+}
+
+impl std::error::Error for IdentifyError {}
+
+/// Median time step of the recording, s.
+pub fn median_dt(t: &[f64]) -> f64 {
+    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    if d.is_empty() {
+        return f64::NAN;
+    }
+    d.sort_by(|a, b| a.total_cmp(b));
+    d[d.len() / 2]
+}
+
+/// Gyro white noise estimated from the data: the median absolute third difference per axis
+/// (third differences cancel any quadratic motion; for white noise their variance is
+/// `20 sigma^2`), turned into a standard deviation, smallest over the axes. Floored at
+/// `1e-4 rad/s`.
+pub fn estimate_noise(gyro: &[[f32; 3]]) -> f32 {
+    let mut best = f32::INFINITY;
+    for ax in 0..3 {
+        let mut d: Vec<f32> = gyro
+            .windows(4)
+            .map(|w| (w[3][ax] - 3.0 * w[2][ax] + 3.0 * w[1][ax] - w[0][ax]).abs())
+            .filter(|x| x.is_finite())
+            .collect();
+        if d.is_empty() {
+            continue;
+        }
+        d.sort_by(|a, b| a.total_cmp(b));
+        let mad = d[d.len() / 2];
+        let s = mad / 0.6745 / 20f32.sqrt();
+        if s < best {
+            best = s;
+        }
+    }
+    if best.is_finite() {
+        best.max(1e-4)
+    } else {
+        2e-3
+    }
+}
+
+/// Options of one identification.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct IdentifyOptions {
+    /// Known rotor.
+    pub rotor: Option<Rotor>,
+    /// Hand-chosen stretches `(start_s, end_s)`; the gate is not used.
+    pub segments: Option<Vec<(f64, f64)>>,
+    /// Gyro noise, rad/s; estimated from the data when `None`.
+    pub noise_std: Option<f32>,
+}
+
+/// Runs the identification.
+pub fn identify(
+    rec: &Recording,
+    opts: &IdentifyOptions,
+    mut progress: impl FnMut(usize),
+) -> Result<Report, IdentifyError> {
+    let n = rec.len();
+    if n < 10 {
+        return Err(IdentifyError::TooShort);
+    }
+    let mut warnings = rec.warnings.clone();
+    let dt_med = median_dt(&rec.t);
+    let rate = (1.0 / dt_med) as f32;
+    if !(rate.is_finite() && rate > 0.0) {
+        return Err(IdentifyError::Settings(
+            "the time steps are not positive".into(),
+        ));
+    }
+    let noise = opts.noise_std.unwrap_or_else(|| estimate_noise(&rec.gyro));
+    // Rotor momentum per sample.
+    let h: Vec<[f32; 3]> = match &opts.rotor {
+        None => vec![[0.0; 3]; n],
+        Some(r) => {
+            let Some(ch) = &rec.rotor else {
+                return Err(IdentifyError::Rotor(
+                    "--rotor-inertia was given but the log has no rotor-speed channel".into(),
+                ));
+            };
+            let Some(speed) = ch.rad_per_sec(r.poles) else {
+                return Err(IdentifyError::Rotor(
+                    "the log gives rotor speed as eRPM: --rotor-poles is needed".into(),
+                ));
+            };
+            speed
+                .iter()
+                .map(|s| r.axis.map(|a| a * r.inertia * s))
+                .collect()
+        }
+    };
+    if opts.rotor.is_none() && rec.rotor.is_some() {
+        warnings.push(
+            "the log has a rotor-speed channel but no --rotor-inertia was given: rotor \
+             momentum is ignored and the tensor is determined up to scale only"
+                .into(),
+        );
+    }
+    let mut settings = PipelineSettings::for_rate(rate, noise);
+    settings.tensor.full_scale = rec.gyro_full_scale;
+    let dt_of = |i: usize| -> f32 {
+        if i == 0 {
+            dt_med as f32
+        } else {
+            (rec.t[i] - rec.t[i - 1]) as f32
+        }
+    };
+
+    // Which samples count as free flight, and the pooled on-board estimate.
+    let mut fed_runs: Vec<Vec<usize>> = Vec::new();
+    let pooled_est;
+    let bias;
+    let detection;
+    if let Some(segs) = &opts.segments {
+        detection = false;
+        bias = [0.0; 3];
+        let mut pooled = TensorEstimator::new(settings.tensor)
+            .ok_or_else(|| IdentifyError::Settings("invalid estimator settings".into()))?;
+        for &(s, e) in segs {
+            let idx: Vec<usize> = (0..n).filter(|&i| rec.t[i] >= s && rec.t[i] <= e).collect();
+            if idx.is_empty() {
+                warnings.push(format!("segment {s}..{e} s holds no sample of the log"));
+                continue;
+            }
+            for &i in &idx {
+                pooled.step(rec.gyro[i], h[i], dt_of(i));
+            }
+            pooled.end_stretch();
+            fed_runs.push(idx);
+        }
+        progress(n);
+        pooled_est = pooled.estimate();
+    } else {
+        let accel = rec.accel.as_ref();
+        detection = accel.is_some();
+        let mut p = FlightPipeline::new(settings, accel.is_some())
+            .ok_or_else(|| IdentifyError::Settings("invalid pipeline settings".into()))?;
+        let mut last_fed: Option<usize> = None;
+        let max_gap = (0.1 * rate as f64).max(2.0) as usize;
+        for i in 0..n {
+            let f = accel.map(|a| a[i]).unwrap_or([0.0; 3]);
+            if let Some(exit) = p.step(rec.gyro[i], f, h[i], dt_of(i)) {
+                if exit.fed.is_some() {
+                    let k = exit.sample.index as usize;
+                    let new_run = last_fed.is_none_or(|l| k > l + max_gap);
+                    if new_run {
+                        fed_runs.push(Vec::new());
+                    }
+                    if let Some(run) = fed_runs.last_mut() {
+                        run.push(k);
+                    }
+                    last_fed = Some(k);
+                }
+            }
+            if i % 65536 == 0 {
+                progress(i);
+            }
+        }
+        progress(n);
+        pooled_est = p.estimate();
+        bias = p.bias();
+    }
+    if fed_runs.iter().all(|r| r.is_empty()) {
+        return Err(IdentifyError::NoFreeFlight);
+    }
+    let throws: Vec<EstimateJson> = fed_runs
+        .iter()
+        .filter(|r| !r.is_empty())
+        .map(|run| {
+            let mut e = TensorEstimator::new(settings.tensor).expect("settings validated above");
+            for &i in run {
+                let w = rec.gyro[i];
+                let w = [w[0] - bias[0], w[1] - bias[1], w[2] - bias[2]];
+                e.step(w, h[i], dt_of(i));
+            }
+            let (a, b) = (run[0], run[run.len() - 1]);
+            EstimateJson::from(&e.estimate(), rec.t[a], rec.t[b])
+        })
+        .collect();
+    let first = fed_runs
+        .iter()
+        .find(|r| !r.is_empty())
+        .map(|r| r[0])
+        .unwrap_or(0);
+    let last = fed_runs
+        .iter()
+        .rev()
+        .find(|r| !r.is_empty())
+        .map(|r| r[r.len() - 1])
+        .unwrap_or(0);
+    let pooled = EstimateJson::from(&pooled_est, rec.t[first], rec.t[last]);
+    if pooled_est.status != TensorStatus::Converged {
+        warnings.push(format!(
+            "pooled estimate is not to be trusted: {:?}",
+            pooled_est.status
+        ));
+    }
+    Ok(Report {
+        input: rec.source.clone(),
+        log_samples: n,
+        rate_hz: rate,
+        noise_std: noise,
+        gyro_bias: bias,
+        free_flight_detection: detection,
+        throws,
+        pooled,
+        warnings,
+    })
+}
