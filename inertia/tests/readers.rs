@@ -99,6 +99,13 @@ fn thrown_fc_blackbox_logs() {
         assert!((r.gyro_full_scale - 34.9066).abs() < 1e-3);
         assert!(r.warnings.iter().any(|w| w.contains("Indiflight")));
         assert!(!r.warnings.iter().any(|w| w.contains("deg/s read as rad/s")));
+        if p.ends_with("LOG00119.BFL") {
+            // The first P-frame after the I-frame at iteration 128, which blackbox-log 0.4.3
+            // alone decodes as (0, 0, 14) counts; orangebox and the corrected reader say
+            // (-1, 0, 16).
+            let counts = r.gyro[129].map(|v| (f64::from(v).to_degrees() * 16.384).round());
+            assert_eq!(counts, [-1.0, 0.0, 16.0]);
+        }
     }
 }
 

@@ -137,6 +137,128 @@ fn fields(headers: &Headers) -> Result<Fields, String> {
     })
 }
 
+/// Undoes a `blackbox-log` 0.4.3 decoding error.
+///
+/// After an I-frame, the blackbox encoder (Betaflight's `writeIntraframe`) makes the I-frame
+/// both the previous and the previous-previous state, so the first P-frame's `AVERAGE_2`
+/// (predictor 3) and `STRAIGHT_LINE` (predictor 2) fields are predicted from the I-frame
+/// alone. `blackbox-log` 0.4.3 keeps the real frame before the I-frame as previous-previous
+/// (it does so right only for the frame time): that P-frame comes out wrong by half the
+/// change over the I-frame, and the error carries on (about 2/3 of it) through every P-frame
+/// until the next I-frame. Found by comparing with the `orangebox` decoder
+/// (`scripts/check-blackbox-reader.sh`): `gyroADC` and `accSmooth` (predictor 3) differed
+/// from the 2nd P-frame after the first I-frame on.
+///
+/// The crate's outputs still carry the encoded deltas exactly: `delta = out - pred(crate's
+/// history)`. This replays each such field: it recovers the delta with the crate's own
+/// predictor on the crate's history, and adds it to the predictor applied to the corrected
+/// history, where an I-frame fills both slots.
+#[derive(Debug)]
+struct Replay {
+    predictor: u8,
+    signed: bool,
+    /// The crate's last two outputs.
+    crate_hist: (Option<u32>, Option<u32>),
+    /// The corrected last two values.
+    true_hist: (Option<u32>, Option<u32>),
+}
+
+impl Replay {
+    fn new(predictor: u8, signed: bool) -> Self {
+        Replay {
+            predictor,
+            signed,
+            crate_hist: (None, None),
+            true_hist: (None, None),
+        }
+    }
+
+    /// `blackbox-log`'s prediction (its `average` / `straight_line`, overflow rules included).
+    fn predict(&self, last: Option<u32>, last_last: Option<u32>) -> u32 {
+        let wide = |v: u32| {
+            if self.signed {
+                i64::from(v as i32)
+            } else {
+                i64::from(v)
+            }
+        };
+        let fits = |r: i64| {
+            if self.signed {
+                i32::try_from(r).is_ok()
+            } else {
+                u32::try_from(r).is_ok()
+            }
+        };
+        match self.predictor {
+            3 => {
+                let l = last.unwrap_or(0);
+                last_last.map_or(l, |ll| ((wide(l) + wide(ll)) / 2) as u32)
+            }
+            2 => match (last, last_last) {
+                (Some(l), Some(ll)) => {
+                    let r = 2 * wide(l) - wide(ll);
+                    if fits(r) {
+                        r as u32
+                    } else {
+                        l
+                    }
+                }
+                (Some(l), None) => l,
+                _ => 0,
+            },
+            _ => 0,
+        }
+    }
+
+    /// The corrected value of the crate's output `out` for a frame.
+    fn step(&mut self, out: u32, intra: bool) -> u32 {
+        let value = if intra {
+            out
+        } else {
+            let delta = out.wrapping_sub(self.predict(self.crate_hist.0, self.crate_hist.1));
+            self.predict(self.true_hist.0, self.true_hist.1)
+                .wrapping_add(delta)
+        };
+        self.crate_hist = (Some(out), self.crate_hist.0);
+        self.true_hist = if intra {
+            (Some(value), Some(value))
+        } else {
+            (Some(value), self.true_hist.0)
+        };
+        value
+    }
+}
+
+/// The `H name:value` lines of each log's header block, in the order of the logs.
+fn header_blocks(data: &[u8]) -> Vec<Vec<(String, String)>> {
+    let mut out = Vec::new();
+    let mut pos = 0;
+    while let Some(start) = find(&data[pos..], FULL_MARKER).map(|i| pos + i) {
+        let mut block = Vec::new();
+        let mut line = start;
+        while data[line..].starts_with(b"H ") {
+            let end = data[line..]
+                .iter()
+                .position(|&b| b == b'\n')
+                .map_or(data.len(), |i| line + i);
+            let text = String::from_utf8_lossy(&data[line + 2..end]);
+            if let Some((k, v)) = text.split_once(':') {
+                block.push((k.to_string(), v.trim_end_matches('\r').to_string()));
+            }
+            if end >= data.len() {
+                break;
+            }
+            line = end + 1;
+        }
+        out.push(block);
+        pos = start + FULL_MARKER.len();
+    }
+    out
+}
+
+/// The marker `blackbox-log` splits a file at.
+const FULL_MARKER: &[u8] = b"H Product:Blackbox flight data recorder by Nicholas Sherlock\n";
+
 fn value(raw: u32, signed: bool) -> f64 {
     if signed {
         f64::from(raw as i32)
@@ -165,6 +287,7 @@ pub fn read_bytes(path: &Path, data: &[u8]) -> Result<Recording, ReadError> {
     let (data, replaced) = rewrite_unknown_firmware(data);
     let file = File::new(&data);
     let count = file.log_count();
+    let blocks = header_blocks(&data);
     let mut best: Option<(usize, Result<Recording, ReadError>)> = None;
     let mut header_errors = Vec::new();
     for index in 0..count {
@@ -176,7 +299,9 @@ pub fn read_bytes(path: &Path, data: &[u8]) -> Result<Recording, ReadError> {
             }
             None => continue,
         };
-        let (frames, rec) = read_log(path, &headers);
+        let empty = Vec::new();
+        let block = blocks.get(index).unwrap_or(&empty);
+        let (frames, rec) = read_log(path, &headers, block);
         if best.as_ref().is_none_or(|(n, _)| frames > *n) {
             best = Some((frames, rec));
         }
@@ -208,11 +333,54 @@ pub fn read_bytes(path: &Path, data: &[u8]) -> Result<Recording, ReadError> {
 }
 
 /// Decodes one log: the number of main frames seen and the recording (or the error).
-fn read_log(path: &Path, headers: &Headers) -> (usize, Result<Recording, ReadError>) {
+fn read_log(
+    path: &Path,
+    headers: &Headers,
+    block: &[(String, String)],
+) -> (usize, Result<Recording, ReadError>) {
     let f = match fields(headers) {
         Ok(f) => f,
         Err(e) => return (0, Err(ReadError::new(path, e))),
     };
+    let header = |k: &str| {
+        block
+            .iter()
+            .find(|(key, _)| key == k)
+            .map(|(_, v)| v.as_str())
+    };
+    // P-frame predictors by field name. (The header lists include `time`, which the crate's
+    // frame definition leaves out: match by name, never by position.)
+    let names: Vec<&str> = header("Field I name")
+        .unwrap_or_default()
+        .split(',')
+        .collect();
+    let p_predictors: Vec<u8> = header("Field P predictor")
+        .unwrap_or_default()
+        .split(',')
+        .map(|p| p.trim().parse().unwrap_or(0))
+        .collect();
+    let def = headers.main_frame_def();
+    let predictor_of = |i: usize| -> u8 {
+        def.get(i)
+            .and_then(|fd| names.iter().position(|n| *n == fd.name))
+            .and_then(|j| p_predictors.get(j).copied())
+            .unwrap_or(0)
+    };
+    let i_interval: u32 = header("I interval")
+        .and_then(|v| v.trim().parse().ok())
+        .filter(|&v| v > 0)
+        .unwrap_or(32);
+    let replay_for = |i: usize, signed: bool| {
+        let p = predictor_of(i);
+        (p == 2 || p == 3).then(|| Replay::new(p, signed))
+    };
+    let mut gyro_fix: Vec<Option<Replay>> = (0..3)
+        .map(|k| replay_for(f.gyro[k], f.gyro_signed[k]))
+        .collect();
+    let mut acc_fix: Vec<Option<Replay>> = (0..3)
+        .map(|k| f.acc.and_then(|a| replay_for(a[k], f.acc_signed[k])))
+        .collect();
+    let mut erpm_fix = f.erpm.and_then(|c| replay_for(c, false));
     let acc_1g = headers
         .unknown()
         .get("acc_1G")
@@ -234,25 +402,38 @@ fn read_log(path: &Path, headers: &Headers) -> (usize, Result<Recording, ReadErr
         if failed.is_some() {
             continue;
         }
-        let read3 = |cols: [usize; 3], signed: [bool; 3], k: f64| -> Option<[f64; 3]> {
+        // I-frames are the frames whose iteration is a multiple of the I interval (Betaflight
+        // writes them so; checked on every frame of the ten thrown-fc logs).
+        let intra = frame.get_raw(0).is_some_and(|it| it % i_interval == 0);
+        let read3 = |cols: [usize; 3],
+                     signed: [bool; 3],
+                     fix: &mut [Option<Replay>],
+                     k: f64|
+         -> Option<[f64; 3]> {
             let mut out = [0.0; 3];
-            for (o, (&c, s)) in out.iter_mut().zip(cols.iter().zip(signed)) {
-                *o = frame.get_raw(c).map(|r| value(r, s))? * k;
+            for (o, ((&c, s), fx)) in out
+                .iter_mut()
+                .zip(cols.iter().zip(signed).zip(fix.iter_mut()))
+            {
+                let raw = frame.get_raw(c)?;
+                let raw = fx.as_mut().map_or(raw, |r| r.step(raw, intra));
+                *o = value(raw, s) * k;
             }
             Some(out)
         };
-        let Some(w) = read3(f.gyro, f.gyro_signed, kw) else {
+        let Some(w) = read3(f.gyro, f.gyro_signed, &mut gyro_fix, kw) else {
             failed = Some(ReadError::at(path, at, "frame lacks a gyro field"));
             continue;
         };
         // A missing value becomes NaN, which `Samples::push` refuses naming the frame.
         let a = f
             .acc
-            .map(|cols| read3(cols, f.acc_signed, ka).unwrap_or([f64::NAN; 3]));
+            .map(|cols| read3(cols, f.acc_signed, &mut acc_fix, ka).unwrap_or([f64::NAN; 3]));
         let r = f.erpm.map(|c| {
-            frame
-                .get_raw(c)
-                .map_or(f64::NAN, |v| value(v, false) * f64::from(ERPM_LOG_FACTOR))
+            frame.get_raw(c).map_or(f64::NAN, |v| {
+                let v = erpm_fix.as_mut().map_or(v, |r| r.step(v, intra));
+                value(v, false) * f64::from(ERPM_LOG_FACTOR)
+            })
         });
         let t = frame.time_raw() as f64 * 1e-6;
         if let Err(e) = samples.push(at, t, w, a, r) {
