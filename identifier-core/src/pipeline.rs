@@ -35,13 +35,13 @@ pub struct PipelineSettings {
 }
 
 impl PipelineSettings {
-    /// Settings for a gyro at `rate_hz` with white noise `noise_std` rad/s: guards of 20 ms
+    /// Settings for a gyro at `rate_hz` with white noise `noise_std` rad/s: guards of 50 ms
     /// after the release and 30 ms before the catch.
     pub fn for_rate(rate_hz: f32, noise_std: f32) -> Self {
         PipelineSettings {
             tensor: TensorSettings::for_rate(rate_hz, noise_std),
             gate: GateSettings::for_rate(rate_hz),
-            guard_release: 0.02,
+            guard_release: 0.05,
             guard_catch: 0.03,
             rate_hz,
         }

@@ -126,12 +126,15 @@ impl TensorSettings {
     }
 
     /// Settings for a gyro sampled at `rate_hz` with white noise `noise_std` (rad/s per
-    /// sample): the longest step is ten sample periods; everything else is rate-independent.
-    /// Invalid inputs give settings that [`TensorEstimator::new`] refuses.
+    /// sample): the longest step is ten sample periods but at most 0.1 s (no thrown body is
+    /// followed at under 100 Hz, and a log whose steps all exceed it has the wrong time unit);
+    /// everything else is rate-independent. Invalid inputs give settings that
+    /// [`TensorEstimator::new`] refuses.
     pub fn for_rate(rate_hz: f32, noise_std: f32) -> Self {
         let mut s = Self::new();
         s.noise_std = noise_std;
-        s.max_dt = 10.0 / rate_hz;
+        let m = 10.0 / rate_hz;
+        s.max_dt = if m < 0.1 { m } else { 0.1 };
         s
     }
 
@@ -166,7 +169,9 @@ impl Default for TensorSettings {
 pub enum TensorStatus {
     /// Fewer than [`TensorSettings::min_samples`] samples, or fewer equations than unknowns.
     TooFewSamples,
-    /// Rates above [`TensorSettings::max_plausible_rate`] were seen: deg/s data read as rad/s?
+    /// Rates above [`TensorSettings::max_plausible_rate`] were seen (deg/s data read as
+    /// rad/s?), or more than a tenth of the steps were gaps longer than
+    /// [`TensorSettings::max_dt`] (time in ms or us read as seconds?).
     UnitsLookWrong,
     /// More than 1 % of the samples were saturated (a clipped throw).
     Saturated,
@@ -727,6 +732,11 @@ impl TensorEstimator {
             samples,
             stretches,
         };
+        let c = &self.counters;
+        if c.implausible > 0 || c.gaps.saturating_mul(10) > c.used {
+            out.status = TensorStatus::UnitsLookWrong;
+            return out;
+        }
         if samples < self.settings.min_samples || nrm.equations < 12 {
             return out;
         }
@@ -847,7 +857,7 @@ impl TensorEstimator {
 
         let c = &self.counters;
         let seen = c.used.saturating_add(c.saturated);
-        out.status = if c.implausible > 0 {
+        out.status = if c.implausible > 0 || c.gaps.saturating_mul(10) > c.used {
             TensorStatus::UnitsLookWrong
         } else if c.saturated.saturating_mul(100) > seen {
             TensorStatus::Saturated

@@ -1,0 +1,278 @@
+//! `inertia identify` end to end: the shared thrown-FC logs (free flight found, hand and catch
+//! excluded) and simulated `t,wx,wy,wz` logs, including the user mistakes that must never
+//! come out `Converged` (deg/s, time in ms, a still gyro, a clipped toss).
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn exe() -> &'static str {
+    env!("CARGO_BIN_EXE_inertia")
+}
+
+fn out_dir() -> PathBuf {
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("identify");
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn run(args: &[&str], json: &Path) -> (i32, serde_json::Value, String) {
+    let o = Command::new(exe())
+        .arg("identify")
+        .args(args)
+        .arg("--json")
+        .arg(json)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    let v = std::fs::read_to_string(json)
+        .ok()
+        .and_then(|s| serde_json::from_str(&s).ok())
+        .unwrap_or(serde_json::Value::Null);
+    (o.status.code().unwrap_or(-1), v, err)
+}
+
+/// Torque-free principal body, RK4, `t,wx,wy,wz` rows with white noise.
+fn toss(
+    a_mom: [f64; 3],
+    w0: [f64; 3],
+    rate: f64,
+    secs: f64,
+    noise: f64,
+    seed: u64,
+) -> Vec<[f64; 4]> {
+    let f = |w: [f64; 3]| {
+        [
+            (a_mom[1] - a_mom[2]) / a_mom[0] * w[1] * w[2],
+            (a_mom[2] - a_mom[0]) / a_mom[1] * w[2] * w[0],
+            (a_mom[0] - a_mom[1]) / a_mom[2] * w[0] * w[1],
+        ]
+    };
+    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let mut gauss = || {
+        let mut acc = 0.0;
+        for _ in 0..12 {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            acc += (s >> 11) as f64 / (1u64 << 53) as f64;
+        }
+        acc - 6.0
+    };
+    let h = 1.0 / rate / 4.0;
+    let mut w = w0;
+    let mut out = Vec::new();
+    for k in 0..(secs * rate) as usize {
+        out.push([
+            k as f64 / rate,
+            w[0] + noise * gauss(),
+            w[1] + noise * gauss(),
+            w[2] + noise * gauss(),
+        ]);
+        for _ in 0..4 {
+            let k1 = f(w);
+            let k2 = f([0, 1, 2].map(|i| w[i] + h / 2.0 * k1[i]));
+            let k3 = f([0, 1, 2].map(|i| w[i] + h / 2.0 * k2[i]));
+            let k4 = f([0, 1, 2].map(|i| w[i] + h * k3[i]));
+            w = [0, 1, 2].map(|i| w[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]));
+        }
+    }
+    out
+}
+
+fn write_csv(path: &Path, rows: &[[f64; 4]], time_scale: f64, rate_scale: f64) {
+    let mut s = String::from("t,wx,wy,wz\n");
+    for r in rows {
+        s += &format!(
+            "{},{},{},{}\n",
+            r[0] * time_scale,
+            r[1] * rate_scale,
+            r[2] * rate_scale,
+            r[3] * rate_scale
+        );
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+const MOM: [f64; 3] = [0.6, 1.54, 1.0];
+
+fn truth() -> [f64; 3] {
+    [
+        (MOM[1] - MOM[2]) / MOM[0],
+        (MOM[2] - MOM[0]) / MOM[1],
+        (MOM[0] - MOM[1]) / MOM[2],
+    ]
+}
+
+fn a_of(v: &serde_json::Value) -> Option<([f64; 3], [f64; 3])> {
+    let a = v["pooled"]["a"].as_array()?;
+    let s = v["pooled"]["std_a"].as_array()?;
+    Some((
+        [0, 1, 2].map(|i| a[i].as_f64().unwrap()),
+        [0, 1, 2].map(|i| s[i].as_f64().unwrap()),
+    ))
+}
+
+#[test]
+fn csv_toss_converges_to_the_truth() {
+    let d = out_dir();
+    let rows = toss(MOM, [1.0, 1.0, 1.0], 200.0, 10.0, 2e-3, 1);
+    let csv = d.join("toss.csv");
+    write_csv(&csv, &rows, 1.0, 1.0);
+    let (code, v, err) = run(&["--input", csv.to_str().unwrap()], &d.join("toss.json"));
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(v["pooled"]["status"], "Converged", "{err}");
+    let (a, s) = a_of(&v).unwrap();
+    let t = truth();
+    for i in 0..3 {
+        let z = (a[i] - t[i]) / s[i];
+        println!(
+            "a{} {:.5} truth {:.5} std {:.2e} z {z:.2}",
+            i + 1,
+            a[i],
+            t[i],
+            s[i]
+        );
+        assert!(z.abs() < 5.0);
+    }
+}
+
+#[test]
+fn declared_units_are_honoured_and_undeclared_mistakes_are_not_trusted() {
+    let d = out_dir();
+    let rows = toss(MOM, [1.0, 1.0, 1.0], 200.0, 10.0, 2e-3, 2);
+    let deg = d.join("deg.csv");
+    write_csv(&deg, &rows, 1.0, 180.0 / std::f64::consts::PI);
+    let (_, v, _) = run(&["--input", deg.to_str().unwrap()], &d.join("deg.json"));
+    println!("deg/s undeclared: {}", v["pooled"]["status"]);
+    assert_ne!(v["pooled"]["status"], "Converged");
+    let (code, v, err) = run(
+        &["--input", deg.to_str().unwrap(), "--gyro-unit", "deg/s"],
+        &d.join("deg2.json"),
+    );
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(v["pooled"]["status"], "Converged");
+
+    let ms = d.join("ms.csv");
+    write_csv(&ms, &rows, 1000.0, 1.0);
+    let (_, v, _) = run(&["--input", ms.to_str().unwrap()], &d.join("ms.json"));
+    println!("ms undeclared: {}", v["pooled"]["status"]);
+    assert_ne!(v["pooled"]["status"], "Converged");
+    let (code, v, err) = run(
+        &["--input", ms.to_str().unwrap(), "--time-unit", "ms"],
+        &d.join("ms2.json"),
+    );
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(v["pooled"]["status"], "Converged");
+
+    // dt 10x too small: time column divided by ten.
+    let fast = d.join("fast.csv");
+    write_csv(&fast, &rows, 0.1, 1.0);
+    let (_, v, _) = run(&["--input", fast.to_str().unwrap()], &d.join("fast.json"));
+    println!("dt/10: {}", v["pooled"]["status"]);
+    assert_ne!(v["pooled"]["status"], "Converged");
+}
+
+#[test]
+fn still_and_clipped_are_not_trusted() {
+    let d = out_dir();
+    let still: Vec<[f64; 4]> = toss(MOM, [0.0, 0.0, 0.0], 1000.0, 5.0, 1e-3, 3);
+    let p = d.join("still.csv");
+    write_csv(&p, &still, 1.0, 1.0);
+    let (code, v, err) = run(&["--input", p.to_str().unwrap()], &d.join("still.json"));
+    println!("still: exit {code} {}", v["pooled"]["status"]);
+    assert_ne!(code, 0, "{err}");
+    assert_eq!(v["pooled"]["status"], "NoExcitation");
+
+    let mut clipped = toss(MOM, [3.0, 3.0, 3.0], 200.0, 10.0, 2e-3, 4);
+    for r in clipped.iter_mut() {
+        for x in &mut r[1..] {
+            *x = x.clamp(-3.0, 3.0);
+        }
+    }
+    let p = d.join("clipped.csv");
+    write_csv(&p, &clipped, 1.0, 1.0);
+    let (_, v, _) = run(&["--input", p.to_str().unwrap()], &d.join("clipped.json"));
+    println!("clipped: {}", v["pooled"]["status"]);
+    assert_ne!(v["pooled"]["status"], "Converged");
+}
+
+fn shared() -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/thrown-fc");
+    p.is_dir().then_some(p)
+}
+
+#[test]
+fn thrown_fc_free_flights_found_hand_and_catch_excluded() {
+    let Some(root) = shared() else {
+        eprintln!("../shared/data/thrown-fc absent: skipped");
+        return;
+    };
+    let d = out_dir();
+    let mut logs: Vec<PathBuf> = ["device_only", "proof_body"]
+        .iter()
+        .flat_map(|s| {
+            std::fs::read_dir(root.join(s))
+                .unwrap()
+                .map(|e| e.unwrap().path())
+        })
+        .collect();
+    logs.sort();
+    assert_eq!(logs.len(), 10);
+    for log in &logs {
+        let rec = inertia::read(log, &Default::default()).unwrap();
+        let json = d.join(format!(
+            "{}.json",
+            log.file_name().unwrap().to_string_lossy()
+        ));
+        let (code, v, err) = run(
+            &[
+                "--input",
+                log.to_str().unwrap(),
+                "--rotor-inertia",
+                "1.689e-6",
+                "--rotor-axis",
+                "-z",
+                "--rotor-poles",
+                "12",
+            ],
+            &json,
+        );
+        assert_eq!(code, 0, "{err}");
+        let throws = v["throws"].as_array().unwrap();
+        assert!(!throws.is_empty());
+        let acc = rec.accel.as_ref().unwrap();
+        // The hand: the last sample before the first fed one with |f| > 3 g.
+        let start = throws[0]["start_s"].as_f64().unwrap();
+        let end = throws.last().unwrap()["end_s"].as_f64().unwrap();
+        let samples: u64 = throws.iter().map(|t| t["samples"].as_u64().unwrap()).sum();
+        let hand = (0..rec.len())
+            .filter(|&i| rec.t[i] < start)
+            .filter(|&i| acc[i].iter().map(|x| x * x).sum::<f32>().sqrt() > 30.0)
+            .map(|i| rec.t[i])
+            .fold(f64::NEG_INFINITY, f64::max);
+        let log_end = rec.t[rec.len() - 1];
+        let fed = |t: f64| {
+            throws.iter().any(|th| {
+                t >= th["start_s"].as_f64().unwrap() && t <= th["end_s"].as_f64().unwrap()
+            })
+        };
+        let peak_in_flight = (0..rec.len())
+            .filter(|&i| fed(rec.t[i]))
+            .map(|i| acc[i].iter().map(|x| x * x).sum::<f32>().sqrt())
+            .fold(0.0f32, f32::max);
+        println!(
+            "{}: fed {start:.3}..{end:.3} s ({samples} samples, {} run(s)); last hand sample {hand:.3} s, log end {log_end:.3} s, peak |f| in flight {peak_in_flight:.1} m/s^2, pooled {}",
+            log.file_name().unwrap().to_string_lossy(),
+            throws.len(),
+            v["pooled"]["status"]
+        );
+        assert!(
+            start - hand >= 0.02,
+            "hand sample within 20 ms of the first fed one"
+        );
+        assert!(
+            log_end - end >= 0.02,
+            "samples fed within 20 ms of the log's end"
+        );
+        assert!(samples > 1000);
+    }
+}
