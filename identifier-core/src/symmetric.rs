@@ -149,7 +149,6 @@ pub fn eigen_symmetric3(m: &Sym<3>) -> Option<Eigen3> {
         }
     }
     let mut v = [[1.0f32, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-    const PAIRS: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
     let mut sweep = 0;
     while sweep < 12 {
         let off = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
@@ -157,69 +156,39 @@ pub fn eigen_symmetric3(m: &Sym<3>) -> Option<Eigen3> {
         if !(off > 1e-14 * diag) {
             break;
         }
-        for &(p, q) in PAIRS.iter() {
-            let apq = a[p][q];
-            if apq == 0.0 {
-                continue;
-            }
-            // Stable rotation: t = sgn(theta') / (|theta'| + sqrt(theta'^2 + 1)).
-            let theta = (a[q][q] - a[p][p]) / (2.0 * apq);
-            let t = if theta.abs() > 1e18 {
-                0.5 / theta
-            } else {
-                let s = if theta >= 0.0 { 1.0 } else { -1.0 };
-                s / (theta.abs() + sqrt(theta * theta + 1.0))
-            };
-            let c = 1.0 / sqrt(t * t + 1.0);
-            let s = t * c;
-            for k in 0..3 {
-                let akp = a[k][p];
-                let akq = a[k][q];
-                a[k][p] = c * akp - s * akq;
-                a[k][q] = s * akp + c * akq;
-            }
-            for k in 0..3 {
-                let apk = a[p][k];
-                let aqk = a[q][k];
-                a[p][k] = c * apk - s * aqk;
-                a[q][k] = s * apk + c * aqk;
-            }
-            for row in v.iter_mut() {
-                let vp = row[p];
-                let vq = row[q];
-                row[p] = c * vp - s * vq;
-                row[q] = s * vp + c * vq;
-            }
-        }
+        rotate::<0, 1>(&mut a, &mut v);
+        rotate::<0, 2>(&mut a, &mut v);
+        rotate::<1, 2>(&mut a, &mut v);
         sweep += 1;
     }
-    // Columns of v are the eigenvectors; sort ascending by value.
-    let mut order = [0usize, 1, 2];
-    let d = [a[0][0], a[1][1], a[2][2]];
-    if d[order[1]] < d[order[0]] {
-        order.swap(0, 1);
+    // Columns of v are the eigenvectors; sort (value, vector) pairs ascending by value.
+    let col = |o: usize| [v[0][o], v[1][o], v[2][o]];
+    let mut pairs = [(a[0][0], col(0)), (a[1][1], col(1)), (a[2][2], col(2))];
+    if pairs[1].0 < pairs[0].0 {
+        pairs.swap(0, 1);
     }
-    if d[order[2]] < d[order[1]] {
-        order.swap(1, 2);
+    if pairs[2].0 < pairs[1].0 {
+        pairs.swap(1, 2);
     }
-    if d[order[1]] < d[order[0]] {
-        order.swap(0, 1);
+    if pairs[1].0 < pairs[0].0 {
+        pairs.swap(0, 1);
     }
     let mut values = [0.0f32; 3];
     let mut vectors = [[0.0f32; 3]; 3];
-    for (i, &o) in order.iter().enumerate() {
-        values[i] = d[o];
-        let mut e = [v[0][o], v[1][o], v[2][o]];
-        let mut big = 0;
-        for k in 1..3 {
-            if e[k].abs() > e[big].abs() {
-                big = k;
-            }
-        }
-        if e[big] < 0.0 {
+    for ((val, vec), (pv, pe)) in values.iter_mut().zip(vectors.iter_mut()).zip(pairs.iter()) {
+        *val = *pv;
+        let mut e = *pe;
+        let big = if e[0].abs() >= e[1].abs() && e[0].abs() >= e[2].abs() {
+            e[0]
+        } else if e[1].abs() >= e[2].abs() {
+            e[1]
+        } else {
+            e[2]
+        };
+        if big < 0.0 {
             e = [-e[0], -e[1], -e[2]];
         }
-        vectors[i] = e;
+        *vec = e;
     }
     // Right-handed: v2 = v0 x v1 (up to sign).
     let [x, y, z] = [vectors[0], vectors[1], vectors[2]];
@@ -235,6 +204,40 @@ pub fn eigen_symmetric3(m: &Sym<3>) -> Option<Eigen3> {
         Some(Eigen3 { values, vectors })
     } else {
         None
+    }
+}
+
+/// One Jacobi rotation zeroing `a[P][Q]` (the pair as const parameters, so every index is a
+/// compile-time constant and no bounds check exists).
+fn rotate<const P: usize, const Q: usize>(a: &mut Sym<3>, v: &mut Sym<3>) {
+    let apq = a[P][Q];
+    if apq == 0.0 {
+        return;
+    }
+    // Stable rotation: t = sgn(theta) / (|theta| + sqrt(theta^2 + 1)).
+    let theta = (a[Q][Q] - a[P][P]) / (2.0 * apq);
+    let t = if theta.abs() > 1e18 {
+        0.5 / theta
+    } else {
+        let s = if theta >= 0.0 { 1.0 } else { -1.0 };
+        s / (theta.abs() + sqrt(theta * theta + 1.0))
+    };
+    let c = 1.0 / sqrt(t * t + 1.0);
+    let s = t * c;
+    for row in a.iter_mut() {
+        let (akp, akq) = (row[P], row[Q]);
+        row[P] = c * akp - s * akq;
+        row[Q] = s * akp + c * akq;
+    }
+    let (rp, rq) = (a[P], a[Q]);
+    for k in 0..3 {
+        a[P][k] = c * rp[k] - s * rq[k];
+        a[Q][k] = s * rp[k] + c * rq[k];
+    }
+    for row in v.iter_mut() {
+        let (vp, vq) = (row[P], row[Q]);
+        row[P] = c * vp - s * vq;
+        row[Q] = s * vp + c * vq;
     }
 }
 

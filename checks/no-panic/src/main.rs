@@ -22,6 +22,9 @@ use identifier_core::{
     ExtraEffect, GainMatrix, Identifier, InertiaRatios, Refined, RefinedSettings, Settings,
     SignChangeCorrection,
 };
+use identifier_core::{
+    FlightPipeline, FreeFlightGate, GateSettings, PipelineSettings, TensorEstimator, TensorSettings,
+};
 
 extern "C" {
     /// Deliberately undefined: referencing it makes the link fail.
@@ -183,6 +186,65 @@ fn exercise_extended() {
     black_box(consistency_scale(a));
 }
 
+fn exercise_tensor() {
+    let mut ps = black_box(PipelineSettings::for_rate(
+        black_box(4000.0),
+        black_box(2e-3),
+    ));
+    ps.tensor.full_scale = black_box(34.9);
+    black_box(ps.tensor.is_valid());
+    black_box(ps.gate.is_valid());
+    if let Some(mut p) = FlightPipeline::new(black_box(ps), black_box(true)) {
+        for _ in 0..black_box(3000usize) {
+            black_box(p.step(
+                black_box([1.0, -0.5, 0.25]),
+                black_box([0.1, 0.2, 9.8]),
+                black_box([0.0, 0.0, -2e-3]),
+                black_box(2.5e-4),
+            ));
+        }
+        black_box(p.estimate());
+        black_box(p.gate_fit());
+        black_box(p.bias());
+        black_box(p.throws());
+        black_box(p.in_free_flight());
+        black_box(p.estimator().counters());
+        black_box(&p);
+    }
+    if let Some(mut e) = TensorEstimator::new(black_box(TensorSettings::new())) {
+        for _ in 0..black_box(1000usize) {
+            black_box(e.step(
+                black_box([1.0, -0.5, 0.25]),
+                black_box([0.0; 3]),
+                black_box(1e-3),
+            ));
+        }
+        if black_box(false) {
+            e.end_stretch();
+        }
+        if black_box(false) {
+            e.reset();
+        }
+        black_box(e.estimate());
+        black_box(&e);
+    }
+    if let Some(mut g) = FreeFlightGate::new(black_box(GateSettings::for_rate(black_box(1000.0)))) {
+        for _ in 0..black_box(1000usize) {
+            black_box(g.step(black_box([1.0; 3]), black_box([0.0; 3]), black_box(1e-3)));
+        }
+        if black_box(false) {
+            g.break_window();
+        }
+        black_box(g.bias());
+    }
+    black_box(identifier_core::symmetric::eigen_symmetric3(&black_box([
+        [1.0, 0.1, 0.0],
+        [0.1, 2.0, 0.0],
+        [0.0, 0.0, 3.0],
+    ])));
+    black_box(identifier_core::symmetric::sqrt(black_box(2.0)));
+}
+
 /// Entry point of the image (the linker's default entry symbol).
 #[no_mangle]
 pub extern "C" fn _start() -> ! {
@@ -190,5 +252,6 @@ pub extern "C" fn _start() -> ! {
         exercise();
         exercise_refined();
         exercise_extended();
+        exercise_tensor();
     }
 }
