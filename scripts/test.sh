@@ -36,8 +36,9 @@ scripts/check-no-panic.sh
 log "reliability: fault injection on the MCU under QEMU (watchdog, re-initialisation, figure)"
 checks/firmware-faults/run.sh
 
-log "reliability: bounded fuzzing (30 s per target)"
-scripts/fuzz.sh 30
+# A smoke run; the long runs are `scripts/fuzz.sh 600` (README, reliability).
+log "reliability: bounded fuzzing (10 s per target)"
+scripts/fuzz.sh 10
 # ---- end of reliability section ----
 
 # ---- firmware section (icm42688 driver, firmware crate, QEMU end to end) --------------------
@@ -48,8 +49,8 @@ ensure_qemu
 ensure_defmt_print
 
 log "icm42688 for thumbv7em-none-eabihf (no_std), clippy -D warnings"
-cargo build -p icm42688 --features sim,defmt --target thumbv7em-none-eabihf
-cargo clippy -p icm42688 --features sim,defmt --target thumbv7em-none-eabihf -- -D warnings
+cargo build -p icm42688p-driver --features sim,defmt --target thumbv7em-none-eabihf
+cargo clippy -p icm42688p-driver --features sim,defmt --target thumbv7em-none-eabihf -- -D warnings
 
 for features in qemu stm32f405; do
     log "firmware ($features) for thumbv7em-none-eabihf, clippy -D warnings"
@@ -69,7 +70,7 @@ for ex in embassy-stm32f405 rtic-stm32f405; do
 done
 
 log "docs of the driver and the firmware library without warnings"
-RUSTDOCFLAGS="-D warnings" cargo doc -p icm42688 -p firmware --no-deps --features icm42688/sim
+RUSTDOCFLAGS="-D warnings" cargo doc -p icm42688p-driver -p firmware --no-deps --features icm42688p-driver/sim
 
 log "firmware end to end under QEMU (simulated body -> gyro log -> firmware -> defmt -> checks)"
 scripts/firmware-e2e.sh

@@ -18,14 +18,13 @@
 #![allow(clippy::needless_range_loop)]
 
 use embedded_hal::delay::DelayNs;
-use embedded_hal::spi::{Operation, SpiDevice};
 use host_tests::gyro::GyroModel;
 use host_tests::rigid_body::Body;
 use icm42688::registers as reg;
-use icm42688::sim::{SimBusError, SimIcm42688};
+use icm42688::sim::{FaultRng, Faults, FaultySpi, Injected, SimIcm42688};
 use icm42688::{raw3_to_rad_s, Config, Error, Icm42688};
 use identifier_core::{Identifier, SampleStatus, Settings};
-use rand::{Rng, SeedableRng};
+use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 const RATE: f64 = 1000.0;
@@ -36,105 +35,22 @@ const INERTIA: [f64; 3] = [0.6, 1.54, 1.0];
 // ---------------------------------------------------------------------------------------------
 // Fault injection between the driver and the simulated part.
 
-/// Which faults, how often. Windows are in SPI transactions `[from, to)`.
-#[derive(Clone, Copy, Debug, Default)]
-struct Faults {
-    /// Probability that a transaction fails with a bus error.
-    bus_error: f64,
-    /// Probability that a gyro data read comes back with one bit flipped.
-    corrupt: f64,
-    /// Probability that a data-ready is lost (the sample is gone, the part moves on).
-    drop: f64,
-    /// Every transaction fails.
-    bus_dead: Option<(u32, u32)>,
-    /// `WHO_AM_I` reads 0x00.
-    wrong_id: Option<(u32, u32)>,
-    /// `DATA_RDY_INT` never set.
-    no_data_ready: Option<(u32, u32)>,
-    /// The data registers repeat the last sample read.
-    stalled: Option<(u32, u32)>,
-}
+/// The fault injector's randomness: a seeded ChaCha8 stream.
+struct Words(ChaCha8Rng);
 
-#[derive(Clone, Copy, Debug, Default)]
-struct Injected {
-    bus_errors: u32,
-    corrupted: u32,
-    dropped: u32,
-}
-
-struct FaultySpi<S> {
-    inner: SimIcm42688<S>,
-    faults: Faults,
-    rng: ChaCha8Rng,
-    tx: u32,
-    stalled_data: Option<[u8; 6]>,
-    injected: Injected,
-}
-
-fn within(w: Option<(u32, u32)>, t: u32) -> bool {
-    w.is_some_and(|(a, b)| (a..b).contains(&t))
-}
-
-impl<S: icm42688::sim::SampleSource> embedded_hal::spi::ErrorType for FaultySpi<S> {
-    type Error = SimBusError;
-}
-
-impl<S: icm42688::sim::SampleSource> SpiDevice for FaultySpi<S> {
-    fn transaction(&mut self, ops: &mut [Operation<'_, u8>]) -> Result<(), SimBusError> {
-        self.tx += 1;
-        let t = self.tx;
-        if within(self.faults.bus_dead, t) || self.rng.gen_bool(self.faults.bus_error) {
-            self.injected.bus_errors += 1;
-            return Err(SimBusError);
-        }
-        // The driver frames every read as [Write([addr | 0x80]), Read(buf)].
-        let addr = match ops.first() {
-            Some(Operation::Write(b)) => b.first().copied(),
-            _ => None,
-        };
-        self.inner.transaction(ops)?;
-        let Some(a) = addr.filter(|a| a & reg::SPI_READ != 0).map(|a| a & 0x7F) else {
-            return Ok(());
-        };
-        let Some(Operation::Read(buf)) = ops.get_mut(1) else {
-            return Ok(());
-        };
-        match a {
-            reg::WHO_AM_I if within(self.faults.wrong_id, t) => buf.fill(0x00),
-            reg::INT_STATUS => {
-                let ready = buf
-                    .first()
-                    .is_some_and(|b| b & reg::INT_STATUS_DATA_RDY != 0);
-                if ready
-                    && (within(self.faults.no_data_ready, t) || self.rng.gen_bool(self.faults.drop))
-                {
-                    if let Some(b) = buf.first_mut() {
-                        *b &= !reg::INT_STATUS_DATA_RDY;
-                    }
-                    self.injected.dropped += 1;
-                }
-            }
-            reg::GYRO_DATA_X1 if buf.len() == 6 => {
-                if within(self.faults.stalled, t) {
-                    let held = *self.stalled_data.get_or_insert_with(|| {
-                        let mut h = [0u8; 6];
-                        h.copy_from_slice(buf);
-                        h
-                    });
-                    buf.copy_from_slice(&held);
-                } else {
-                    self.stalled_data = None;
-                    if self.rng.gen_bool(self.faults.corrupt) {
-                        let bit = self.rng.gen_range(0..48);
-                        buf[bit / 8] ^= 1 << (bit % 8);
-                        self.injected.corrupted += 1;
-                    }
-                }
-            }
-            _ => {}
-        }
-        Ok(())
+impl FaultRng for Words {
+    fn next_u32(&mut self) -> u32 {
+        self.0.next_u32()
     }
+}
+
+fn words(seed: u64) -> Words {
+    Words(ChaCha8Rng::seed_from_u64(seed))
+}
+
+/// Probability to parts per million, the injector's unit.
+fn ppm(p: f64) -> u32 {
+    (p * 1e6).round() as u32
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -182,7 +98,7 @@ const MAX_ACCEL: f32 = 80.0;
 const GATE_MARGIN: f32 = 0.02;
 
 struct SampleLoop<S: icm42688::sim::SampleSource> {
-    gyro: Icm42688<icm42688::SpiInterface<FaultySpi<S>>>,
+    gyro: Icm42688<icm42688::SpiInterface<FaultySpi<S, Words>>>,
     id: Identifier,
     policy: Policy,
     period: f32,
@@ -199,7 +115,7 @@ struct SampleLoop<S: icm42688::sim::SampleSource> {
 }
 
 impl<S: icm42688::sim::SampleSource> SampleLoop<S> {
-    fn new(spi: FaultySpi<S>, policy: Policy) -> Self {
+    fn new(spi: FaultySpi<S, Words>, policy: Policy) -> Self {
         let config = Config::identifier();
         let mut s = Settings::with_lambda(3.0);
         s.full_scale = icm42688::raw_to_rad_s(32767, config.full_scale);
@@ -222,7 +138,7 @@ impl<S: icm42688::sim::SampleSource> SampleLoop<S> {
         lp
     }
 
-    fn part(&self) -> &FaultySpi<S> {
+    fn part(&self) -> &FaultySpi<S, Words> {
         self.gyro.interface().bus()
     }
 
@@ -376,14 +292,7 @@ fn replay(seed: u64, faults: Faults, policy: Policy) -> Outcome {
     let n = samples.len();
     let mut it = samples.into_iter();
     let source = move || it.next();
-    let spi = FaultySpi {
-        inner: SimIcm42688::new(source),
-        faults,
-        rng: ChaCha8Rng::seed_from_u64(seed ^ 0x5eed),
-        tx: 0,
-        stalled_data: None,
-        injected: Injected::default(),
-    };
+    let spi = FaultySpi::new(SimIcm42688::new(source), faults, words(seed ^ 0x5eed));
     let mut lp = SampleLoop::new(spi, policy);
     let (mut sum, mut count) = (0.0, 0usize);
     let mut guard = 0usize;
@@ -407,7 +316,7 @@ fn replay(seed: u64, faults: Faults, policy: Policy) -> Outcome {
         rms: (sum / count.max(1) as f64).sqrt(),
         final_err,
         counters: lp.c,
-        injected: lp.part().injected,
+        injected: lp.part().injected(),
         statuses_nonfinite: lp.id.counters().rejected,
     }
 }
@@ -416,9 +325,9 @@ const SEEDS: [u64; 5] = [1, 2, 3, 4, 5];
 
 fn mix() -> Faults {
     Faults {
-        bus_error: 0.01,
-        corrupt: 0.01,
-        drop: 0.01,
+        bus_error_ppm: ppm(0.01),
+        corrupt_ppm: ppm(0.01),
+        drop_ppm: ppm(0.01),
         ..Faults::default()
     }
 }
@@ -607,18 +516,15 @@ fn firmware_sample_loop_under_the_fault_mix() {
         let mut rng_init = 0u64;
         let mut lp = loop {
             let mut it = samples.clone().into_iter();
-            let spi = FaultySpi {
-                inner: SimIcm42688::new(move || it.next()),
+            let spi = FaultySpi::new(
+                SimIcm42688::new(move || it.next()),
                 faults,
-                rng: ChaCha8Rng::seed_from_u64(seed ^ 0x5eed ^ rng_init),
-                tx: 0,
-                stalled_data: None,
-                injected: Injected::default(),
-            };
+                words(seed ^ 0x5eed ^ rng_init),
+            );
             // Init can meet an injected bus error; the firmware is restarted then.
             // The loop's clock: the part's sample count, as in `SampleLoop` above.
             let period_us = Config::identifier().odr.period_us();
-            let clock = move |i: &icm42688::SpiInterface<FaultySpi<_>>| {
+            let clock = move |i: &icm42688::SpiInterface<FaultySpi<_, Words>>| {
                 i.bus().inner.stats().samples.wrapping_mul(period_us)
             };
             match firmware::SampleLoop::new(
@@ -653,7 +559,7 @@ fn firmware_sample_loop_under_the_fault_mix() {
         (
             (sum / count.max(1) as f64).sqrt(),
             lp.counters(),
-            part.injected,
+            part.injected(),
         )
     };
     let mut clean = Vec::new();

@@ -333,3 +333,205 @@ impl<S: SampleSource> SpiDevice for SimIcm42688<S> {
         Ok(())
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Fault injection between the driver and the simulated part.
+
+/// The randomness of [`FaultySpi`]: any source of uniform 32-bit words. A closure
+/// `FnMut() -> u32` is one (on the host, e.g. a seeded `rand` generator's `next_u32`);
+/// [`XorShift32`] is a small one for the MCU.
+pub trait FaultRng {
+    /// The next uniform 32-bit word.
+    fn next_u32(&mut self) -> u32;
+
+    /// True with probability `ppm` per million (never for 0).
+    fn chance(&mut self, ppm: u32) -> bool {
+        ppm != 0 && self.next_u32() % 1_000_000 < ppm
+    }
+}
+
+impl<F: FnMut() -> u32> FaultRng for F {
+    fn next_u32(&mut self) -> u32 {
+        self()
+    }
+}
+
+/// Marsaglia's xorshift32: seeded, reproducible, no_std.
+#[derive(Clone, Copy, Debug)]
+pub struct XorShift32(pub u32);
+
+impl XorShift32 {
+    /// A generator from `seed` (made odd, so never the all-zero state).
+    pub const fn new(seed: u32) -> Self {
+        XorShift32(seed | 1)
+    }
+}
+
+impl FaultRng for XorShift32 {
+    fn next_u32(&mut self) -> u32 {
+        let mut x = self.0;
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        self.0 = x;
+        x
+    }
+}
+
+/// Which faults [`FaultySpi`] injects, how often. Windows are in SPI transactions
+/// `[from, to)` (counted from 1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Faults {
+    /// Per million transactions: the transaction fails with a bus error.
+    pub bus_error_ppm: u32,
+    /// Per million gyro data reads: one of the 48 gyro bits is flipped.
+    pub corrupt_ppm: u32,
+    /// Per million data-ready events: lost (the sample is gone, the part moves on).
+    pub drop_ppm: u32,
+    /// Every transaction fails.
+    pub bus_dead: Option<(u32, u32)>,
+    /// `WHO_AM_I` reads 0x00.
+    pub wrong_id: Option<(u32, u32)>,
+    /// `DATA_RDY_INT` is never set.
+    pub no_data_ready: Option<(u32, u32)>,
+    /// The data registers repeat the last sample read.
+    pub stalled: Option<(u32, u32)>,
+    /// This transaction never completes (spins forever: for a watchdog test).
+    pub hang: Option<u32>,
+}
+
+/// What [`FaultySpi`] injected.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Injected {
+    /// Transactions failed.
+    pub bus_errors: u32,
+    /// Data reads with a flipped bit.
+    pub corrupted: u32,
+    /// Data-ready events lost.
+    pub dropped: u32,
+}
+
+/// The simulated part behind a fault-injecting SPI layer: seeded bus errors, bit flips in the
+/// gyro data, lost data-ready events, and windows of a dead bus, a wrong identity, no
+/// data-ready, stalled data, or a hung transfer. Used by the host robustness test and the QEMU
+/// fault check alike. The driver frames every read as `[Write([addr | 0x80]), Read(buf)]`;
+/// data reads are the 12-byte accel + gyro burst or the 6-byte gyro read.
+#[derive(Debug)]
+pub struct FaultySpi<S, R> {
+    /// The simulated part.
+    pub inner: SimIcm42688<S>,
+    faults: Faults,
+    rng: R,
+    tx: u32,
+    stalled_data: Option<[u8; reg::IMU_BURST_LEN]>,
+    injected: Injected,
+}
+
+fn within(w: Option<(u32, u32)>, t: u32) -> bool {
+    w.is_some_and(|(a, b)| a <= t && t < b)
+}
+
+impl<S, R> FaultySpi<S, R> {
+    /// `inner` behind `faults`, drawing from `rng`.
+    pub fn new(inner: SimIcm42688<S>, faults: Faults, rng: R) -> Self {
+        FaultySpi {
+            inner,
+            faults,
+            rng,
+            tx: 0,
+            stalled_data: None,
+            injected: Injected::default(),
+        }
+    }
+
+    /// What was injected so far.
+    pub fn injected(&self) -> Injected {
+        self.injected
+    }
+
+    /// Transactions so far.
+    pub fn transactions(&self) -> u32 {
+        self.tx
+    }
+}
+
+impl<S, R> ErrorType for FaultySpi<S, R> {
+    type Error = SimBusError;
+}
+
+impl<S: SampleSource, R: FaultRng> SpiDevice for FaultySpi<S, R> {
+    fn transaction(&mut self, ops: &mut [Operation<'_, u8>]) -> Result<(), SimBusError> {
+        self.tx = self.tx.wrapping_add(1);
+        let t = self.tx;
+        if self.faults.hang == Some(t) {
+            #[cfg(feature = "defmt")]
+            defmt::warn!("injected: SPI transfer {=u32} hangs", t);
+            loop {
+                core::hint::spin_loop();
+            }
+        }
+        if within(self.faults.bus_dead, t) || self.rng.chance(self.faults.bus_error_ppm) {
+            self.injected.bus_errors = self.injected.bus_errors.saturating_add(1);
+            return Err(SimBusError);
+        }
+        let addr = match ops.first() {
+            Some(Operation::Write(b)) => b.first().copied(),
+            _ => None,
+        };
+        self.inner.transaction(ops)?;
+        let Some(a) = addr.filter(|a| a & reg::SPI_READ != 0).map(|a| a & 0x7F) else {
+            return Ok(());
+        };
+        let Some(Operation::Read(buf)) = ops.get_mut(1) else {
+            return Ok(());
+        };
+        // Where the gyro's six bytes are in a data read.
+        let gyro_at = match (a, buf.len()) {
+            (reg::ACCEL_DATA_X1, reg::IMU_BURST_LEN) => Some(6),
+            (reg::GYRO_DATA_X1, 6) => Some(0),
+            _ => None,
+        };
+        match (a, gyro_at) {
+            (reg::WHO_AM_I, _) if within(self.faults.wrong_id, t) => buf.fill(0),
+            (reg::INT_STATUS, _) => {
+                let ready = buf
+                    .first()
+                    .is_some_and(|b| b & reg::INT_STATUS_DATA_RDY != 0);
+                if ready
+                    && (within(self.faults.no_data_ready, t)
+                        || self.rng.chance(self.faults.drop_ppm))
+                {
+                    if let Some(b) = buf.first_mut() {
+                        *b &= !reg::INT_STATUS_DATA_RDY;
+                    }
+                    self.injected.dropped = self.injected.dropped.saturating_add(1);
+                }
+            }
+            (_, Some(at)) => {
+                if within(self.faults.stalled, t) {
+                    let mut h = [0u8; reg::IMU_BURST_LEN];
+                    for (d, s) in h.iter_mut().zip(buf.iter()) {
+                        *d = *s;
+                    }
+                    let held = *self.stalled_data.get_or_insert(h);
+                    for (d, s) in buf.iter_mut().zip(held.iter()) {
+                        *d = *s;
+                    }
+                } else {
+                    self.stalled_data = None;
+                    if self.rng.chance(self.faults.corrupt_ppm) {
+                        let bit = (self.rng.next_u32() % 48) as usize;
+                        if let Some(b) = buf.get_mut(at + bit / 8) {
+                            *b ^= 1 << (bit % 8);
+                        }
+                        self.injected.corrupted = self.injected.corrupted.saturating_add(1);
+                    }
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+}

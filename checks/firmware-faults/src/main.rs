@@ -25,10 +25,8 @@ use core::ptr::{addr_of, addr_of_mut, read_volatile, write_volatile};
 
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
-use embedded_hal::spi::{ErrorType, Operation, SpiDevice};
 use firmware::{LoopCounters, NoDelay, SampleLoop};
-use icm42688::registers as reg;
-use icm42688::sim::{SampleSource, SimBusError, SimIcm42688};
+use icm42688::sim::{FaultySpi, Faults, Injected, SampleSource, SimIcm42688, XorShift32};
 use icm42688::{Config, Icm42688, SpiInterface};
 
 // ---------------------------------------------------------------------------------------------
@@ -136,10 +134,6 @@ impl XorShift {
         self.0 = x;
         x
     }
-    /// True with probability `ppm` per million.
-    fn chance(&mut self, ppm: u32) -> bool {
-        ppm != 0 && self.next() % 1_000_000 < ppm
-    }
     /// Approximately normal, unit variance (sum of four uniforms).
     fn normal(&mut self) -> f32 {
         let mut s = 0.0f32;
@@ -220,112 +214,8 @@ impl SampleSource for Motion {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Fault injection between the driver and the simulated part.
-
-#[derive(Clone, Copy, Default, defmt::Format)]
-struct Faults {
-    /// Per million transactions: bus error.
-    bus_error_ppm: u32,
-    /// Per million data reads: one bit flipped.
-    corrupt_ppm: u32,
-    /// Per million data-ready events: lost (the sample is gone).
-    drop_ppm: u32,
-    /// Transaction windows `[from, to)`.
-    bus_dead: Option<(u32, u32)>,
-    wrong_id: Option<(u32, u32)>,
-    no_data_ready: Option<(u32, u32)>,
-    stalled: Option<(u32, u32)>,
-    /// The transfer never completes.
-    hang: Option<u32>,
-}
-
-#[derive(Clone, Copy, Default, defmt::Format)]
-struct Injected {
-    bus_errors: u32,
-    corrupted: u32,
-    dropped: u32,
-}
-
-struct FaultySpi<S> {
-    inner: SimIcm42688<S>,
-    faults: Faults,
-    rng: XorShift,
-    tx: u32,
-    stalled_data: Option<[u8; 6]>,
-    injected: Injected,
-}
-
-fn within(w: Option<(u32, u32)>, t: u32) -> bool {
-    w.is_some_and(|(a, b)| a <= t && t < b)
-}
-
-impl<S: SampleSource> ErrorType for FaultySpi<S> {
-    type Error = SimBusError;
-}
-
-impl<S: SampleSource> SpiDevice for FaultySpi<S> {
-    fn transaction(&mut self, ops: &mut [Operation<'_, u8>]) -> Result<(), SimBusError> {
-        self.tx = self.tx.wrapping_add(1);
-        let t = self.tx;
-        if self.faults.hang == Some(t) {
-            defmt::warn!("injected: SPI transfer {=u32} hangs", t);
-            loop {
-                cortex_m::asm::nop();
-            }
-        }
-        if within(self.faults.bus_dead, t) || self.rng.chance(self.faults.bus_error_ppm) {
-            self.injected.bus_errors += 1;
-            return Err(SimBusError);
-        }
-        let addr = match ops.first() {
-            Some(Operation::Write(b)) => b.first().copied(),
-            _ => None,
-        };
-        self.inner.transaction(ops)?;
-        let Some(a) = addr.filter(|a| a & reg::SPI_READ != 0).map(|a| a & 0x7F) else {
-            return Ok(());
-        };
-        let Some(Operation::Read(buf)) = ops.get_mut(1) else {
-            return Ok(());
-        };
-        match a {
-            reg::WHO_AM_I if within(self.faults.wrong_id, t) => buf.fill(0),
-            reg::INT_STATUS => {
-                let ready = buf
-                    .first()
-                    .is_some_and(|b| b & reg::INT_STATUS_DATA_RDY != 0);
-                if ready
-                    && (within(self.faults.no_data_ready, t)
-                        || self.rng.chance(self.faults.drop_ppm))
-                {
-                    if let Some(b) = buf.first_mut() {
-                        *b &= !reg::INT_STATUS_DATA_RDY;
-                    }
-                    self.injected.dropped += 1;
-                }
-            }
-            reg::GYRO_DATA_X1 if buf.len() == 6 => {
-                if within(self.faults.stalled, t) {
-                    let mut h = [0u8; 6];
-                    h.copy_from_slice(buf);
-                    let held = *self.stalled_data.get_or_insert(h);
-                    buf.copy_from_slice(&held);
-                } else {
-                    self.stalled_data = None;
-                    if self.rng.chance(self.faults.corrupt_ppm) {
-                        let bit = (self.rng.next() % 48) as usize;
-                        if let Some(b) = buf.get_mut(bit / 8) {
-                            *b ^= 1 << (bit % 8);
-                        }
-                        self.injected.corrupted += 1;
-                    }
-                }
-            }
-            _ => {}
-        }
-        Ok(())
-    }
-}
+// Fault injection between the driver and the simulated part: `icm42688::sim::FaultySpi`, the
+// one implementation the host robustness test uses too, drawing from its `XorShift32`.
 
 // ---------------------------------------------------------------------------------------------
 // The flight firmware's own sample loop (`firmware::SampleLoop`: plausibility gate, dt from a
@@ -340,18 +230,15 @@ struct Outcome {
 }
 
 fn replay(seed: u32, faults: Faults) -> Option<Outcome> {
-    let spi = FaultySpi {
-        inner: SimIcm42688::new(Motion::new(seed)),
+    let spi = FaultySpi::new(
+        SimIcm42688::new(Motion::new(seed)),
         faults,
-        rng: XorShift(seed.wrapping_mul(2_654_435_761) | 1),
-        tx: 0,
-        stalled_data: None,
-        injected: Injected::default(),
-    };
+        XorShift32::new(seed.wrapping_mul(2_654_435_761)),
+    );
     let config = Config::identifier();
     // The simulated part models no time: the loop's clock is its count of latched samples.
     let period_us = config.odr.period_us();
-    let clock = move |i: &SpiInterface<FaultySpi<Motion>>| {
+    let clock = move |i: &SpiInterface<FaultySpi<Motion, XorShift32>>| {
         i.bus().inner.stats().samples.wrapping_mul(period_us)
     };
     let mut lp = match SampleLoop::new(Icm42688::new_spi(spi), &mut NoDelay, config, clock) {
@@ -362,7 +249,7 @@ fn replay(seed: u32, faults: Faults) -> Option<Outcome> {
         }
     };
     let latched = |lp: &SampleLoop<_, _>| -> u32 {
-        let i: &SpiInterface<FaultySpi<Motion>> = lp.gyro().interface();
+        let i: &SpiInterface<FaultySpi<Motion, XorShift32>> = lp.gyro().interface();
         i.bus().inner.stats().samples
     };
     let (mut sum, mut count) = (0.0f32, 0u32);
@@ -395,7 +282,7 @@ fn replay(seed: u32, faults: Faults) -> Option<Outcome> {
         rms: sqrt(sum / count.max(1) as f32),
         final_err,
         c: lp.counters(),
-        injected: lp.gyro().interface().bus().injected,
+        injected: lp.gyro().interface().bus().injected(),
     })
 }
 
