@@ -49,6 +49,8 @@
 //! No heap, no `unsafe`, no panicking path, `f32` only, and only `+ - * /` (the one square
 //! root is a fixed count of Newton steps), so host and MCU run the same arithmetic.
 
+use crate::status::{physically_possible, precise, Exposure, Trust, Verdict, MIN_SAMPLES};
+
 /// Effects the extended identifier can estimate alongside `a` (see the module table (E)).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -96,11 +98,14 @@ pub struct ExtendedSettings {
     pub full_scale: f32,
     /// Longest sample interval still integrated; a longer one restarts the block.
     pub max_dt: f32,
+    /// Standard deviation of every `a_i` (from `P`) below which the estimate is
+    /// [`Trust::Converged`] (see [`ExtendedIdentifier::trust`]). Must be finite and `> 0`.
+    pub tolerance: f32,
 }
 
 impl ExtendedSettings {
     /// No effect, no scale correction, priors `10` on `a` and `10` on effect parameters,
-    /// `noise_std = 0.01 rad/s`, no full scale, `max_dt = 0.05 s`.
+    /// `noise_std = 0.01 rad/s`, no full scale, `max_dt = 0.05 s`, `tolerance = 1e-3`.
     pub const fn new(effects: [Option<ExtraEffect>; MAX_EFFECTS]) -> Self {
         ExtendedSettings {
             effects,
@@ -111,6 +116,7 @@ impl ExtendedSettings {
             noise_std: 0.01,
             full_scale: f32::INFINITY,
             max_dt: 0.05,
+            tolerance: 1e-3,
         }
     }
 
@@ -126,6 +132,7 @@ impl ExtendedSettings {
             && sq(self.prior_effect)
             && sq(self.noise_std)
             && pos(self.max_dt)
+            && sq(self.tolerance)
             && !self.full_scale.is_nan()
             && self.full_scale > 0.0
             && self.initial_estimate.iter().all(|v| v.is_finite())
@@ -167,6 +174,19 @@ pub struct ExtendedEstimate {
     pub scale: f32,
     /// What happened to this sample.
     pub status: ExtendedStatus,
+    /// How far `a` can be trusted (see [`ExtendedIdentifier::trust`]).
+    pub trust: Trust,
+}
+
+impl ExtendedEstimate {
+    /// Inertia ratios implied by `a` ([`crate::InertiaRatios::from_a`]), `None` while the data
+    /// has carried no information ([`Trust::has_information`] false).
+    pub fn ratios(&self) -> Option<crate::InertiaRatios> {
+        if !self.trust.has_information() {
+            return None;
+        }
+        crate::InertiaRatios::from_a(self.a)
+    }
 }
 
 /// Recursive least squares on (I) for `theta = (a, effect parameters)`: a fixed-size value,
@@ -193,6 +213,17 @@ pub struct ExtendedIdentifier {
     bilinear_gate: f32,
     pending_dt: f32,
     updates: u32,
+    /// What the data offered (for [`ExtendedIdentifier::trust`]).
+    exposure: Exposure,
+    /// Samples in the blocks that updated `theta`.
+    folded: u32,
+    /// Samples in the open block.
+    open: u32,
+    /// The estimator's side of the trust, as of the last update.
+    verdict: Verdict,
+    /// Sum of the normalised innovations of the rows of (I) so far, and their number.
+    nis_sum: f32,
+    nis_rows: u32,
 }
 
 impl ExtendedIdentifier {
@@ -230,6 +261,12 @@ impl ExtendedIdentifier {
             bilinear_gate: 0.02,
             pending_dt: 0.0,
             updates: 0,
+            exposure: Exposure::new(),
+            folded: 0,
+            open: 0,
+            verdict: Verdict::NONE,
+            nis_sum: 0.0,
+            nis_rows: 0,
         })
     }
 
@@ -242,6 +279,7 @@ impl ExtendedIdentifier {
         self.acc = [[0.0; 3]; MAX_PARAMS];
         self.pairs = 0;
         self.pending_dt = 0.0;
+        self.open = 0;
     }
 
     /// The settings in force.
@@ -306,8 +344,70 @@ impl ExtendedIdentifier {
         v
     }
 
+    /// What the data offered so far (counts, peak rate, excitation `E`).
+    pub fn exposure(&self) -> &Exposure {
+        &self.exposure
+    }
+
+    /// How far the estimate can be trusted ([`Trust`], by [`Trust::assess`]), with
+    /// `var_i = P_ii s^2 k` the variance of the reported `a_i` (`s` the scale factor of the
+    /// scale correction, 1 without; `k` = [`ExtendedIdentifier::noise_inflation`]), judged at
+    /// each update of `theta`:
+    ///
+    /// * enough: at least [`MIN_SAMPLES`] samples in blocks that updated `theta`;
+    /// * excited: every `var_i <= (prior_a / 2)^2` (the data at least halved the prior's
+    ///   standard deviation) and [`Exposure::moved`] with [`ExtendedSettings::noise_std`];
+    /// * possible: [`physically_possible`]`(a, var)` on the reported `a`;
+    /// * settled: every standard deviation below [`ExtendedSettings::tolerance`].
+    ///
+    /// `P` is a covariance only when `noise_std` is the actual gyro noise and the effects
+    /// listed are the ones present.
+    pub fn trust(&self) -> Trust {
+        let mut v = self.verdict;
+        v.excited = v.excited && self.exposure.moved(self.settings.noise_std);
+        Trust::assess(&self.exposure, v)
+    }
+
+    /// `max(1, mean normalised innovation)` of the rows of (I) so far: how much larger the
+    /// residuals are than `P` and `R` predict (1 with the right model and `noise_std`; 57^2
+    /// for data in deg/s; above 1 with unmodelled effects). [`ExtendedIdentifier::trust`]
+    /// multiplies the variances by it, so a wrong `noise_std` or a missing effect cannot make
+    /// the estimate look more precise than its residuals allow.
+    pub fn noise_inflation(&self) -> f32 {
+        if self.nis_rows == 0 {
+            return 1.0;
+        }
+        let m = self.nis_sum / self.nis_rows as f32;
+        if m > 1.0 && m.is_finite() {
+            m
+        } else {
+            1.0
+        }
+    }
+
+    /// The estimator's side of the trust for the current `theta`.
+    fn judge(&self) -> Verdict {
+        let e = self.estimate_without_trust(ExtendedStatus::Updated);
+        let v = self.variances();
+        let s2 = e.scale * e.scale * self.noise_inflation();
+        let var = [v[0] * s2, v[1] * s2, v[2] * s2];
+        let half = 0.5 * self.settings.prior_a;
+        Verdict {
+            enough: self.folded >= MIN_SAMPLES,
+            excited: var.iter().all(|x| *x <= half * half),
+            possible: physically_possible(e.a, var),
+            settled: precise(var, self.settings.tolerance),
+        }
+    }
+
     /// The current estimate (see [`ExtendedEstimate`]) with `status`.
     pub fn estimate(&self, status: ExtendedStatus) -> ExtendedEstimate {
+        let mut e = self.estimate_without_trust(status);
+        e.trust = self.trust();
+        e
+    }
+
+    fn estimate_without_trust(&self, status: ExtendedStatus) -> ExtendedEstimate {
         let [a1, a2, a3, p0, p1, p2, p3, p4, p5] = self.theta;
         let a = [a1, a2, a3];
         let scale = if self.settings.scale_correction {
@@ -327,6 +427,7 @@ impl ExtendedIdentifier {
             effect_params: [[p0, p1, p2], [p3, p4, p5]],
             scale,
             status,
+            trust: Trust::NoInformation,
         }
     }
 
@@ -349,8 +450,10 @@ impl ExtendedIdentifier {
         }
         if omega.iter().any(|w| w.abs() >= self.settings.full_scale) {
             self.pending_dt += dt;
+            self.exposure.saturate();
             return ExtendedStatus::Saturated;
         }
+        self.exposure.accept(omega);
         let h = self.pending_dt + dt;
         self.pending_dt = 0.0;
         let Some(w0) = self.w0 else {
@@ -363,8 +466,13 @@ impl ExtendedIdentifier {
         }
         let Some((w1, h1)) = self.w1 else {
             self.w1 = Some((omega, h));
+            self.open = self.open.saturating_add(1);
             return ExtendedStatus::Buffered;
         };
+        self.open = self.open.saturating_add(1);
+        let p = |w: [f32; 3]| w[0] * w[1] * w[2];
+        self.exposure.excite(p(w0), p(w1), h1);
+        self.exposure.excite(p(w1), p(omega), h);
         // A Simpson pair closes here: add its share of the block integral.
         self.w0 = Some(omega);
         self.w1 = None;
@@ -376,9 +484,12 @@ impl ExtendedIdentifier {
         // The block closes here; the next one starts from this sample.
         let start = self.w_start.unwrap_or(w0);
         let ok = self.update(start, omega);
+        let block_samples = self.open;
         self.open_block(omega);
         if ok {
             self.updates = self.updates.saturating_add(1);
+            self.folded = self.folded.saturating_add(block_samples);
+            self.verdict = self.judge();
             ExtendedStatus::Updated
         } else {
             ExtendedStatus::NumericalFault
@@ -387,6 +498,7 @@ impl ExtendedIdentifier {
 
     /// Starts a new block (and pair) at `omega`.
     fn open_block(&mut self, omega: [f32; 3]) {
+        self.open = 0;
         self.w_start = Some(omega);
         self.w0 = Some(omega);
         self.w1 = None;
@@ -429,18 +541,24 @@ impl ExtendedIdentifier {
         let x = self.acc;
         let r = 2.0 * self.settings.noise_std * self.settings.noise_std;
         let (mut theta, mut p) = (self.theta, self.p);
+        let mut nis = 0.0;
         for axis in 0..3 {
             let row: Vecp = core::array::from_fn(|k| {
                 x.get(k).and_then(|c| c.get(axis)).copied().unwrap_or(0.0)
             });
             let y = end.get(axis).copied().unwrap_or(0.0) - start.get(axis).copied().unwrap_or(0.0);
-            rls_row(&mut theta, &mut p, &row, y, r);
+            nis += rls_row(&mut theta, &mut p, &row, y, r);
         }
         let finite =
             theta.iter().all(|v| v.is_finite()) && p.iter().flatten().all(|v| v.is_finite());
         if finite {
             self.theta = theta;
             self.p = p;
+            let sum = self.nis_sum + nis;
+            if sum.is_finite() {
+                self.nis_sum = sum;
+                self.nis_rows = self.nis_rows.saturating_add(3);
+            }
         }
         finite
     }
@@ -477,12 +595,14 @@ fn n_params(effects: &[Option<ExtraEffect>; MAX_EFFECTS]) -> usize {
 }
 
 /// One scalar RLS update with forgetting factor 1: `k = P x / (r + x^T P x)`,
-/// `theta += k (y - x^T theta)`, `P -= k (P x)^T`, then `P` symmetrised.
-fn rls_row(theta: &mut Vecp, p: &mut Matp, x: &Vecp, y: f32, r: f32) {
+/// `theta += k (y - x^T theta)`, `P -= k (P x)^T`, then `P` symmetrised. Returns the
+/// normalised innovation `e^2 / (r + x^T P x)` (expected 1 when the model and `r` are right;
+/// 0 when the row was skipped).
+fn rls_row(theta: &mut Vecp, p: &mut Matp, x: &Vecp, y: f32, r: f32) -> f32 {
     let px: Vecp = core::array::from_fn(|i| p.get(i).map_or(0.0, |row| dotp(row, x)));
     let s = r + dotp(x, &px);
     if !(s.is_finite() && s > 0.0) {
-        return;
+        return 0.0;
     }
     let e = y - dotp(x, theta);
     for (t, k) in theta.iter_mut().zip(px.iter()) {
@@ -501,6 +621,7 @@ fn rls_row(theta: &mut Vecp, p: &mut Matp, x: &Vecp, y: f32, r: f32) {
             }
         }
     }
+    e * e / s
 }
 
 fn dotp(a: &Vecp, b: &Vecp) -> f32 {

@@ -35,7 +35,9 @@ use crate::convergence::{Convergence, ConvergenceMonitor};
 use crate::invariant::{phi, phi_of_squares, sign, squares, triple_product};
 use crate::linalg::{mul_vec, solve};
 use crate::settings::{Settings, SettingsError, SignChangeCorrection};
-use crate::status::{Counters, Estimate, SampleStatus};
+use crate::status::{
+    ln_approx, Counters, Estimate, Exposure, SampleStatus, Trust, Verdict, MIN_SAMPLES,
+};
 
 /// The last sample the integration runs from.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -60,6 +62,11 @@ pub struct Identifier {
     branch: f32,
     monitor: ConvergenceMonitor,
     counters: Counters,
+    /// What the data offered (for [`Identifier::trust`]).
+    exposure: Exposure,
+    /// Excitation `E` needed before the estimate has forgotten its initial value
+    /// (see [`Identifier::trust`]).
+    excitation_needed: f32,
 }
 
 impl Identifier {
@@ -79,6 +86,8 @@ impl Identifier {
             branch: 0.0,
             monitor: ConvergenceMonitor::new(),
             counters: Counters::default(),
+            exposure: Exposure::new(),
+            excitation_needed: excitation_needed(&settings),
         }
     }
 
@@ -107,7 +116,48 @@ impl Identifier {
             a: self.delta,
             status,
             convergence: self.monitor.verdict(self.settings.h),
+            trust: self.trust(),
         }
+    }
+
+    /// How far the estimate can be trusted ([`Trust`], by [`Trust::assess`]). The paper's
+    /// identifier has no standard deviation of its own, so this is a **weaker** verdict than
+    /// [`crate::Refined::trust`]'s, derived from:
+    ///
+    /// * enough: at least [`MIN_SAMPLES`] accepted samples (identifiable or not: a stretch
+    ///   where (2) fails is judged by the excitation below);
+    /// * excited: the excitation `E = integral |w1 w2 w3| dt` over integrated intervals
+    ///   satisfies `lambda E >= ln(1 / eps)`, `lambda = -trace(C) / 3` (for `C = -lambda E`
+    ///   exactly the decay rate of (13)): by (10) the mismatch decays as `exp(-lambda E)`, so
+    ///   only then has an initial error of up to 1 (any `|a_i| < 1` from a zero start) shrunk
+    ///   below `eps`;
+    /// * settled: the paper's criterion (section 4) holds ([`Identifier::convergence`]);
+    /// * possible: judged only once settled (before, the estimate is in transit): every
+    ///   `|a_i| < 1 + eps` and `|a1 + a2 + a3 + a1 a2 a3| <= 6 eps` (each `a_i` within `eps`
+    ///   moves the consistency value by at most `2 eps`, `|1 + a_j a_k| <= 2`).
+    ///
+    /// Weaker because the criterion measures stillness, not error: on noisy data the estimate
+    /// (12) carries the noise of the current sample and a bias the criterion cannot see; use
+    /// [`crate::Refined`] for a trust backed by a standard deviation.
+    pub fn trust(&self) -> Trust {
+        let s = &self.settings;
+        let settled = self.monitor.verdict(s.h) == Convergence::Converged;
+        let a = self.delta;
+        let possible = !settled
+            || (a.iter().all(|x| x.abs() < 1.0 + s.eps)
+                && crate::inertia::consistency(a).abs() <= 6.0 * s.eps);
+        let verdict = Verdict {
+            enough: self.exposure.accepted >= MIN_SAMPLES,
+            excited: self.exposure.excitation >= self.excitation_needed,
+            possible,
+            settled,
+        };
+        Trust::assess(&self.exposure, verdict)
+    }
+
+    /// What the data offered so far (counts, peak rate, excitation `E`).
+    pub fn exposure(&self) -> &Exposure {
+        &self.exposure
     }
 
     /// The current estimate `(a1, a2, a3)` of (12).
@@ -164,8 +214,10 @@ impl Identifier {
         }
         if omega.iter().any(|w| w.abs() >= self.settings.full_scale) {
             self.pending_dt += dt;
+            self.exposure.saturate();
             return SampleStatus::Saturated;
         }
+        self.exposure.accept(omega);
         let elapsed = self.pending_dt + dt;
         self.pending_dt = 0.0;
         let p = triple_product(omega);
@@ -186,7 +238,11 @@ impl Identifier {
         if !(identifiable(prev.p) && identifiable(p)) {
             return SampleStatus::Unidentifiable;
         }
-        self.integrate(prev, new, elapsed)
+        let status = self.integrate(prev, new, elapsed);
+        if status.integrated() {
+            self.exposure.excite(prev.p, p, elapsed);
+        }
+        status
     }
 
     /// Implicit trapezoidal step of `Delta' = |p| C Delta - 1/2 s C q'` from `prev` to `new`.
@@ -268,6 +324,19 @@ impl Identifier {
         } else {
             SampleStatus::Updated
         }
+    }
+}
+
+/// `ln(1 / eps) / lambda`, `lambda = -trace(C) / 3`: the excitation `E` after which (10)
+/// has shrunk an initial error of 1 below `eps` (see [`Identifier::trust`]).
+fn excitation_needed(settings: &Settings) -> f32 {
+    let c = settings.gain.rows();
+    let lambda = -(c[0][0] + c[1][1] + c[2][2]) / 3.0;
+    let need = ln_approx(1.0 / settings.eps) / lambda;
+    if need.is_finite() && need > 0.0 {
+        need
+    } else {
+        0.0
     }
 }
 

@@ -1,5 +1,5 @@
-//! What one step reports: the estimate (12), what happened to the sample, and counters for
-//! diagnosis.
+//! What one step reports: the estimate (12), what happened to the sample, how far the estimate
+//! can be trusted ([`Trust`]), and counters for diagnosis.
 
 use crate::convergence::Convergence;
 use crate::inertia::{consistency, InertiaRatios};
@@ -59,11 +59,18 @@ pub struct Estimate {
     pub status: SampleStatus,
     /// The paper's accuracy criterion, evaluated over identifiable time.
     pub convergence: Convergence,
+    /// How far `a` can be trusted, from the information the data carried (see [`Trust`]).
+    pub trust: Trust,
 }
 
 impl Estimate {
-    /// Inertia ratios `A2/A1`, `A3/A1` implied by `a` (see [`InertiaRatios::from_a`]).
+    /// Inertia ratios `A2/A1`, `A3/A1` implied by `a` (see [`InertiaRatios::from_a`]);
+    /// `None` while the data has carried no information ([`Trust::has_information`] false):
+    /// before the first samples the estimate is only the initial value, not a body.
     pub fn ratios(&self) -> Option<InertiaRatios> {
+        if !self.trust.has_information() {
+            return None;
+        }
         InertiaRatios::from_a(self.a)
     }
 
@@ -112,5 +119,338 @@ impl Counters {
             SampleStatus::Anchored => return,
         };
         *slot = slot.saturating_add(1);
+    }
+}
+
+/// Largest `|w_i|`, rad/s, that a thrown or flying rigid body plausibly reaches: a hand toss
+/// spins at about 12 rad/s, a racquet at 35 rad/s, a gyro's widest range (+-2000 deg/s) is
+/// 34.9 rad/s. A larger accepted rate means the samples are not in rad/s (deg/s data is
+/// 57.3x too large): [`Trust::UnitsLookWrong`].
+pub const MAX_PLAUSIBLE_RATE: f32 = 50.0;
+
+/// Fewest samples that must have entered the reported estimate before it is judged
+/// ([`Trust::TooFewSamples`] below this).
+pub const MIN_SAMPLES: u32 = 10;
+
+/// A rate must swing (largest minus smallest accepted value) by more than this many gyro
+/// noise standard deviations on at least two axes for the motion to count as excitation in
+/// [`Exposure::moved`]: white noise alone swings by about 8 sigma over `10^4` samples.
+pub const SWING_SIGMAS: f32 = 20.0;
+
+/// Absolute allowance on the consistency value `a1 + a2 + a3 + a1 a2 a3` on top of its
+/// statistical bound in [`physically_possible`]: `f32` rounding and the discretisation bias
+/// of the integrals (below `1e-5` per `a_i`).
+pub const CONSISTENCY_FLOOR: f32 = 1e-4;
+
+/// How far an estimate can be trusted, decided from the information the data carried, never
+/// from the estimate's stillness alone. Shared by every estimator of the crate.
+///
+/// [`Trust::assess`] gives the first status, in this order, whose condition holds:
+///
+/// | status | given when |
+/// |---|---|
+/// | [`Trust::NoInformation`] | no sample has been accepted and none was saturated |
+/// | [`Trust::Saturated`] | more than 1 % of the samples offered were at full scale (`100 saturated > accepted`) |
+/// | [`Trust::UnitsLookWrong`] | an accepted rate exceeded [`MAX_PLAUSIBLE_RATE`] |
+/// | [`Trust::TooFewSamples`] | fewer than [`MIN_SAMPLES`] samples are in the reported estimate |
+/// | [`Trust::NoExcitation`] | the data carried no information about `a` (estimator's rule) |
+/// | [`Trust::PhysicallyImpossible`] | the estimate is no rigid body beyond its uncertainty ([`physically_possible`]) |
+/// | [`Trust::Converging`] | the estimate's own precision is not yet the configured tolerance |
+/// | [`Trust::Converged`] | none of the above: informative data, a possible body, precise enough |
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Trust {
+    /// Nothing accepted yet: `a` is the initial value.
+    NoInformation,
+    /// Fewer than [`MIN_SAMPLES`] samples in the reported estimate.
+    TooFewSamples,
+    /// Samples arrived but did not excite (1): a still gyro, a spin about a principal axis,
+    /// `|w1 w2 w3|` too small for too short a time. The estimator's rule is in its docs.
+    NoExcitation,
+    /// More than 1 % of the offered samples were at the gyro's full scale: the estimate has
+    /// gaps exactly where the motion is fastest. Widen the gyro's range.
+    Saturated,
+    /// The estimate is not a rigid body: some `|a_i| >= 1` or the consistency value
+    /// `a1 + a2 + a3 + a1 a2 a3` is far from 0, beyond the estimate's uncertainty. Typical
+    /// cause: a wrong time step (`dt` 10x too small gives `a` 10x too large), a gyro scale
+    /// error, an unmodelled torque.
+    PhysicallyImpossible,
+    /// Rates beyond [`MAX_PLAUSIBLE_RATE`]: the samples are probably not in rad/s.
+    UnitsLookWrong,
+    /// Informative data, a possible body, not yet precise enough.
+    Converging,
+    /// The estimate's own standard deviations are below the tolerance, it is a possible body,
+    /// and the data carried information.
+    Converged,
+}
+
+impl Trust {
+    /// False for [`Trust::NoInformation`], [`Trust::TooFewSamples`] and
+    /// [`Trust::NoExcitation`]: the estimate is still (mostly) the initial value, and
+    /// [`Estimate::ratios`] gives `None`.
+    pub const fn has_information(self) -> bool {
+        !matches!(
+            self,
+            Trust::NoInformation | Trust::TooFewSamples | Trust::NoExcitation
+        )
+    }
+
+    /// The rule of the table on [`Trust`]: the data-side conditions from `exposure`, the
+    /// estimator-side ones from `verdict`.
+    pub fn assess(exposure: &Exposure, verdict: Verdict) -> Trust {
+        if exposure.accepted == 0 && exposure.saturated == 0 {
+            Trust::NoInformation
+        } else if exposure.saturated > 0
+            && u64::from(exposure.saturated) * 100 > u64::from(exposure.accepted)
+        {
+            Trust::Saturated
+        } else if exposure.peak_rate > MAX_PLAUSIBLE_RATE {
+            Trust::UnitsLookWrong
+        } else if !verdict.enough {
+            Trust::TooFewSamples
+        } else if !verdict.excited {
+            Trust::NoExcitation
+        } else if !verdict.possible {
+            Trust::PhysicallyImpossible
+        } else if !verdict.settled {
+            Trust::Converging
+        } else {
+            Trust::Converged
+        }
+    }
+}
+
+/// The estimator's side of [`Trust::assess`]: four answers each estimator gives by its own
+/// rule (documented on the estimator's `trust` method).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Verdict {
+    /// At least [`MIN_SAMPLES`] samples are in the reported estimate.
+    pub enough: bool,
+    /// The data carried information about `a`.
+    pub excited: bool,
+    /// The estimate is a rigid body within its uncertainty.
+    pub possible: bool,
+    /// The estimate's precision meets the configured tolerance.
+    pub settled: bool,
+}
+
+impl Verdict {
+    /// Before any estimate: nothing known, nothing excluded.
+    pub const NONE: Verdict = Verdict {
+        enough: false,
+        excited: false,
+        possible: true,
+        settled: false,
+    };
+}
+
+/// What the data offered an estimator, whatever the estimator: counts, the largest rate and
+/// the excitation `E = integral |w1 w2 w3| dt` of the identifiability condition (2). Fixed
+/// size (40 bytes).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Exposure {
+    /// Samples accepted (finite, below full scale, valid `dt`).
+    pub accepted: u32,
+    /// Samples refused at full scale.
+    pub saturated: u32,
+    /// Largest `|w_i|` among accepted samples, rad/s.
+    pub peak_rate: f32,
+    /// `E = integral |w1 w2 w3| dt` over the intervals the estimator integrated, by the
+    /// trapezoid, (rad/s)^3 s.
+    pub excitation: f32,
+    lo: [f32; 3],
+    hi: [f32; 3],
+}
+
+impl Default for Exposure {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Exposure {
+    /// Nothing seen.
+    pub const fn new() -> Self {
+        Exposure {
+            accepted: 0,
+            saturated: 0,
+            peak_rate: 0.0,
+            excitation: 0.0,
+            lo: [f32::INFINITY; 3],
+            hi: [f32::NEG_INFINITY; 3],
+        }
+    }
+
+    /// Counts an accepted sample: `peak_rate = max |w_i|`, and each axis's range.
+    #[inline]
+    pub fn accept(&mut self, omega: [f32; 3]) {
+        self.accepted = self.accepted.saturating_add(1);
+        for ((lo, hi), w) in self.lo.iter_mut().zip(self.hi.iter_mut()).zip(omega) {
+            *lo = lo.min(w);
+            *hi = hi.max(w);
+            self.peak_rate = self.peak_rate.max(w.abs());
+        }
+    }
+
+    /// Counts a sample refused at full scale.
+    #[inline]
+    pub fn saturate(&mut self) {
+        self.saturated = self.saturated.saturating_add(1);
+    }
+
+    /// Adds `1/2 (|p0| + |p1|) h` to [`Exposure::excitation`] for an integrated interval of
+    /// `h` seconds between samples with triple products `p0`, `p1` (ignored unless finite).
+    #[inline]
+    pub fn excite(&mut self, p0: f32, p1: f32, h: f32) {
+        let e = self.excitation + 0.5 * (p0.abs() + p1.abs()) * h;
+        if e.is_finite() {
+            self.excitation = e;
+        }
+    }
+
+    /// `max w_i - min w_i` over the accepted samples, per axis (0 before any).
+    pub fn swing(&self) -> [f32; 3] {
+        let mut s = [0.0; 3];
+        for ((si, lo), hi) in s.iter_mut().zip(self.lo).zip(self.hi) {
+            let d = hi - lo;
+            *si = if d.is_finite() { d } else { 0.0 };
+        }
+        s
+    }
+
+    /// True when at least two axes swung by more than [`SWING_SIGMAS`] `noise_std`: the
+    /// rates changed beyond what noise (or a constant bias) explains, so (1) was exercised.
+    pub fn moved(&self, noise_std: f32) -> bool {
+        let bar = SWING_SIGMAS * noise_std;
+        self.swing().iter().filter(|d| **d > bar).count() >= 2
+    }
+}
+
+/// Physical validity of an estimate `a` with per-axis variances `var` (actual units, not per
+/// `sigma^2`; axes taken independent), beyond its uncertainty:
+///
+/// * every `|a_i| < 1` (the triangle inequality `|A_j - A_k| < A_i`), or above 1 by at most
+///   3 standard deviations: `(|a_i| - 1)^2 <= 9 var_i`;
+/// * the consistency value `c = a1 + a2 + a3 + a1 a2 a3` within 4 of its standard deviations
+///   plus [`CONSISTENCY_FLOOR`]: `(|c| - floor)^2 <= 16 var_c` with
+///   `var_c = sum_i (1 + a_j a_k)^2 var_i` (`dc/da_i = 1 + a_j a_k`).
+///
+/// Together these make the inertia ratios of [`InertiaRatios::from_a`] positive. Uses no
+/// square root (comparisons of squares). Non-finite input is not possible.
+pub fn physically_possible(a: [f32; 3], var: [f32; 3]) -> bool {
+    let [a1, a2, a3] = a;
+    let [v1, v2, v3] = var;
+    let axis_ok = |ai: f32, vi: f32| {
+        let over = ai.abs() - 1.0;
+        over < 0.0 || over * over <= 9.0 * vi
+    };
+    let d = [1.0 + a2 * a3, 1.0 + a3 * a1, 1.0 + a1 * a2];
+    let var_c = d[0] * d[0] * v1 + d[1] * d[1] * v2 + d[2] * d[2] * v3;
+    let over = consistency(a).abs() - CONSISTENCY_FLOOR;
+    let c_ok = over <= 0.0 || over * over <= 16.0 * var_c;
+    axis_ok(a1, v1) && axis_ok(a2, v2) && axis_ok(a3, v3) && c_ok
+}
+
+/// True when every standard deviation is below `tolerance`: `var_i < tolerance^2`.
+pub fn precise(var: [f32; 3], tolerance: f32) -> bool {
+    let t2 = tolerance * tolerance;
+    var.iter().all(|v| *v < t2)
+}
+
+/// `ln(x)` for finite `x > 0` (0 otherwise) with `+ - * /` only: `x = 2^e m`,
+/// `ln x = e ln 2 + 2 artanh((m - 1)/(m + 1))`, three terms of the series (error below
+/// `3e-4`). Used once per settings, for thresholds.
+pub(crate) fn ln_approx(x: f32) -> f32 {
+    if !(x > 0.0 && x.is_finite()) || x < f32::MIN_POSITIVE {
+        return 0.0;
+    }
+    let bits = x.to_bits();
+    let e = ((bits >> 23) & 0xff) as i32 - 127;
+    let m = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000);
+    let t = (m - 1.0) / (m + 1.0);
+    let t2 = t * t;
+    let ln_m = 2.0 * t * (1.0 + t2 * (1.0 / 3.0 + t2 * 0.2));
+    e as f32 * core::f32::consts::LN_2 + ln_m
+}
+
+#[cfg(test)]
+mod trust_tests {
+    use super::*;
+
+    #[test]
+    fn ln_approx_is_close() {
+        for x in [1e-3f32, 0.5, 1.0, 2.0, 10.0, 1234.5] {
+            let want = (x as f64).ln() as f32;
+            assert!((ln_approx(x) - want).abs() < 3e-4, "{x}");
+        }
+        assert_eq!(ln_approx(-1.0), 0.0);
+    }
+
+    #[test]
+    fn order_of_the_table() {
+        let mut e = Exposure::new();
+        let all = Verdict {
+            enough: true,
+            excited: true,
+            possible: true,
+            settled: true,
+        };
+        assert_eq!(Trust::assess(&e, all), Trust::NoInformation);
+        for _ in 0..100 {
+            e.accept([1.0, -2.0, 3.0]);
+        }
+        assert_eq!(Trust::assess(&e, all), Trust::Converged);
+        assert_eq!(
+            Trust::assess(
+                &e,
+                Verdict {
+                    settled: false,
+                    ..all
+                }
+            ),
+            Trust::Converging
+        );
+        assert_eq!(
+            Trust::assess(
+                &e,
+                Verdict {
+                    possible: false,
+                    ..all
+                }
+            ),
+            Trust::PhysicallyImpossible
+        );
+        assert_eq!(
+            Trust::assess(
+                &e,
+                Verdict {
+                    excited: false,
+                    ..all
+                }
+            ),
+            Trust::NoExcitation
+        );
+        assert_eq!(Trust::assess(&e, Verdict::NONE), Trust::TooFewSamples);
+        e.saturate();
+        assert_eq!(Trust::assess(&e, all), Trust::Converged);
+        e.saturate();
+        assert_eq!(Trust::assess(&e, all), Trust::Saturated);
+        let mut e = Exposure::new();
+        e.accept([60.0, 0.0, 0.0]);
+        assert_eq!(Trust::assess(&e, all), Trust::UnitsLookWrong);
+        assert_eq!(e.swing(), [0.0; 3]);
+    }
+
+    #[test]
+    fn physical_validity() {
+        let a = [0.9f32, 0.4 / 1.54, -0.94];
+        assert!(physically_possible(a, [0.0; 3]));
+        assert!(!physically_possible(a.map(|x| 10.0 * x), [1e-4; 3]));
+        assert!(!physically_possible(a.map(|x| x / 57.3), [1e-8; 3]));
+        // Within its uncertainty a slightly inconsistent estimate is still a body.
+        assert!(physically_possible(a.map(|x| x / 1.01), [1e-3; 3]));
+        assert!(precise([1e-8; 3], 1e-3) && !precise([1e-6, 0.0, 0.0], 1e-3));
     }
 }
