@@ -112,12 +112,10 @@ fn refined_combines_tosses_and_reports_its_uncertainty() {
     let sc = scenario("toss");
     let truth = sc.truth();
     let a = sc.a();
-    let mut id = Refined::new(RefinedSettings {
-        block: 8,
-        end_correction: true,
-        noise_std: sc.sigma as f32,
-        ..RefinedSettings::new()
-    })
+    let mut id = Refined::new(RefinedSettings::for_rate(
+        sc.rate_hz as f32,
+        sc.sigma as f32,
+    ))
     .expect("valid settings");
     let mut stds = Vec::new();
     for toss in 0..4 {

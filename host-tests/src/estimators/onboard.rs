@@ -200,13 +200,14 @@ impl Method for RefinedMethod {
         self.curve(t, y, &[t.len() - 1])[0]
     }
     fn curve(&self, t: &[f64], y: &[[f64; 3]], checkpoints: &[usize]) -> Vec<[f64; 3]> {
-        // Configured for the sample rate as a deployment would be: blocks of about 32 ms but at
-        // least 8 samples (at 100 Hz, blocks of 1, 3, 5 and 8 samples gave the same accuracy
-        // on the toss within 1 %), and the integral's end correction below 200 Hz.
-        let mut settings = self.settings;
+        // Configured for the sample rate as a deployment would be, by the core's
+        // `RefinedSettings::for_rate` (blocks of about 32 ms, at least 8 samples; end
+        // correction on), keeping this method's noise, prior and limits.
         let dt = if t.len() > 1 { t[1] - t[0] } else { 1e-3 };
-        settings.end_correction = dt > 5e-3;
-        settings.block = ((0.032 / dt).round() as u16).clamp(8, 1024);
+        let rated = RefinedSettings::for_rate((1.0 / dt) as f32, self.settings.noise_std);
+        let mut settings = self.settings;
+        settings.end_correction = rated.end_correction;
+        settings.block = rated.block;
         let Some(mut id) = Refined::new(settings) else {
             return vec![[f64::NAN; 3]; checkpoints.len()];
         };

@@ -1,0 +1,129 @@
+//! Issue 11: settings from the sample rate alone (`RefinedSettings::for_rate`), and the
+//! noise-free bias they leave from 100 Hz to 8 kHz, for the refined and the paper identifier.
+
+use host_tests::rigid_body::Body;
+use identifier_core::{Identifier, Refined, RefinedSettings, Settings};
+
+const RATES: [f64; 6] = [100.0, 200.0, 400.0, 1000.0, 4000.0, 8000.0];
+
+struct Case {
+    name: &'static str,
+    inertia: [f64; 3],
+    omega0: [f64; 3],
+    duration: f64,
+}
+
+fn cases() -> [Case; 3] {
+    [
+        Case {
+            name: "paper body",
+            inertia: [0.6, 1.54, 1.0],
+            omega0: [1.0, 1.0, 1.0],
+            duration: 20.0,
+        },
+        Case {
+            name: "fast tumble",
+            inertia: [0.8, 1.3, 1.0],
+            omega0: [3.0, -2.0, 2.5],
+            duration: 20.0,
+        },
+        Case {
+            name: "toss (racquet-like)",
+            inertia: [12.3, 1.0, 13.3],
+            omega0: [7.9, -1.8, 0.5],
+            duration: 0.85,
+        },
+    ]
+}
+
+/// Noise-free samples of `case` at `rate` (f64 RK4 with enough substeps to be exact in f32).
+fn samples(case: &Case, rate: f64) -> (Vec<[f32; 3]>, f32) {
+    let sub = ((4000.0 / rate).ceil() as usize).max(2);
+    let tr = Body::free(case.inertia).simulate(case.omega0, case.duration, rate, sub);
+    let w = tr.omega.iter().map(|w| w.map(|x| x as f32)).collect();
+    (w, (1.0 / rate) as f32)
+}
+
+fn max_err(est: [f32; 3], a: [f64; 3]) -> f64 {
+    (0..3)
+        .map(|i| (f64::from(est[i]) - a[i]).abs())
+        .fold(0.0, f64::max)
+}
+
+/// Largest noise-free error of the refined identifier with `for_rate` over the cases, per rate.
+fn refined_bias(rate: f64) -> f64 {
+    cases()
+        .iter()
+        .map(|c| {
+            let (w, dt) = samples(c, rate);
+            let mut id = Refined::new(RefinedSettings::for_rate(rate as f32, 1e-3)).unwrap();
+            for x in &w {
+                id.step(*x, dt);
+            }
+            let e = max_err(id.estimate(), Body::free(c.inertia).a());
+            println!("  refined  {:>6} Hz {:<20} |err| {e:.2e}", rate, c.name);
+            e
+        })
+        .fold(0.0, f64::max)
+}
+
+/// Noise-free error of the paper's identifier (lambda = 3) on the two long cases (the toss is
+/// too short for it to converge).
+fn paper_bias(rate: f64) -> f64 {
+    cases()
+        .iter()
+        .take(2)
+        .map(|c| {
+            let (w, dt) = samples(c, rate);
+            let mut id = Identifier::new(Settings::with_lambda(3.0)).unwrap();
+            for x in &w {
+                id.step(*x, dt);
+            }
+            let e = max_err(id.estimate(), Body::free(c.inertia).a());
+            println!("  paper    {:>6} Hz {:<20} |err| {e:.2e}", rate, c.name);
+            e
+        })
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn for_rate_noise_free_bias() {
+    let mut worst = 0.0f64;
+    for rate in RATES {
+        let b = refined_bias(rate);
+        println!("refined for_rate({rate}) noise-free bias {b:.2e}");
+        worst = worst.max(b);
+    }
+    assert!(worst < 1e-5, "worst noise-free bias {worst:.2e}");
+}
+
+#[test]
+fn paper_identifier_noise_free_bias() {
+    for rate in RATES {
+        let b = paper_bias(rate);
+        println!("paper identifier at {rate} Hz: noise-free bias {b:.2e}");
+    }
+}
+
+#[test]
+fn for_rate_has_no_edge_and_is_usable() {
+    let mut last = 8u16;
+    for hz in (50..=9000).step_by(10) {
+        let s = RefinedSettings::for_rate(hz as f32, 1e-3);
+        assert!(s.is_valid(), "{hz}: {s:?}");
+        assert!(s.end_correction);
+        assert!(
+            s.block >= last && s.block - last <= 1,
+            "{hz}: {} after {last}",
+            s.block
+        );
+        last = s.block;
+    }
+    assert_eq!(RefinedSettings::for_rate(1000.0, 1e-3).block, 32);
+    assert_eq!(RefinedSettings::for_rate(100.0, 1e-3).block, 8);
+    assert_eq!(RefinedSettings::for_rate(8000.0, 1e-3).block, 256);
+    for bad in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        assert!(!RefinedSettings::for_rate(bad, 1e-3).is_valid(), "{bad}");
+        assert!(!RefinedSettings::for_rate(1000.0, bad).is_valid(), "{bad}");
+    }
+}
