@@ -102,9 +102,11 @@ impl<const N: usize> Pipeline<N> {
         let gate = FreeFlightGate::new(settings.gate)?;
         let estimator = TensorEstimator::new(settings.tensor)?;
         let rate = settings.rate_hz;
-        if !(rate.is_finite() && rate > 0.0)
-            || !(settings.guard_release >= 0.0 && settings.guard_catch >= 0.0)
-        {
+        let usable = rate.is_finite()
+            && rate > 0.0
+            && settings.guard_release >= 0.0
+            && settings.guard_catch >= 0.0;
+        if !usable {
             return None;
         }
         let block = settings.gate.block as f32;
@@ -182,8 +184,10 @@ impl<const N: usize> Pipeline<N> {
         let index = self.index;
         self.index = self.index.saturating_add(1);
         if self.use_gate {
-            let bad = !omega.iter().chain(accel.iter()).all(|x| x.is_finite())
-                || !(dt.is_finite() && dt > 0.0);
+            let good = omega.iter().chain(accel.iter()).all(|x| x.is_finite())
+                && dt.is_finite()
+                && dt > 0.0;
+            let bad = !good;
             if bad {
                 // A bad sample breaks the window: nothing is known to be free until a new
                 // window has been fitted.

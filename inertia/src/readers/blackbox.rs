@@ -322,6 +322,15 @@ pub fn read_bytes(path: &Path, data: &[u8]) -> Result<Recording, ReadError> {
              taken as raw counts, {GYRO_LSB_PER_DEG_S} per deg/s"
         ));
     }
+    if notes.is_empty() {
+        // Only INDIflight's units are verified (see the module documentation); Betaflight 4
+        // itself may log gyroADC already in deg/s, which this scale would make 16.4x too small.
+        notes.push(format!(
+            "gyroADC taken as raw counts, {GYRO_LSB_PER_DEG_S} per deg/s, as INDIflight logs \
+             it; check the rates if this log's firmware ({}) logs deg/s",
+            rec.source
+        ));
+    }
     if count > 1 {
         notes.push(format!(
             "the file holds {count} logs; the one with the most main frames was read"
