@@ -275,7 +275,7 @@ pub fn raw3_to_m_s2(raw: [i16; 3], fs: AccelFullScale) -> [f32; 3] {
 /// True when a raw count is at the clip level (`+-32767`, or `-32768`): the true value may be
 /// beyond the range.
 pub const fn is_clipped(raw: i16) -> bool {
-    raw >= crate::registers::CLIP || raw <= -crate::registers::CLIP
+    raw == crate::registers::CLIP || raw <= -crate::registers::CLIP
 }
 
 /// Which axes of a raw triple are at the clip level ([`is_clipped`]).
