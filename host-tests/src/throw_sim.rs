@@ -175,7 +175,7 @@ impl Rotor {
         }
     }
 
-    fn unit_axis(&self) -> [f64; 3] {
+    pub fn unit_axis(&self) -> [f64; 3] {
         let n = norm(self.axis);
         if n > 0.0 {
             self.axis.map(|v| v / n)

@@ -26,7 +26,7 @@
 //!
 //! A window is still when the specific force stays within [`GateSettings::still_accel`] of
 //! one `g` and every rate stays below [`GateSettings::still_rate`]; the mean rate over the
-//! last still window is the gyro bias, subtracted by [`crate::pipeline::Pipeline`] before the
+//! last run of still windows is the gyro bias, subtracted by [`crate::pipeline::Pipeline`] before the
 //! estimator sees a sample.
 
 use crate::symmetric::{cholesky, cholesky_solve, sqrt};
@@ -159,6 +159,9 @@ pub struct FreeFlightGate {
     filled: u8,
     last_fit: Option<WindowFit>,
     bias: Option<[f32; 3]>,
+    /// Sum of the rates and sample count over the current run of still windows.
+    still_sum: [f32; 3],
+    still_n: u32,
 }
 
 impl FreeFlightGate {
@@ -173,6 +176,8 @@ impl FreeFlightGate {
             filled: 0,
             last_fit: None,
             bias: None,
+            still_sum: [0.0; 3],
+            still_n: 0,
         })
     }
 
@@ -255,9 +260,24 @@ impl FreeFlightGate {
             }
         }
         let fit = self.fit(&sum);
-        if fit.still && sum.n > 0 {
-            let n = sum.n as f32;
-            self.bias = Some([sum.w[0] / n, sum.w[1] / n, sum.w[2] / n]);
+        // The bias is the mean rate over the whole current run of still blocks (a longer
+        // average than one window: its noise is sigma / sqrt(samples)).
+        let newest = self.ring.get(idx).copied().unwrap_or(BlockSums::ZERO);
+        if fit.still {
+            if self.still_n == 0 {
+                self.still_sum = sum.w;
+                self.still_n = sum.n as u32;
+            } else {
+                for (a, b) in self.still_sum.iter_mut().zip(newest.w.iter()) {
+                    *a += b;
+                }
+                self.still_n = self.still_n.saturating_add(newest.n as u32);
+            }
+            let n = self.still_n as f32;
+            self.bias = Some(self.still_sum.map(|x| x / n));
+        } else {
+            self.still_n = 0;
+            self.still_sum = [0.0; 3];
         }
         self.last_fit = Some(fit);
         Some(fit)

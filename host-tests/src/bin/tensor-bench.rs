@@ -1,0 +1,102 @@
+//! Tensor estimator against the Cramer-Rao bound of the tensor model on simulated board
+//! throws (non-diagonal J, flywheel spin-up, white gyro noise, clipping at +-2000 deg/s):
+//! `cargo run --release -p host-tests --bin tensor-bench -- [SEEDS] [off]` (`off`: the logged
+//! rotor speed and gyro not quantised).
+//!
+//! Two paths per seed: the estimator fed the true free flight (the estimator's own quality),
+//! and the whole log through the shared pipeline (gate, guards, bias) as the firmware runs it.
+//! Prints per entry: RMS error / CRB, and RMS(error / reported std) (calibration).
+use host_tests::crb_tensor::{absolute_bound, FreeFlight};
+use host_tests::throw_sim::{board_throw_config, simulate};
+use identifier_core::{FlightPipeline, PipelineSettings, TensorEstimator, TensorSettings};
+
+fn main() {
+    let seeds: u64 = std::env::args()
+        .nth(1)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(20);
+    // `off`: no quantisation of the logged rotor speed and gyro (the estimator against the
+    // bound of its own model); default: quantised as the thrown-FC logs are.
+    let quant = std::env::args().nth(2).unwrap_or_default();
+    let names = ["Jxx", "Jyy", "Jzz", "Jxy", "Jxz", "Jyz"];
+    let idx = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
+    let mut sq = [[0.0f64; 6]; 2];
+    let mut crb = [0.0f64; 6];
+    let mut z2 = [[0.0f64; 6]; 2];
+    let mut n = [0usize; 2];
+    for seed in 1..=seeds {
+        let mut cfg = board_throw_config(seed);
+        if quant == "off" {
+            cfg.quantize_rotor_speed = false;
+            cfg.gyro.quantize = false;
+        }
+        let sim = simulate(&cfg);
+        let Some(range) = sim.free_flight() else {
+            continue;
+        };
+        let sigma = sim.config.gyro.noise_std;
+        let Some(ff) = FreeFlight::from_throw(&sim) else {
+            continue;
+        };
+        let Some(b) = absolute_bound(&ff, sigma, false) else {
+            continue;
+        };
+        let rate = sim.config.rate_hz as f32;
+        let j_r = sim.config.rotor.inertia as f32;
+        let axis = sim.config.rotor.unit_axis().map(|x| x as f32);
+        let h = |k: usize| axis.map(|a| a * j_r * sim.rotor_rad_s[k]);
+        let mut ts = TensorSettings::for_rate(rate, sigma as f32);
+        ts.full_scale = 34.9;
+        let mut e = TensorEstimator::new(ts).unwrap();
+        for k in range.clone() {
+            e.step(sim.gyro[k], h(k), sim.dt() as f32);
+        }
+        let mut ps = PipelineSettings::for_rate(rate, sigma as f32);
+        ps.tensor.full_scale = 34.9;
+        let mut p = FlightPipeline::new(ps, true).unwrap();
+        for k in 0..sim.t.len() {
+            p.step(sim.gyro[k], sim.accel[k], h(k), sim.dt() as f32);
+        }
+        for (path, est) in [e.estimate(), p.estimate()].iter().enumerate() {
+            let (Some(t), Some(s)) = (est.tensor, est.tensor_std) else {
+                println!(
+                    "seed {seed} path {path}: no absolute tensor ({:?})",
+                    est.status
+                );
+                continue;
+            };
+            n[path] += 1;
+            for (q, &(r, c)) in idx.iter().enumerate() {
+                let err = t[r][c] as f64 - sim.config.inertia[r][c];
+                sq[path][q] += err * err;
+                z2[path][q] += (err / s[r][c] as f64).powi(2);
+                if path == 0 {
+                    crb[q] += b.std_j[r][c].powi(2);
+                }
+            }
+        }
+    }
+    println!(
+        "{} seeds; ratio = RMS error / CRB, calib = RMS(error / reported std)",
+        seeds
+    );
+    println!(
+        "{:<5} {:>10} {:>12} {:>8} {:>8} {:>12} {:>8}",
+        "entry", "CRB", "true flight", "ratio", "calib", "pipeline", "calib"
+    );
+    for q in 0..6 {
+        let c = (crb[q] / n[0].max(1) as f64).sqrt();
+        let r0 = (sq[0][q] / n[0].max(1) as f64).sqrt();
+        let r1 = (sq[1][q] / n[1].max(1) as f64).sqrt();
+        println!(
+            "{:<5} {:>10.3e} {:>12.3e} {:>8.2} {:>8.2} {:>12.3e} {:>8.2}",
+            names[q],
+            c,
+            r0,
+            r0 / c,
+            (z2[0][q] / n[0].max(1) as f64).sqrt(),
+            r1,
+            (z2[1][q] / n[1].max(1) as f64).sqrt()
+        );
+    }
+}
