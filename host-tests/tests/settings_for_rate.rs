@@ -67,20 +67,47 @@ fn refined_bias(rate: f64) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Noise-free error of the paper's identifier (lambda = 3) on the two long cases (the toss is
-/// too short for it to converge).
+/// The bodies of `tests/identifier.rs` (40 s each): principal axes, plates, a racquet, a
+/// near-symmetric body, a fast tumble.
+const PAPER_CASES: [([f64; 3], [f64; 3]); 9] = [
+    ([0.6, 1.54, 1.0], [1.0, 1.0, 1.0]),
+    ([0.6, 1.54, 1.0], [1.0, -1.0, 1.0]),
+    ([1.0, 2.0, 3.0], [3.0, 0.6, 0.5]),
+    ([1.0, 2.0, 3.0], [0.5, 0.6, 3.0]),
+    ([1.0, 2.0, 3.0], [0.3, 3.0, 0.3]),
+    ([1.0, 1.9, 2.9], [-1.2, 0.8, 1.1]),
+    ([18.8, 1.39, 20.7], [2.0, 0.5, -1.5]),
+    ([1.0, 1.1, 1.6], [1.5, 1.2, 1.0]),
+    ([0.8, 1.3, 1.0], [3.0, -2.0, 2.5]),
+];
+
+/// Largest noise-free error of the paper's identifier (lambda = 3) over the last 5 s of the
+/// 40 s runs of [`PAPER_CASES`] at `rate`.
 fn paper_bias(rate: f64) -> f64 {
-    cases()
+    PAPER_CASES
         .iter()
-        .take(2)
-        .map(|c| {
-            let (w, dt) = samples(c, rate);
+        .map(|(inertia, omega0)| {
+            let c = Case {
+                name: "",
+                inertia: *inertia,
+                omega0: *omega0,
+                duration: 40.0,
+            };
+            let (w, dt) = samples(&c, rate);
+            let a = Body::free(c.inertia).a();
             let mut id = Identifier::new(Settings::with_lambda(3.0)).unwrap();
-            for x in &w {
-                id.step(*x, dt);
+            let tail = w.len() - (5.0 * rate) as usize;
+            let mut e = 0.0f64;
+            for (k, x) in w.iter().enumerate() {
+                let est = id.step(*x, dt).a;
+                if k >= tail {
+                    e = e.max(max_err(est, a));
+                }
             }
-            let e = max_err(id.estimate(), Body::free(c.inertia).a());
-            println!("  paper    {:>6} Hz {:<20} |err| {e:.2e}", rate, c.name);
+            println!(
+                "  paper    {:>6} Hz {inertia:?} {omega0:?} |err| {e:.2e}",
+                rate
+            );
             e
         })
         .fold(0.0, f64::max)
@@ -102,6 +129,12 @@ fn paper_identifier_noise_free_bias() {
     for rate in RATES {
         let b = paper_bias(rate);
         println!("paper identifier at {rate} Hz: noise-free bias {b:.2e}");
+        // Issue 11: below 1e-4 at 100 Hz (it was 2.6e-3 on the racquet-like body before the
+        // end-corrected trapezoid and the cubic sign-change crossing). Above 1 kHz the f32
+        // rounding of the many small increments dominates (1.8e-4 at 8 kHz), not asserted.
+        if rate <= 1000.0 {
+            assert!(b < 1e-4, "{rate} Hz: {b:.2e}");
+        }
     }
 }
 
