@@ -119,6 +119,10 @@ pub struct Report {
     pub pooled: EstimateJson,
     /// Warnings for the user.
     pub warnings: Vec<String>,
+    /// Indices of the samples fed to the estimator, one list per throw (for follow-up
+    /// analyses such as `inertia calibrate`; not written to JSON).
+    #[serde(skip)]
+    pub fed_runs: Vec<Vec<usize>>,
 }
 
 /// Why no estimate could be given at all.
@@ -356,5 +360,6 @@ pub fn identify(
         throws,
         pooled,
         warnings,
+        fed_runs: fed_runs.into_iter().filter(|r| !r.is_empty()).collect(),
     })
 }
