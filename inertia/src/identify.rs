@@ -203,6 +203,61 @@ pub struct IdentifyOptions {
     pub segments: Option<Vec<(f64, f64)>>,
     /// Gyro noise, rad/s; estimated from the data when `None`.
     pub noise_std: Option<f32>,
+    /// Use the rotor speed exactly as logged (sample and hold) instead of [`unhold`].
+    pub rotor_raw: bool,
+}
+
+/// Rotor speed reconstructed from a sample-and-hold telemetry channel.
+///
+/// ESC telemetry (eRPM) arrives every one to a few milliseconds and the log holds each value
+/// until the next: a staircase that lags the true speed by about half an update interval. On
+/// the thrown-FC logs this lag was the largest effect the model lacked (the residual of the
+/// rotor axis correlated -0.79 with the rotor's speed changes). Each new value is taken as the
+/// speed at the middle of the interval it replaced and the speed is interpolated linearly
+/// between those points; before the first change the log is kept as it is (a rotor at rest).
+pub fn unhold(t: &[f64], speed: &[f32]) -> Vec<f32> {
+    let n = speed.len().min(t.len());
+    let mut knots: Vec<(f64, f32)> = Vec::new();
+    let mut prev_change = 0usize;
+    for i in 1..n {
+        if speed[i] != speed[i - 1] {
+            knots.push((0.5 * (t[i] + t[prev_change]), speed[i]));
+            prev_change = i;
+        }
+    }
+    if knots.len() < 2 {
+        return speed.to_vec();
+    }
+    let first_change = {
+        let mut k = 1;
+        while k < n && speed[k] == speed[k - 1] {
+            k += 1;
+        }
+        k
+    };
+    let mut out = speed[..n].to_vec();
+    let mut j = 0usize;
+    for (i, o) in out.iter_mut().enumerate().skip(first_change) {
+        let ti = t[i];
+        while j + 1 < knots.len() && knots[j + 1].0 <= ti {
+            j += 1;
+        }
+        let (t0, v0) = knots[j];
+        *o = if j + 1 < knots.len() && ti >= t0 {
+            let (t1, v1) = knots[j + 1];
+            let f = ((ti - t0) / (t1 - t0)) as f32;
+            v0 + (v1 - v0) * f
+        } else if ti < t0 {
+            // Between the first change and the first knot's time: interpolate from the held
+            // value before it.
+            let (tp, vp) = (t[first_change - 1], speed[first_change - 1]);
+            let f = ((ti - tp) / (t0 - tp)) as f32;
+            vp + (v0 - vp) * f
+        } else {
+            v0
+        };
+    }
+    out
 }
 
 /// Runs the identification.
@@ -237,6 +292,11 @@ pub fn identify(
                 return Err(IdentifyError::Rotor(
                     "the log gives rotor speed as eRPM: --rotor-poles is needed".into(),
                 ));
+            };
+            let speed = if opts.rotor_raw {
+                speed
+            } else {
+                unhold(&rec.t, &speed)
             };
             speed
                 .iter()

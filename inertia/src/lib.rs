@@ -2,6 +2,8 @@
 //! identifies the inertia tensor with the same `f32` code the firmware runs
 //! (`identifier-core`).
 
+pub mod calibrate;
+pub mod close_loop;
 pub mod identify;
 pub mod plots;
 pub mod readers;

@@ -4,8 +4,9 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use inertia::close_loop::{analysis, report};
 use inertia::identify::{identify, parse_axis, IdentifyOptions, Rotor};
-use inertia::{read, GyroUnit, ReadOptions, TimeUnit};
+use inertia::{read, Format, GyroUnit, ReadOptions, TimeUnit};
 
 #[derive(Parser)]
 #[command(
@@ -22,6 +23,55 @@ struct Cli {
 enum Command {
     /// Find the free flights in a log and identify the inertia tensor (per throw and pooled).
     Identify(IdentifyArgs),
+    /// Close the loop on a gyro log: residual, effect, extended model, error before and after.
+    CloseLoop(CloseLoopArgs),
+}
+
+#[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
+struct CloseLoopArgs {
+    /// The log: a phyphox export (`Raw Data.csv` or its folder), a CSV `t,wx,wy,wz` (or with
+    /// named columns), a blackbox log or a ULog.
+    #[arg(long)]
+    input: PathBuf,
+    /// Free-flight windows (`segment,start,end,keep,comment`; rows with keep false are
+    /// skipped); default: a phyphox export's `meta/segments.csv`, else the whole log.
+    #[arg(long)]
+    segments: Option<PathBuf>,
+    /// Input format (phyphox, csv, blackbox, ulog); detected from the content when absent.
+    #[arg(long, value_parser = parse_format)]
+    format: Option<Format>,
+    /// Where to write the JSON result.
+    #[arg(long)]
+    json: PathBuf,
+    /// Directory for the markdown table and SVG plots.
+    #[arg(long)]
+    plots: Option<PathBuf>,
+    /// Reference `a` (comma separated) for the parameter error.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    truth: Option<Vec<f64>>,
+    /// Title of the markdown table.
+    #[arg(long)]
+    title: Option<String>,
+    /// Family-wise significance level of each selection round.
+    #[arg(long, default_value_t = 1e-3)]
+    alpha: f64,
+    /// Gyro unit of a CSV: rad/s or deg/s (also confirms rates that look like deg/s).
+    #[arg(long, value_parser = parse_gyro_unit)]
+    gyro_unit: Option<GyroUnit>,
+    /// Time unit of a CSV: s, ms or us (also confirms a time step that looks wrong).
+    #[arg(long, value_parser = parse_time_unit)]
+    time_unit: Option<TimeUnit>,
+}
+
+fn parse_format(s: &str) -> Result<Format, String> {
+    match s.to_ascii_lowercase().as_str() {
+        "phyphox" => Ok(Format::Phyphox),
+        "csv" => Ok(Format::Csv),
+        "blackbox" => Ok(Format::Blackbox),
+        "ulog" => Ok(Format::Ulog),
+        o => Err(format!("unknown format {o:?} (phyphox|csv|blackbox|ulog)")),
+    }
 }
 
 #[derive(clap::Args)]
@@ -52,6 +102,10 @@ struct IdentifyArgs {
     /// Gyro white noise, rad/s (estimated from the data when absent).
     #[arg(long)]
     noise_std: Option<f32>,
+    /// Use the rotor speed exactly as logged (sample and hold) instead of interpolating the
+    /// telemetry's held steps.
+    #[arg(long)]
+    rotor_raw: bool,
     /// Where to write the JSON report.
     #[arg(long)]
     json: PathBuf,
@@ -159,6 +213,7 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
         rotor,
         segments,
         noise_std: args.noise_std,
+        rotor_raw: args.rotor_raw,
     };
     let report = identify(&rec, &iopts, |i| {
         if let Some(b) = &bar {
@@ -197,10 +252,73 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// `inertia close-loop`: exit 3 for unusable input (unreadable, wrong units, bad segments), 4
+/// when the data cannot identify `a`.
+fn run_close_loop(args: CloseLoopArgs) -> Result<ExitCode, String> {
+    if args.truth.as_ref().is_some_and(|t| t.len() != 3) {
+        return Err("--truth needs three numbers a1,a2,a3".into());
+    }
+    if !(args.alpha > 0.0 && args.alpha < 1.0) {
+        return Err(format!("--alpha {} must be in (0, 1)", args.alpha));
+    }
+    let units = ReadOptions {
+        gyro_unit: args.gyro_unit,
+        time_unit: args.time_unit,
+    };
+    let (log, warnings) =
+        inertia::close_loop::load(&args.input, args.format, args.segments.as_deref(), &units)?;
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
+    let opts = analysis::Options {
+        alpha: args.alpha,
+        truth: args.truth.as_ref().map(|t| [t[0], t[1], t[2]]),
+        ..Default::default()
+    };
+    let an = match analysis::analyse(&log, &opts) {
+        Ok(an) => an,
+        Err(e) => {
+            eprintln!("error: {}: {e}", args.input.display());
+            return Ok(ExitCode::from(4));
+        }
+    };
+    if !an.skipped_segments.is_empty() {
+        eprintln!(
+            "warning: segments with too few samples skipped: {}",
+            an.skipped_segments.join(", ")
+        );
+    }
+    if !an.spikes.is_empty() {
+        let at: Vec<String> = an.spikes.iter().map(|k| format!("{:.3} s", k.t)).collect();
+        eprintln!(
+            "warning: {} isolated spike(s) replaced by the mean of their neighbours: {}",
+            an.spikes.len(),
+            at.join(", ")
+        );
+    }
+    let json = serde_json::to_string_pretty(&an).map_err(|e| e.to_string())?;
+    std::fs::write(&args.json, json)
+        .map_err(|e| format!("writing {}: {e}", args.json.display()))?;
+    let title = args
+        .title
+        .clone()
+        .unwrap_or_else(|| args.input.display().to_string());
+    let md = report::markdown(&an, &title);
+    if let Some(dir) = &args.plots {
+        std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+        std::fs::write(dir.join("summary.md"), &md)
+            .map_err(|e| format!("writing {}: {e}", dir.display()))?;
+        report::plots(&an, dir, &title).map_err(|e| e.to_string())?;
+    }
+    println!("{}", report::summary_line(&an));
+    Ok(ExitCode::SUCCESS)
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match cli.command {
         Command::Identify(a) => run_identify(a),
+        Command::CloseLoop(a) => run_close_loop(a),
     };
     match r {
         Ok(c) => c,

@@ -1,0 +1,305 @@
+//! `inertia calibrate`: the rotor inertia `j` from throws of the board alone and bolted to a
+//! proof body of known inertia, then any object bolted to the board by difference.
+//!
+//! # Why it is linear in `j`
+//!
+//! With `h = j omega_r axis`, Euler's equation `J w' + w x (J w + h) + h' = 0` is homogeneous
+//! in `(J, j)`: the tensor identified with a unit rotor inertia, `J1`, scales exactly,
+//! `J(j) = j J1`. So every throw is identified once with `j = 1e-6` (for `f32` range) and
+//! rescaled.
+//!
+//! # Parallel axes
+//!
+//! Each tensor is about the centre of mass of what was thrown. The accelerometer gives where
+//! that centre is: in free flight it reads `f = w x (w x r) + w' x r` with `r` the IMU's
+//! position from the centre of mass, fitted by least squares over the throw (`f64`, `w'` by
+//! central differences). With the board's centre `c_b = -r_b`, the assembly's `c_t = -r_t`
+//! (both from the IMU) and the masses, the object's centre is
+//! `c_o = ((m_b + m_o) c_t - m_b c_b) / m_o`, and about its own centre
+//!
+//! ```text
+//! J_o = J_t - J_b - m_b P(c_b - c_t) - m_o P(c_o - c_t),     P(d) = |d|^2 I - d d^T
+//!     = j (J1_t - J1_b) - M
+//! ```
+//!
+//! Calibration: `j = <D, J_known + M> / <D, D>` with `D = J1_t - J1_b` (least squares over the
+//! nine entries). Identification of an object: the same difference with the calibrated `j`.
+
+// 3x3 index arithmetic mirrors the equations.
+#![allow(clippy::needless_range_loop)]
+
+use serde::Serialize;
+
+use crate::identify::{identify, IdentifyOptions, Rotor};
+use crate::recording::Recording;
+
+/// Rotor inertia used for the unit identification (rescaled afterwards).
+pub const UNIT_J: f32 = 1e-6;
+
+type M3 = [[f64; 3]; 3];
+
+/// One throw identified with the unit rotor inertia.
+#[derive(Clone, Debug, Serialize)]
+pub struct UnitThrow {
+    /// The log.
+    pub source: String,
+    /// `J1`: the tensor for `j = 1` kg m^2 (multiply by `j`), in the log's gyro axes.
+    pub j1: M3,
+    /// IMU position from the centre of mass, m.
+    pub imu_from_com: [f64; 3],
+    /// RMS residual of the offset fit, m/s^2.
+    pub offset_fit_rms: f64,
+    /// Status of the tensor estimate.
+    pub status: String,
+    /// Samples used.
+    pub samples: u32,
+}
+
+/// Identifies one recording with the unit rotor inertia and fits the IMU offset.
+pub fn unit_throw(
+    rec: &Recording,
+    axis: [f32; 3],
+    poles: Option<u32>,
+) -> Result<UnitThrow, String> {
+    let opts = IdentifyOptions {
+        rotor: Some(Rotor {
+            inertia: UNIT_J,
+            axis,
+            poles,
+        }),
+        segments: None,
+        noise_std: None,
+        rotor_raw: std::env::var_os("INERTIA_ROTOR_RAW").is_some(),
+    };
+    let rep = identify(rec, &opts, |_| {}).map_err(|e| format!("{}: {e}", rec.source))?;
+    let t = rep
+        .pooled
+        .tensor_kg_m2
+        .ok_or_else(|| format!("{}: the rotor momentum did not fix the scale", rec.source))?;
+    let j1 = t.map(|r| r.map(|x| x as f64 / UNIT_J as f64));
+    let (imu_from_com, rms) = fit_offset(rec, &rep.fed_runs, rep.gyro_bias)
+        .ok_or_else(|| format!("{}: no accelerometer, no centre of mass", rec.source))?;
+    Ok(UnitThrow {
+        source: rec.source.clone(),
+        j1,
+        imu_from_com,
+        offset_fit_rms: rms,
+        status: rep.pooled.status,
+        samples: rep.pooled.samples,
+    })
+}
+
+/// Least-squares `r` in `f = w x (w x r) + w' x r` over the fed samples (central differences
+/// for `w'`, bias removed), with the RMS residual.
+pub fn fit_offset(rec: &Recording, runs: &[Vec<usize>], bias: [f32; 3]) -> Option<([f64; 3], f64)> {
+    let acc = rec.accel.as_ref()?;
+    let w = |i: usize| -> [f64; 3] {
+        let g = rec.gyro[i];
+        [0, 1, 2].map(|k| g[k] as f64 - bias[k] as f64)
+    };
+    let mut ata = [[0.0f64; 3]; 3];
+    let mut atb = [0.0f64; 3];
+    let mut bb = 0.0;
+    let mut n = 0usize;
+    for run in runs {
+        for win in run.windows(3) {
+            let (a, i, c) = (win[0], win[1], win[2]);
+            if c != i + 1 || a + 1 != i {
+                continue;
+            }
+            let dt = rec.t[c] - rec.t[a];
+            if dt.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+                continue;
+            }
+            let (wa, wi, wc) = (w(a), w(i), w(c));
+            let wd = [0, 1, 2].map(|k| (wc[k] - wa[k]) / dt);
+            let [x, y, z] = wi;
+            let n2 = x * x + y * y + z * z;
+            let k = [
+                [x * x - n2, x * y - wd[2], x * z + wd[1]],
+                [y * x + wd[2], y * y - n2, y * z - wd[0]],
+                [z * x - wd[1], z * y + wd[0], z * z - n2],
+            ];
+            let f = acc[i].map(|v| v as f64);
+            for r in 0..3 {
+                for cc in 0..3 {
+                    ata[r][cc] += (0..3).map(|m| k[m][r] * k[m][cc]).sum::<f64>();
+                }
+                atb[r] += (0..3).map(|m| k[m][r] * f[m]).sum::<f64>();
+            }
+            bb += f.iter().map(|v| v * v).sum::<f64>();
+            n += 1;
+        }
+    }
+    if n < 10 {
+        return None;
+    }
+    let r = solve3(&ata, &atb)?;
+    let rss = bb - (0..3).map(|k| r[k] * atb[k]).sum::<f64>();
+    Some((r, (rss.max(0.0) / n as f64).sqrt()))
+}
+
+fn det3(m: &M3) -> f64 {
+    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+}
+
+fn solve3(m: &M3, b: &[f64; 3]) -> Option<[f64; 3]> {
+    let d = det3(m);
+    if !(d.abs() > 0.0 && d.is_finite()) {
+        return None;
+    }
+    let mut x = [0.0; 3];
+    for c in 0..3 {
+        let mut mc = *m;
+        for r in 0..3 {
+            mc[r][c] = b[r];
+        }
+        x[c] = det3(&mc) / d;
+    }
+    Some(x)
+}
+
+/// `P(d) = |d|^2 I - d d^T`, the parallel-axis term per unit mass.
+pub fn parallel(d: [f64; 3]) -> M3 {
+    let n2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    let mut m = [[0.0; 3]; 3];
+    for r in 0..3 {
+        for c in 0..3 {
+            m[r][c] = if r == c { n2 } else { 0.0 } - d[r] * d[c];
+        }
+    }
+    m
+}
+
+fn add(a: &M3, b: &M3, k: f64) -> M3 {
+    let mut m = *a;
+    for r in 0..3 {
+        for c in 0..3 {
+            m[r][c] += k * b[r][c];
+        }
+    }
+    m
+}
+
+fn dot(a: &M3, b: &M3) -> f64 {
+    (0..9).map(|k| a[k / 3][k % 3] * b[k / 3][k % 3]).sum()
+}
+
+/// Mean of unit tensors and offsets.
+pub fn mean(throws: &[UnitThrow]) -> (M3, [f64; 3]) {
+    let n = throws.len().max(1) as f64;
+    let mut j = [[0.0; 3]; 3];
+    let mut r = [0.0; 3];
+    for t in throws {
+        j = add(&j, &t.j1, 1.0 / n);
+        for k in 0..3 {
+            r[k] += t.imu_from_com[k] / n;
+        }
+    }
+    (j, r)
+}
+
+/// The mass terms `M` and the difference `D` of the assembly against the board.
+pub fn difference(
+    board: (&M3, [f64; 3]),
+    total: (&M3, [f64; 3]),
+    m_b: f64,
+    m_o: f64,
+) -> (M3, M3, [f64; 3]) {
+    let c_b = board.1.map(|x| -x);
+    let c_t = total.1.map(|x| -x);
+    let c_o = [0, 1, 2].map(|k| ((m_b + m_o) * c_t[k] - m_b * c_b[k]) / m_o);
+    let db = [0, 1, 2].map(|k| c_b[k] - c_t[k]);
+    let dobj = [0, 1, 2].map(|k| c_o[k] - c_t[k]);
+    let m = add(
+        &parallel(db).map(|r| r.map(|x| x * m_b)),
+        &parallel(dobj),
+        m_o,
+    );
+    let d = add(total.0, board.0, -1.0);
+    (d, m, c_o)
+}
+
+/// `j` minimising `|j D - (J_known + M)|_F`.
+pub fn calibrate_j(d: &M3, m: &M3, known: &M3) -> f64 {
+    let target = add(known, m, 1.0);
+    dot(d, &target) / dot(d, d)
+}
+
+/// `J_o = j D - M`.
+pub fn object(j: f64, d: &M3, m: &M3) -> M3 {
+    add(&d.map(|r| r.map(|x| x * j)), m, -1.0)
+}
+
+/// Eigenvalues (ascending) and unit eigenvectors of a symmetric 3x3 matrix (`f64` Jacobi).
+pub fn eigen(m: &M3) -> ([f64; 3], [[f64; 3]; 3]) {
+    let mut a = *m;
+    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    for _ in 0..50 {
+        for &(p, q) in &[(0usize, 1usize), (0, 2), (1, 2)] {
+            if a[p][q].abs() < 1e-300 {
+                continue;
+            }
+            let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+            let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+            let c = 1.0 / (t * t + 1.0).sqrt();
+            let s = t * c;
+            for k in 0..3 {
+                let (akp, akq) = (a[k][p], a[k][q]);
+                a[k][p] = c * akp - s * akq;
+                a[k][q] = s * akp + c * akq;
+            }
+            for k in 0..3 {
+                let (apk, aqk) = (a[p][k], a[q][k]);
+                a[p][k] = c * apk - s * aqk;
+                a[q][k] = s * apk + c * aqk;
+            }
+            for row in v.iter_mut() {
+                let (vp, vq) = (row[p], row[q]);
+                row[p] = c * vp - s * vq;
+                row[q] = s * vp + c * vq;
+            }
+        }
+    }
+    let mut idx = [0, 1, 2];
+    idx.sort_by(|&x, &y| a[x][x].total_cmp(&a[y][y]));
+    let vals = idx.map(|i| a[i][i]);
+    let vecs = idx.map(|i| [v[0][i], v[1][i], v[2][i]]);
+    (vals, vecs)
+}
+
+/// Angle in degrees between two axes (sign-free).
+pub fn axis_angle_deg(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let d = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).abs();
+    let na = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+    let nb = (b[0] * b[0] + b[1] * b[1] + b[2] * b[2]).sqrt();
+    (d / (na * nb)).clamp(0.0, 1.0).acos().to_degrees()
+}
+
+/// Relative Frobenius distance `|a - b| / |b|`.
+pub fn rel_frobenius(a: &M3, b: &M3) -> f64 {
+    let d = add(a, b, -1.0);
+    (dot(&d, &d) / dot(b, b)).sqrt()
+}
+
+/// Comparison of a recovered tensor with a known one: principal moments (relative errors,
+/// matched in ascending order) and axis angles.
+#[derive(Clone, Debug, Serialize)]
+pub struct Comparison {
+    /// Relative error of each principal moment, ascending.
+    pub moment_errors: [f64; 3],
+    /// Angle of each principal axis to the known one, degrees.
+    pub axis_errors_deg: [f64; 3],
+}
+
+/// Compares `got` with `known`.
+pub fn compare(got: &M3, known: &M3) -> Comparison {
+    let (vg, eg) = eigen(got);
+    let (vk, ek) = eigen(known);
+    Comparison {
+        moment_errors: [0, 1, 2].map(|i| (vg[i] - vk[i]) / vk[i]),
+        axis_errors_deg: [0, 1, 2].map(|i| axis_angle_deg(eg[i], ek[i])),
+    }
+}
