@@ -9,7 +9,10 @@
 use bench_mcu::{Ekf32, Ekf32Sparse, Signal};
 use cortex_m::peripheral::{syst::SystClkSource, Peripherals, SYST};
 use cortex_m_rt::entry;
-use identifier_core::{Identifier, Refined, RefinedSettings, Settings};
+use identifier_core::{
+    FlightPipeline, FreeFlightGate, GateSettings, Identifier, PipelineSettings, Refined,
+    RefinedSettings, Settings, TensorEstimator, TensorSettings,
+};
 use semihosting::println;
 
 const N: u32 = 4000;
@@ -51,6 +54,32 @@ fn measure<F: FnMut([f32; 3], f32)>(mut f: F) -> f32 {
         ticks += u64::from(elapsed(t0, t1));
     }
     ticks as f32 / N as f32
+}
+
+/// Runs `f` on `N` samples and returns the average and the largest SysTick ticks per call.
+fn measure_worst<F: FnMut([f32; 3], f32)>(mut f: F) -> (f32, u32) {
+    let mut sig = Signal::paper();
+    let dt = sig.dt();
+    let mut ticks: u64 = 0;
+    let mut worst = 0u32;
+    for _ in 0..N {
+        let w = sig.next_sample();
+        let t0 = now();
+        f(w, dt);
+        let t1 = now();
+        let e = elapsed(t0, t1);
+        ticks += u64::from(e);
+        worst = worst.max(e);
+    }
+    (ticks as f32 / N as f32, worst)
+}
+
+/// Ticks of one call of `f`.
+fn once<F: FnOnce()>(f: F) -> u32 {
+    let t0 = now();
+    f();
+    let t1 = now();
+    elapsed(t0, t1)
 }
 
 #[entry]
@@ -141,6 +170,128 @@ fn main() -> ! {
         "ekf-sparse",
         t,
         "Cortex-M4F QEMU -icount; f32 EKF exploiting sparsity and symmetry (bench-mcu)",
+    );
+    // The tensor estimator and the shared flight pipeline (gate, delay line, tensor). The
+    // step's cost does not depend on the rate except through the gate's block (2.5 ms of
+    // samples), so the pipeline is counted with the settings of 1 kHz and of 8 kHz.
+    let worst = |name: &str, (mean, max): (f32, u32), how: &str| {
+        report(name, mean, how);
+        let instr = (max as f32 - empty) * per_tick;
+        println!("{}-worst,{:.0},{} (worst single call)", name, instr, how);
+    };
+    let h = [0.0f32, 0.0, -1.69e-6 * 175.0];
+    let Some(mut tensor) = TensorEstimator::new(TensorSettings::for_rate(1000.0, 2e-3)) else {
+        semihosting::process::exit(6)
+    };
+    let m = measure_worst(|w, dt| {
+        core::hint::black_box(tensor.step(core::hint::black_box(w), h, dt));
+    });
+    worst(
+        "tensor",
+        m,
+        "Cortex-M4F QEMU -icount; TensorEstimator::step, TensorSettings::for_rate(1000, 2e-3), known h",
+    );
+    let t = once(|| {
+        core::hint::black_box(core::hint::black_box(&tensor).estimate());
+    });
+    report(
+        "tensor-estimate",
+        t as f32,
+        "Cortex-M4F QEMU -icount; one TensorEstimator::estimate() after 4000 samples",
+    );
+    let est = tensor.estimate();
+    let mut closing = tensor;
+    let t = once(|| {
+        core::hint::black_box(&mut closing).end_stretch();
+    });
+    report(
+        "tensor-end-stretch",
+        t as f32,
+        "Cortex-M4F QEMU -icount; one TensorEstimator::end_stretch() (what step adds when a stretch closes: a solve for the weights)",
+    );
+    for (rate, name) in [(1000.0f32, "pipeline"), (8000.0, "pipeline-8khz")] {
+        let accel_seed = core::cell::Cell::new(777u32);
+        let noise = || {
+            let s = accel_seed
+                .get()
+                .wrapping_mul(1_664_525)
+                .wrapping_add(1_013_904_223);
+            accel_seed.set(s);
+            ((s >> 8) as f32 / 16_777_216.0 - 0.5) * 0.17
+        };
+        let Some(mut p) = FlightPipeline::new(PipelineSettings::for_rate(rate, 2e-3), true) else {
+            semihosting::process::exit(7)
+        };
+        let dt = 1.0 / rate;
+        let m = measure_worst(|w, _| {
+            // Free flight with the IMU at the centre of mass: the accelerometer reads noise.
+            let acc = [noise(), noise(), noise()];
+            core::hint::black_box(p.step(core::hint::black_box(w), acc, h, dt));
+        });
+        worst(
+            name,
+            m,
+            "Cortex-M4F QEMU -icount; FlightPipeline::step with accelerometer (gate, delay line, tensor), PipelineSettings::for_rate, known h",
+        );
+        println!(
+            "# check {}: samples fed to the tensor {}, free flights {}",
+            name,
+            p.estimator().counters().used,
+            p.throws()
+        );
+    }
+    let Some(mut p) = FlightPipeline::new(PipelineSettings::for_rate(8000.0, 2e-3), false) else {
+        semihosting::process::exit(8)
+    };
+    let m = measure_worst(|w, _| {
+        core::hint::black_box(p.step(core::hint::black_box(w), [0.0; 3], h, 1.25e-4));
+    });
+    worst(
+        "pipeline-noaccel",
+        m,
+        "Cortex-M4F QEMU -icount; FlightPipeline::step without accelerometer (every sample free: what inertia identify runs on a t,wx,wy,wz log)",
+    );
+    // Parts, for the profile: the gate alone at 8 kHz (window fit of the accelerometer model
+    // every 2.5 ms), then the per-axis outer products of the tensor step alone.
+    let Some(mut gate) = FreeFlightGate::new(GateSettings::for_rate(8000.0)) else {
+        semihosting::process::exit(9)
+    };
+    let mut acc_seed = 4242u32;
+    let m = measure_worst(|w, _| {
+        acc_seed = acc_seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        let x = ((acc_seed >> 8) as f32 / 16_777_216.0 - 0.5) * 0.17;
+        core::hint::black_box(gate.step(core::hint::black_box(w), [x, -x, 0.5 * x], 1.25e-4));
+    });
+    worst(
+        "profile-gate-8khz",
+        m,
+        "Cortex-M4F QEMU -icount; FreeFlightGate::step alone, GateSettings::for_rate(8000)",
+    );
+    // Parts of the tensor step, for the profile: the per-axis outer products alone.
+    let mut sums = bench_mcu::RowSums3::ZERO;
+    let mut q = [0.0f32; 6];
+    let m = measure_worst(|w, dt| {
+        q[0] += dt * w[0] * w[0];
+        q[3] += dt * w[0] * w[1];
+        sums.add_sample(core::hint::black_box(w), &q);
+        core::hint::black_box(&sums);
+    });
+    worst(
+        "profile-outer-products",
+        m,
+        "Cortex-M4F QEMU -icount; bench-mcu replica of the three per-axis outer-product sums of one tensor step (rows, 21+6+6+2 multiply-adds per axis)",
+    );
+    println!(
+        "# sizes (bytes): TensorEstimator {}, FlightPipeline {}, Refined {}, Identifier {}",
+        core::mem::size_of::<TensorEstimator>(),
+        core::mem::size_of::<FlightPipeline>(),
+        core::mem::size_of::<Refined>(),
+        core::mem::size_of::<Identifier>()
+    );
+    let ta = est.a.unwrap_or([f32::NAN; 3]);
+    println!(
+        "# check: tensor a = ({:.4}, {:.4}, {:.4}), status {:?}",
+        ta[0], ta[1], ta[2], est.status
     );
     let a = refined.estimate();
     let e = ekf.a();
