@@ -191,6 +191,18 @@ impl ExtendedEstimate {
 
 /// Recursive least squares on (I) for `theta = (a, effect parameters)`: a fixed-size value,
 /// no heap.
+///
+/// ```
+/// use identifier_core::{ExtendedIdentifier, ExtendedSettings, ExtraEffect};
+///
+/// // The ratios and a constant gyro bias; a NaN sample is refused and changes nothing.
+/// let s = ExtendedSettings::new([Some(ExtraEffect::GyroBias), None]);
+/// let mut x = ExtendedIdentifier::new(s).unwrap();
+/// x.step([1.0, 0.5, -0.2], 1e-3);
+/// let before = x.theta();
+/// x.step([f32::NAN, 0.0, 0.0], 1e-3);
+/// assert_eq!(x.theta(), before);
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ExtendedIdentifier {

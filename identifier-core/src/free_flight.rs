@@ -148,6 +148,19 @@ pub struct WindowFit {
 }
 
 /// The free-flight gate: one [`FreeFlightGate::step`] per sample with gyro and accelerometer.
+///
+/// ```
+/// use identifier_core::{FreeFlightGate, GateSettings};
+///
+/// // A body spinning at 30 rad/s about z, accelerometer 15 mm off the axis: the centripetal
+/// // reading (13.5 m/s^2, more than 1 g) is explained by the fit, so the window is free.
+/// let mut g = FreeFlightGate::new(GateSettings::for_rate(1000.0)).unwrap();
+/// let mut fit = None;
+/// for _ in 0..100 {
+///     fit = g.step([0.0, 0.0, 30.0], [-13.5, 0.0, 0.0], 1e-3).or(fit);
+/// }
+/// assert!(fit.unwrap().free);
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FreeFlightGate {

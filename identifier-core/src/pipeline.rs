@@ -74,6 +74,19 @@ pub struct Exit {
 
 /// Gate, delay line and estimator. `N` is the delay line's capacity in samples (the catch guard
 /// is at most `N` samples).
+///
+/// ```
+/// use identifier_core::{FlightPipeline, PipelineSettings};
+///
+/// // On the bench (gravity only) nothing reaches the estimator, and the gyro bias is learnt.
+/// let mut p = FlightPipeline::new(PipelineSettings::for_rate(1000.0, 1e-3), true).unwrap();
+/// for _ in 0..1000 {
+///     let exit = p.step([0.01, 0.0, -0.02], [0.0, 0.0, 9.81], [0.0; 3], 1e-3);
+///     assert!(exit.map_or(true, |e| e.fed.is_none()));
+/// }
+/// assert_eq!(p.throws(), 0);
+/// assert!((p.bias()[0] - 0.01).abs() < 1e-6);
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Pipeline<const N: usize> {
     settings: PipelineSettings,

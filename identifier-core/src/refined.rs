@@ -336,6 +336,18 @@ struct Last {
 
 /// The refined identifier: per axis a Kalman filter on the integrated (1) with the integral's
 /// noise as a wandering intercept. Fixed size, no heap, no buffers.
+///
+/// ```
+/// use identifier_core::{Refined, RefinedSettings, Trust};
+///
+/// // A gyro lying still carries no information: no ratios, and the trust says why.
+/// let mut r = Refined::new(RefinedSettings::for_rate(1000.0, 1e-3)).unwrap();
+/// for k in 0..5000 {
+///     let n = if k % 2 == 0 { 1e-3 } else { -1e-3 };
+///     r.step([n, -n, n], 1e-3);
+/// }
+/// assert_eq!(r.trust(), Trust::NoExcitation);
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Refined {

@@ -485,6 +485,19 @@ fn quad(c: &Sym<6>, g: &[f32; 6]) -> f32 {
 
 /// The on-board estimator of the inertia tensor: one [`TensorEstimator::step`] per gyro
 /// sample with the rotor momentum at that sample. Fixed size, no heap, no buffers.
+///
+/// ```
+/// use identifier_core::{TensorEstimator, TensorSettings, TensorStatus};
+///
+/// // Rates in deg/s fed as rad/s (60 "rad/s" spins are beyond any thrown body): never
+/// // trusted, and the status says why.
+/// let mut e = TensorEstimator::new(TensorSettings::for_rate(1000.0, 2e-3)).unwrap();
+/// for k in 0..2000 {
+///     let t = k as f32 * 1e-3;
+///     e.step([60.0 + t, -30.0, 80.0 - t], [0.0; 3], 1e-3);
+/// }
+/// assert_eq!(e.estimate().status, TensorStatus::UnitsLookWrong);
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TensorEstimator {
