@@ -25,12 +25,13 @@ if [ "$quick" = 0 ]; then
     }
     # Two builds: release (opt-level 3) and the firmware's flight profile (opt-level s, fat LTO).
     log "bench-mcu: instructions per step on the Cortex-M4F (QEMU netduinoplus2, -icount shift=0), release"
+    TD="${CARGO_TARGET_DIR:-target}"
     cargo build -q -p bench-mcu --release --target thumbv7em-none-eabihf --features mcu
-    rel="$(run_mcu target/thumbv7em-none-eabihf/release/bench-mcu)"
+    rel="$(run_mcu "$TD/thumbv7em-none-eabihf/release/bench-mcu")"
     printf '%s\n' "$rel" >&2
     log "bench-mcu: the same with the firmware profile (opt-level s, fat LTO)"
     cargo build -q -p bench-mcu --profile firmware --target thumbv7em-none-eabihf --features mcu
-    fl="$(run_mcu target/thumbv7em-none-eabihf/firmware/bench-mcu)"
+    fl="$(run_mcu "$TD/thumbv7em-none-eabihf/firmware/bench-mcu")"
     printf '%s\n' "$fl" >&2
     {
         printf '%s\n' "$rel" | grep -v '^#'

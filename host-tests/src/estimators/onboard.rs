@@ -199,7 +199,47 @@ impl Method for RefinedMethod {
     fn estimate(&self, t: &[f64], y: &[[f64; 3]]) -> [f64; 3] {
         self.curve(t, y, &[t.len() - 1])[0]
     }
+    fn estimate_with_std(
+        &self,
+        t: &[f64],
+        y: &[[f64; 3]],
+        sigma: f64,
+    ) -> ([f64; 3], Option<[f64; 3]>) {
+        // The same run as `estimate`; the standard deviation is `Refined::std_per_sigma`
+        // times the declared gyro noise (what `std_a` reports with `noise_std = sigma`).
+        let Some(id) = self.run(t, y, &mut |_, _| {}) else {
+            return ([f64::NAN; 3], Some([f64::NAN; 3]));
+        };
+        (
+            id.estimate().map(f64::from),
+            Some(id.std_per_sigma().map(|x| f64::from(x) * sigma)),
+        )
+    }
     fn curve(&self, t: &[f64], y: &[[f64; 3]], checkpoints: &[usize]) -> Vec<[f64; 3]> {
+        let mut out = Vec::with_capacity(checkpoints.len());
+        let mut next = checkpoints.iter().peekable();
+        let done = self.run(t, y, &mut |k, id| {
+            while next.peek().is_some_and(|&&c| c == k) {
+                // The estimate including the open block (`step` reports the last full one).
+                out.push(id.estimate().map(f64::from));
+                next.next();
+            }
+        });
+        if done.is_none() {
+            return vec![[f64::NAN; 3]; checkpoints.len()];
+        }
+        out
+    }
+}
+
+impl RefinedMethod {
+    /// One pass over the samples, `visit(k, &id)` after each step; the identifier at the end.
+    fn run(
+        &self,
+        t: &[f64],
+        y: &[[f64; 3]],
+        visit: &mut dyn FnMut(usize, &Refined),
+    ) -> Option<Refined> {
         // Configured for the sample rate as a deployment would be, by the core's
         // `RefinedSettings::for_rate` (blocks of about 32 ms, at least 8 samples; end
         // correction on), keeping this method's noise, prior and limits.
@@ -208,20 +248,12 @@ impl Method for RefinedMethod {
         let mut settings = self.settings;
         settings.end_correction = rated.end_correction;
         settings.block = rated.block;
-        let Some(mut id) = Refined::new(settings) else {
-            return vec![[f64::NAN; 3]; checkpoints.len()];
-        };
+        let mut id = Refined::new(settings)?;
         id.set_torque_noise(self.torque_noise);
-        let mut out = Vec::with_capacity(checkpoints.len());
-        let mut next = checkpoints.iter().peekable();
         for (k, w) in y.iter().enumerate() {
             id.step(w.map(|x| x as f32), dt_at(t, k));
-            while next.peek().is_some_and(|&&c| c == k) {
-                // The estimate including the open block (`step` reports the last full one).
-                out.push(id.estimate().map(f64::from));
-                next.next();
-            }
+            visit(k, &id);
         }
-        out
+        Some(id)
     }
 }
