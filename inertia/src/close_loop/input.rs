@@ -244,13 +244,19 @@ pub struct Spike {
 pub const SPIKE_SIGMAS: f64 = 20.0;
 /// A spike must also miss both predictions by at least this much, rad/s.
 pub const SPIKE_FLOOR_RAD_S: f64 = 2.0;
+/// ... and by at least this fraction of the rate of its neighbours.
+pub const SPIKE_RELATIVE: f64 = 0.25;
 
-/// Plausibility gate for isolated spikes. Each sample is predicted by straight-line
-/// extrapolation from the two samples on its left and, separately, from the two on its right;
-/// its error is the smaller of the two misses (largest axis). A step (a catch, a release)
-/// is predicted by one side and passes; a single bad sample is predicted by neither. A sample
-/// whose error exceeds `max(SPIKE_SIGMAS * s, SPIKE_FLOOR_RAD_S)`, with `s` the robust
-/// (median-based) scale of all errors, is replaced by the mean of its two neighbours.
+/// Plausibility gate for isolated spikes in the free flights. Each sample inside a segment is
+/// predicted by straight-line extrapolation from the two samples on its left and, separately,
+/// from the two on its right; its error is the smaller of the two misses (largest axis). A
+/// step (a catch, a release) is predicted by one side and passes; a single bad sample is
+/// predicted by neither. A sample whose error exceeds the largest of `SPIKE_SIGMAS` robust
+/// standard deviations of all in-segment errors, [`SPIKE_FLOOR_RAD_S`] and [`SPIKE_RELATIVE`]
+/// times its neighbours' rate is replaced by the mean of its two neighbours.
+///
+/// On the racquet recordings the largest in-flight error is 1.4 rad/s at 39 rad/s (0.04 of the
+/// rate): nothing there is touched.
 pub fn gate_spikes(log: &mut Log) -> Vec<Spike> {
     let w = &log.omega;
     let n = w.len();
@@ -271,15 +277,39 @@ pub fn gate_spikes(log: &mut Log) -> Vec<Spike> {
             (None, None) => 0.0,
         }
     };
-    let d: Vec<f64> = (0..n).map(miss).collect();
-    let mut sorted: Vec<f64> = d.iter().copied().filter(|v| v.is_finite()).collect();
+    let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    let mut inside = vec![false; n];
+    for (i0, i1) in log.segment_ranges() {
+        inside[i0..i1].iter_mut().for_each(|x| *x = true);
+    }
+    let d: Vec<f64> = (0..n)
+        .map(|k| if inside[k] { miss(k) } else { 0.0 })
+        .collect();
+    let mut sorted: Vec<f64> = (0..n)
+        .filter(|&k| inside[k] && d[k].is_finite())
+        .map(|k| d[k])
+        .collect();
     if sorted.is_empty() {
         return Vec::new();
     }
     let mid = sorted.len() / 2;
     let (_, med, _) = sorted.select_nth_unstable_by(mid, f64::total_cmp);
-    let limit = (SPIKE_SIGMAS * 1.4826 * *med).max(SPIKE_FLOOR_RAD_S);
-    let flagged: Vec<bool> = d.iter().map(|v| !(*v <= limit)).collect();
+    let base = (SPIKE_SIGMAS * 1.4826 * *med).max(SPIKE_FLOOR_RAD_S);
+    let flagged: Vec<bool> = (0..n)
+        .map(|k| {
+            if !inside[k] {
+                return false;
+            }
+            let nb = [k.checked_sub(1), Some(k + 1)]
+                .into_iter()
+                .flatten()
+                .filter(|&j| j < n)
+                .map(|j| norm(w[j]))
+                .filter(|v| v.is_finite())
+                .fold(0.0, f64::max);
+            !(d[k] <= base.max(SPIKE_RELATIVE * nb))
+        })
+        .collect();
     let mut out = Vec::new();
     for k in (0..n).filter(|&k| flagged[k]) {
         // Neighbours that are themselves flagged are not used.
