@@ -3,7 +3,8 @@
 # defmt stream (semihosting stdout) with defmt-print.
 #   scripts/firmware-qemu.sh <elf> <gyro log> [bus error every n] [-- extra qemu args]
 # Also usable as a cargo runner (`cargo qemu -- <log>`). Exits with the firmware's status.
-# Semihosting paths are relative to the current directory.
+# Semihosting paths are relative to the current directory. SERIAL=FILE captures USART1 (the
+# firmware's telemetry frames) into FILE; without it the UART goes nowhere.
 set -euo pipefail
 elf="$1"; shift
 args=("$@")
@@ -18,7 +19,9 @@ done
 cmdline="arg=firmware-qemu"
 for a in "${args[@]}"; do cmdline+=",arg=$a"; done
 set +e
-qemu-system-arm -machine netduinoplus2 -display none -monitor none -serial none \
+serial=none
+[ -n "${SERIAL:-}" ] && serial="file:$SERIAL"
+qemu-system-arm -machine netduinoplus2 -display none -monitor none -serial "$serial" \
     -semihosting-config "enable=on,target=native,$cmdline" \
     "${extra[@]}" -kernel "$elf" | defmt-print -e "$elf" --log-format '{L} {s}'
 status=("${PIPESTATUS[@]}")

@@ -4,8 +4,8 @@
 use embedded_hal::delay::DelayNs;
 use icm42688::{Config, Error, Icm42688, RawImu, RegisterInterface, Saturation};
 use identifier_core::{
-    Convergence, Counters, Estimate, Identifier, InertiaRatios, Refined, RefinedSettings,
-    SampleStatus, Settings, SettingsError,
+    Convergence, Counters, Estimate, FlightPipeline, Identifier, InertiaRatios, PipelineSettings,
+    Refined, RefinedSettings, SampleStatus, Settings, SettingsError, TensorStatus,
 };
 
 use crate::bench;
@@ -50,6 +50,58 @@ pub fn refined_settings(config: &Config) -> RefinedSettings {
     s.eps = paper.eps;
     s.h = paper.h;
     s
+}
+
+/// The free-flight pipeline's settings for a gyro configured with `config`:
+/// [`PipelineSettings::for_rate`] at the output data rate with the noise of
+/// [`refined_settings`], and the estimator's `full_scale` at the gyro's clip level (the same
+/// function and the same fields `inertia identify` sets from a log).
+pub fn pipeline_settings(config: &Config) -> PipelineSettings {
+    let r = refined_settings(config);
+    let mut s = PipelineSettings::for_rate(config.odr.hz(), r.noise_std);
+    s.tensor.full_scale = identifier_settings(config).full_scale;
+    s
+}
+
+/// A rotor whose angular momentum goes with each sample to the free-flight pipeline:
+/// `h = axis * inertia * speed` (kg m^2/s), the speed from the [`RotorSpeedSource`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RotorConfig {
+    /// Inertia about the rotor's axis, kg m^2.
+    pub inertia: f32,
+    /// Unit axis in the gyro frame, the direction of positive speed.
+    pub axis: [f32; 3],
+}
+
+impl RotorConfig {
+    /// The rotor momentum at `speed` rad/s, in the order of operations `inertia identify`
+    /// uses (`axis_i * inertia * speed`).
+    pub fn momentum(&self, speed: f32) -> [f32; 3] {
+        self.axis.map(|a| a * self.inertia * speed)
+    }
+}
+
+/// The tensor estimate of the free-flight pipeline, as reported.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TensorReport {
+    /// Why it is or is not to be trusted.
+    pub status: TensorStatus,
+    /// The paper's ratios `a` from the tensor, when determined.
+    pub a: Option<[f32; 3]>,
+    /// Their standard deviations.
+    pub std_a: Option<[f32; 3]>,
+    /// `J`, kg m^2, when a rotor momentum fixes the scale.
+    pub tensor: Option<[[f32; 3]; 3]>,
+    /// Free flights that reached the estimator.
+    pub throws: u32,
+    /// Samples committed to the estimator.
+    pub fed: u32,
+    /// Samples that left the delay line without being committed (hand, bench, catch).
+    pub not_fed: u32,
+    /// The gate holds free flight now.
+    pub in_free_flight: bool,
 }
 
 /// Square root of `x > 0` by Newton's iteration (`core` has none); run once, at start-up.
@@ -231,6 +283,8 @@ pub struct Report {
     pub convergence_paper: Convergence,
     /// The refined identifier's estimate, open block included ([`Refined::estimate`]).
     pub a_refined: [f32; 3],
+    /// Standard deviations of `a_refined`.
+    pub std_refined: [f32; 3],
     /// `A2/A1`, `A3/A1` implied by `a_refined`.
     pub ratios: Option<InertiaRatios>,
     /// `a1 + a2 + a3 + a1 a2 a3` of `a_refined` (zero for a rigid body).
@@ -245,6 +299,8 @@ pub struct Report {
     pub sensor: SensorStatus,
     /// The last rotor speed given with a sample, rad/s.
     pub rotor_rad_s: Option<f32>,
+    /// The free-flight pipeline's tensor estimate.
+    pub tensor: TensorReport,
 }
 
 /// Why the loop could not start.
@@ -257,6 +313,8 @@ pub enum InitError<E> {
     Settings(SettingsError),
     /// The refined identifier refused its settings.
     RefinedSettings,
+    /// The free-flight pipeline refused its settings.
+    PipelineSettings,
 }
 
 /// What one [`SampleLoop::poll`] did.
@@ -303,6 +361,10 @@ pub struct SampleLoop<IF, C, R = NoRotor> {
     config: Config,
     identifier: Identifier,
     refined: Refined,
+    pipeline: FlightPipeline,
+    rotor_config: Option<RotorConfig>,
+    /// Samples that left the pipeline's delay line unfed.
+    not_fed: u32,
     counters: LoopCounters,
     /// Nominal sample period, s.
     period: f32,
@@ -353,6 +415,8 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
         let identifier =
             Identifier::new(identifier_settings(&config)).map_err(InitError::Settings)?;
         let refined = Refined::new(refined_settings(&config)).ok_or(InitError::RefinedSettings)?;
+        let pipeline = FlightPipeline::new(pipeline_settings(&config), true)
+            .ok_or(InitError::PipelineSettings)?;
         let odr_hz = config.odr.hz() as u32;
         let last_us = clock.now_us(gyro.interface());
         let report_every = (odr_hz / REPORT_HZ).max(1);
@@ -369,6 +433,9 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
             config,
             identifier,
             refined,
+            pipeline,
+            rotor_config: None,
+            not_fed: 0,
             counters: LoopCounters::default(),
             period: config.odr.period_s(),
             period_us: config.odr.period_us().max(1),
@@ -404,6 +471,9 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
             config: self.config,
             identifier: self.identifier,
             refined: self.refined,
+            pipeline: self.pipeline,
+            rotor_config: self.rotor_config,
+            not_fed: self.not_fed,
             counters: self.counters,
             period: self.period,
             period_us: self.period_us,
@@ -539,7 +609,11 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
         }
         self.refusals = 0;
         self.last_accepted = Some(omega);
+        // The pipeline gets the time since the last sample it was given (refused ones
+        // included), as the identifiers do.
+        let dt_pipeline = self.since_accepted;
         self.since_accepted = 0.0;
+        self.feed_pipeline(omega, self.last_inputs.accel, dt_pipeline);
 
         bench::step_begin();
         let paper = self.identifier.step(omega, dt);
@@ -609,6 +683,94 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
         self.pending.take()
     }
 
+    /// Replaces the free-flight pipeline (fresh, with `settings`; `with_accel = false` takes
+    /// every sample as free flight) and sets the rotor whose momentum goes with each sample.
+    /// `None` when the settings are not usable.
+    pub fn with_pipeline(
+        mut self,
+        settings: PipelineSettings,
+        with_accel: bool,
+        rotor: Option<RotorConfig>,
+    ) -> Option<Self> {
+        self.pipeline = FlightPipeline::new(settings, with_accel)?;
+        self.rotor_config = rotor;
+        // Reports give time as samples over this rate.
+        self.odr_hz = settings.rate_hz;
+        Some(self)
+    }
+
+    /// One sample into the free-flight pipeline: the rotor's momentum from the
+    /// [`RotorSpeedSource`]'s speed of this sample (zero without a rotor configured or a
+    /// speed), the gate decides, the delay line commits.
+    fn feed_pipeline(&mut self, omega: [f32; 3], accel: [f32; 3], dt: f32) {
+        let h = match (self.rotor_config, self.last_inputs.rotor_rad_s) {
+            (Some(r), Some(speed)) => r.momentum(speed),
+            _ => [0.0; 3],
+        };
+        let exit = self.pipeline.step(omega, accel, h, dt);
+        if let Some(e) = exit {
+            if e.fed.is_none() {
+                self.not_fed = self.not_fed.saturating_add(1);
+            }
+        }
+    }
+
+    /// Replay of a log's own samples at its own rate (QEMU `--replay`, host checks): the
+    /// values the host tool `inertia identify` feeds its pipeline (rate rad/s, specific
+    /// force m/s^2, time step s) go, with the [`RotorSpeedSource`]'s speed, to this loop's
+    /// pipeline and both identifiers, bypassing the driver, the plausibility gate and the
+    /// sample clock (the log's samples were screened on the vehicle that wrote it). A report
+    /// is returned every `report_every` samples.
+    pub fn replay_sample(
+        &mut self,
+        omega: [f32; 3],
+        accel: [f32; 3],
+        dt: f32,
+        report_every: u32,
+    ) -> Option<Report> {
+        bench::loop_begin();
+        self.last_inputs = SampleInputs {
+            gyro: omega,
+            accel,
+            rotor_rad_s: self.rotor.rotor_speed_rad_s(),
+            saturated: Saturation::default(),
+            dt,
+        };
+        self.tick = self.tick.wrapping_add(1);
+        self.since_report = self.since_report.saturating_add(1);
+        let paper = self.identifier.step(omega, dt);
+        self.refined.step(omega, dt);
+        self.count(&paper);
+        self.feed_pipeline(omega, accel, dt);
+        bench::loop_end();
+        if self.since_report >= report_every.max(1) {
+            self.since_report = 0;
+            Some(self.report())
+        } else {
+            None
+        }
+    }
+
+    /// The free-flight pipeline's estimate as reported.
+    pub fn tensor_report(&self) -> TensorReport {
+        let e = self.pipeline.estimate();
+        TensorReport {
+            status: e.status,
+            a: e.a,
+            std_a: e.std_a,
+            tensor: e.tensor,
+            throws: self.pipeline.throws(),
+            fed: e.samples,
+            not_fed: self.not_fed,
+            in_free_flight: self.pipeline.in_free_flight(),
+        }
+    }
+
+    /// The free-flight pipeline.
+    pub fn pipeline(&self) -> &FlightPipeline {
+        &self.pipeline
+    }
+
     /// The inputs of the last sample given to the estimators (gyro, accelerometer, rotor
     /// speed, saturation, dt).
     pub fn last_inputs(&self) -> SampleInputs {
@@ -658,6 +820,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
             a_paper: self.identifier.estimate(),
             convergence_paper: self.identifier.convergence(),
             a_refined: a,
+            std_refined: self.refined.std_a(),
             ratios: InertiaRatios::from_a(a),
             consistency: identifier_core::consistency(a),
             convergence_refined: self.refined.convergence(),
@@ -668,6 +831,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
                 .wrapping_sub(self.saturated_at_report),
             sensor: SensorStatus::Ok,
             rotor_rad_s: self.last_inputs.rotor_rad_s,
+            tensor: self.tensor_report(),
         }
     }
 
@@ -750,6 +914,78 @@ pub fn log_report(r: &Report) {
         c.accel_saturated,
         r.sensor
     );
+}
+
+/// Logs the free-flight pipeline's tensor estimate of a report as one defmt line, `none` for
+/// what is not determined; with `bits`, also the IEEE-754 bits of `a`, `std_a` and `J` (the
+/// replay check compares them with the host tool's).
+#[cfg(feature = "defmt")]
+pub fn log_tensor(r: &Report, bits: bool) {
+    let t = &r.tensor;
+    defmt::info!(
+        "tensor status={} throws={=u32} fed={=u32} not_fed={=u32} in_free_flight={=bool}",
+        t.status,
+        t.throws,
+        t.fed,
+        t.not_fed,
+        t.in_free_flight
+    );
+    match (t.a, t.std_a) {
+        (Some(a), Some(s)) => {
+            defmt::info!(
+                "tensor a=[{=f32}, {=f32}, {=f32}] std_a=[{=f32}, {=f32}, {=f32}]",
+                a[0],
+                a[1],
+                a[2],
+                s[0],
+                s[1],
+                s[2]
+            );
+            if bits {
+                defmt::info!(
+                    "tensor bits_a=[{=u32:#010x}, {=u32:#010x}, {=u32:#010x}] bits_std_a=[{=u32:#010x}, {=u32:#010x}, {=u32:#010x}]",
+                    a[0].to_bits(),
+                    a[1].to_bits(),
+                    a[2].to_bits(),
+                    s[0].to_bits(),
+                    s[1].to_bits(),
+                    s[2].to_bits()
+                );
+            }
+        }
+        _ => defmt::info!("tensor a=none std_a=none"),
+    }
+    match t.tensor {
+        Some(j) => {
+            defmt::info!(
+                "tensor J=[{=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}] kg m^2",
+                j[0][0],
+                j[0][1],
+                j[0][2],
+                j[1][0],
+                j[1][1],
+                j[1][2],
+                j[2][0],
+                j[2][1],
+                j[2][2]
+            );
+            if bits {
+                defmt::info!(
+                    "tensor bits_J=[{=u32:#010x}, {=u32:#010x}, {=u32:#010x}, {=u32:#010x}, {=u32:#010x}, {=u32:#010x}, {=u32:#010x}, {=u32:#010x}, {=u32:#010x}]",
+                    j[0][0].to_bits(),
+                    j[0][1].to_bits(),
+                    j[0][2].to_bits(),
+                    j[1][0].to_bits(),
+                    j[1][1].to_bits(),
+                    j[1][2].to_bits(),
+                    j[2][0].to_bits(),
+                    j[2][1].to_bits(),
+                    j[2][2].to_bits()
+                );
+            }
+        }
+        None => defmt::info!("tensor J=none"),
+    }
 }
 
 #[cfg(test)]

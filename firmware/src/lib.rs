@@ -54,6 +54,8 @@
 pub mod app;
 pub mod bench;
 pub mod log_format;
+pub mod replay_format;
+pub mod uplink;
 // Stack painting needs `cortex-m`, which only the board features bring.
 #[cfg(all(
     target_arch = "arm",
@@ -63,6 +65,7 @@ pub mod log_format;
 pub mod stack;
 
 pub use app::{
-    gate_rate_bound, identifier_settings, refined_settings, InitError, LoopCounters, NoDelay,
-    NoRotor, Poll, Report, RotorSpeedSource, SampleClock, SampleInputs, SampleLoop, SensorStatus,
+    gate_rate_bound, identifier_settings, pipeline_settings, refined_settings, InitError,
+    LoopCounters, NoDelay, NoRotor, Poll, Report, RotorConfig, RotorSpeedSource, SampleClock,
+    SampleInputs, SampleLoop, SensorStatus, TensorReport,
 };

@@ -8,6 +8,9 @@ use inertia::close_loop::{analysis, report};
 use inertia::identify::{identify, parse_axis, IdentifyOptions, Rotor};
 use inertia::{read, Format, GyroUnit, ReadOptions, TimeUnit};
 
+mod replay;
+mod telemetry;
+
 #[derive(Parser)]
 #[command(
     name = "inertia",
@@ -23,6 +26,11 @@ struct Cli {
 enum Command {
     /// Find the free flights in a log and identify the inertia tensor (per throw and pooled).
     Identify(IdentifyArgs),
+    /// Write the per-sample inputs `identify` gives its pipeline as a replay file for the
+    /// firmware under QEMU (`scripts/run.sh --log`).
+    ExportReplay(ExportReplayArgs),
+    /// Decode a captured telemetry stream (the firmware's UART) to JSON lines.
+    Telemetry(TelemetryArgs),
     /// Close the loop on a gyro log: residual, effect, extended model, error before and after.
     CloseLoop(CloseLoopArgs),
 }
@@ -314,10 +322,102 @@ fn run_close_loop(args: CloseLoopArgs) -> Result<ExitCode, String> {
     Ok(ExitCode::SUCCESS)
 }
 
+#[derive(clap::Args)]
+#[command(allow_negative_numbers = true)]
+struct ExportReplayArgs {
+    /// The log (any format `identify` reads).
+    #[arg(long)]
+    input: PathBuf,
+    /// Rotor (flywheel) inertia about its axis, kg m^2.
+    #[arg(long)]
+    rotor_inertia: Option<f32>,
+    /// Rotor axis in the gyro frame: x, y, z, -x, -y or -z.
+    #[arg(long, value_parser = parse_axis, allow_hyphen_values = true)]
+    rotor_axis: Option<[f32; 3]>,
+    /// Motor poles, to turn eRPM into mechanical speed.
+    #[arg(long)]
+    rotor_poles: Option<u32>,
+    /// Use the rotor speed exactly as logged (as `identify --rotor-raw`).
+    #[arg(long)]
+    rotor_raw: bool,
+    /// Gyro unit of a CSV: rad/s or deg/s.
+    #[arg(long, value_parser = parse_gyro_unit)]
+    gyro_unit: Option<GyroUnit>,
+    /// Time unit of a CSV: s, ms or us.
+    #[arg(long, value_parser = parse_time_unit)]
+    time_unit: Option<TimeUnit>,
+    /// Gyro white noise, rad/s (estimated from the data when absent, as `identify` does).
+    #[arg(long)]
+    noise_std: Option<f32>,
+    /// The replay file to write.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(clap::Args)]
+struct TelemetryArgs {
+    /// The captured byte stream (QEMU's `-serial file:...`, or a UART capture).
+    #[arg(long)]
+    input: PathBuf,
+    /// Also write the last report's estimate (status, a, std_a, tensor_kg_m2, throws,
+    /// counters) as a JSON file.
+    #[arg(long)]
+    final_json: Option<PathBuf>,
+}
+
+fn run_export_replay(args: ExportReplayArgs) -> Result<ExitCode, String> {
+    let rotor = match (args.rotor_inertia, args.rotor_axis) {
+        (None, None) => None,
+        (Some(j), Some(axis)) => {
+            if !(j.is_finite() && j > 0.0) {
+                return Err(format!("--rotor-inertia {j} must be positive"));
+            }
+            Some(Rotor {
+                inertia: j,
+                axis,
+                poles: args.rotor_poles,
+            })
+        }
+        _ => return Err("--rotor-inertia and --rotor-axis go together".into()),
+    };
+    if let Some(s) = args.noise_std {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(format!("--noise-std {s} must be positive"));
+        }
+    }
+    let opts = ReadOptions {
+        gyro_unit: args.gyro_unit,
+        time_unit: args.time_unit,
+    };
+    let rec = read(&args.input, &opts).map_err(|e| e.to_string())?;
+    let e = replay::export(&rec, rotor, args.noise_std, args.rotor_raw, &args.out)?;
+    eprintln!(
+        "{}: {} samples at {} Hz, noise {} rad/s, accelerometer {}",
+        args.out.display(),
+        e.samples,
+        e.rate_hz,
+        e.noise_std,
+        e.with_accel
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_telemetry(args: TelemetryArgs) -> Result<ExitCode, String> {
+    let (n, errors) = telemetry::run(&args.input, args.final_json.as_deref())?;
+    eprintln!("{n} reports decoded, {errors} frames did not decode");
+    Ok(if n == 0 {
+        ExitCode::from(3)
+    } else {
+        ExitCode::SUCCESS
+    })
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match cli.command {
         Command::Identify(a) => run_identify(a),
+        Command::ExportReplay(a) => run_export_replay(a),
+        Command::Telemetry(a) => run_telemetry(a),
         Command::CloseLoop(a) => run_close_loop(a),
     };
     match r {

@@ -22,11 +22,11 @@ extern crate std;
 use serde::{Deserialize, Serialize};
 
 /// Format version carried in every report; bumped on any change of [`Report`].
-pub const VERSION: u8 = 1;
+pub const VERSION: u8 = 2;
 
 /// Longest frame: the largest serialised [`Report`] (varints at their longest) plus COBS
 /// overhead and the terminating zero.
-pub const MAX_FRAME: usize = 256;
+pub const MAX_FRAME: usize = 384;
 
 /// The sensor's state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -54,6 +54,50 @@ pub struct Estimate {
     pub consistency: f32,
     /// Samples integrated when this estimate was made.
     pub samples: u32,
+}
+
+/// Names of the tensor estimate's status codes ([`Tensor::status`]), in code order: those of
+/// identifier-core's `TensorStatus`.
+pub const TENSOR_STATUS: [&str; 8] = [
+    "TooFewSamples",
+    "UnitsLookWrong",
+    "Saturated",
+    "NoExcitation",
+    "ModelMismatch",
+    "PhysicallyImpossible",
+    "Converging",
+    "Converged",
+];
+
+/// The free-flight pipeline's tensor estimate (identifier-core's `FlightPipeline`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Tensor {
+    /// Status code, an index into [`TENSOR_STATUS`].
+    pub status: u8,
+    /// The paper's ratios `a` from the tensor, when determined.
+    pub a: Option<[f32; 3]>,
+    /// Their standard deviations.
+    pub std_a: Option<[f32; 3]>,
+    /// `J`, kg m^2, when a rotor momentum fixes the scale.
+    pub tensor: Option<[[f32; 3]; 3]>,
+    /// Free flights that reached the estimator.
+    pub throws: u32,
+    /// Samples committed to the estimator.
+    pub fed: u32,
+    /// Samples that left the delay line uncommitted.
+    pub not_fed: u32,
+    /// The gate holds free flight now.
+    pub in_free_flight: bool,
+}
+
+impl Tensor {
+    /// The status's name (`"?"` for an unknown code).
+    pub fn status_name(&self) -> &'static str {
+        TENSOR_STATUS
+            .get(usize::from(self.status))
+            .copied()
+            .unwrap_or("?")
+    }
 }
 
 /// The sample loop's counters.
@@ -96,6 +140,8 @@ pub struct Report {
     pub rotor_rad_s: Option<f32>,
     /// The estimate restored from flash at boot, if any.
     pub restored: Option<Estimate>,
+    /// The free-flight pipeline's tensor estimate.
+    pub tensor: Tensor,
 }
 
 /// Serialises `report` as one COBS frame (terminating zero included) into `buf`; returns the
@@ -199,6 +245,16 @@ mod tests {
             saturated_recent: k,
             rotor_rad_s: k.is_multiple_of(3).then_some(-123.25),
             restored: (k == 1).then_some(estimate),
+            tensor: Tensor {
+                status: (k % 8) as u8,
+                a: Some([0.5, -0.25, f32::MAX]),
+                std_a: None,
+                tensor: (k == 2).then_some([[1e-5; 3]; 3]),
+                throws: k,
+                fed: 1000 * k,
+                not_fed: 7,
+                in_free_flight: k == 3,
+            },
         }
     }
 
@@ -247,6 +303,16 @@ mod tests {
         r.tick = u32::MAX;
         r.saturated_recent = u32::MAX;
         r.rotor_rad_s = Some(1.0);
+        r.tensor = Tensor {
+            status: 7,
+            a: Some([1.0; 3]),
+            std_a: Some([1.0; 3]),
+            tensor: Some([[1.0; 3]; 3]),
+            throws: u32::MAX,
+            fed: u32::MAX,
+            not_fed: u32::MAX,
+            in_free_flight: true,
+        };
         let mut buf = [0u8; MAX_FRAME];
         let n = encode(&r, &mut buf).unwrap().len();
         assert!(n <= MAX_FRAME, "{n}");

@@ -3,9 +3,16 @@
 //! with samples from a gyro log read through semihosting; defmt goes out over semihosting; the
 //! exit code tells the host how the run went.
 //!
-//! Semihosting command line: `firmware-qemu <log path> [bus error every n transfers]`.
+//! Semihosting command line: `firmware-qemu <log path> [bus error every n transfers]`, or
+//! `firmware-qemu --replay <replay file>` (written by `inertia export-replay`): a real log's
+//! own samples, at its own rate, into the sample loop's free-flight pipeline and both
+//! identifiers ([`SampleLoop::replay_sample`]; the driver, the simulated part, the
+//! plausibility gate and the sample clock are bypassed, since the part's 16-bit counts cannot
+//! carry the log's `f32` values unchanged).
 //! Exit codes: 0 log replayed, 1 gyro init failed, 2 log unreadable, 3 bad arguments,
 //! 4 log shorter than its header says (truncated file or a read error).
+//!
+//! Every report also goes out as a `telemetry` frame on USART1 (QEMU: `-serial file:...`).
 #![no_std]
 #![no_main]
 
@@ -14,7 +21,9 @@ use core::ffi::CStr;
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
 use firmware::log_format::{decode_sample, Header, HEADER_LEN, SAMPLE_LEN};
-use firmware::{stack, NoDelay, Poll, SampleLoop};
+use firmware::replay_format::{self, ReplayHeader};
+use firmware::uplink::{send_report, ByteSink};
+use firmware::{stack, NoDelay, Poll, RotorConfig, SampleLoop};
 use icm42688::sim::{SampleSource, SimIcm42688};
 use icm42688::{Config, Icm42688, SpiInterface};
 use semihosting::fs::File;
@@ -66,6 +75,48 @@ impl SampleSource for LogSource {
     }
 }
 
+/// USART1 of the STM32F405 by its registers (QEMU models its transmitter; the board image
+/// uses the HAL).
+struct Usart1;
+
+impl Usart1 {
+    const BASE: usize = 0x4001_1000;
+    const SR: *mut u32 = Self::BASE as *mut u32;
+    const DR: *mut u32 = (Self::BASE + 0x04) as *mut u32;
+    const BRR: *mut u32 = (Self::BASE + 0x08) as *mut u32;
+    const CR1: *mut u32 = (Self::BASE + 0x0C) as *mut u32;
+    const RCC_APB2ENR: *mut u32 = 0x4002_3844 as *mut u32;
+
+    /// Clock on, 921 600 baud at an 84 MHz APB2, 8N1, transmitter enabled.
+    fn init() -> Self {
+        // SAFETY: fixed STM32F405 register addresses; nothing else in this image uses them.
+        unsafe {
+            let en = core::ptr::read_volatile(Self::RCC_APB2ENR);
+            core::ptr::write_volatile(Self::RCC_APB2ENR, en | (1 << 4));
+            core::ptr::write_volatile(Self::BRR, 84_000_000 / 921_600);
+            core::ptr::write_volatile(Self::CR1, (1 << 13) | (1 << 3));
+        }
+        Usart1
+    }
+}
+
+impl ByteSink for Usart1 {
+    fn send(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            // Wait for the data register (bounded: a transmitter that never frees it must not
+            // hang the loop).
+            for _ in 0..10_000 {
+                // SAFETY: status register read.
+                if unsafe { core::ptr::read_volatile(Self::SR) } & (1 << 7) != 0 {
+                    break;
+                }
+            }
+            // SAFETY: data register write.
+            unsafe { core::ptr::write_volatile(Self::DR, u32::from(b)) };
+        }
+    }
+}
+
 fn exit(code: i32) -> ! {
     semihosting::process::exit(code)
 }
@@ -114,9 +165,17 @@ fn main() -> ! {
     };
     let mut it = (&args).into_iter().skip(1);
     let Some(Ok(path)) = it.next() else {
-        defmt::error!("usage: firmware-qemu <gyro log> [bus error every n]");
+        defmt::error!("usage: firmware-qemu <gyro log> [bus error every n] | --replay <file>");
         exit(3)
     };
+    let mut uart = Usart1::init();
+    if path == "--replay" {
+        let Some(Ok(file)) = it.next() else {
+            defmt::error!("usage: firmware-qemu --replay <replay file>");
+            exit(3)
+        };
+        replay(file, &mut uart)
+    }
     let fail_every = match it.next() {
         Some(Ok(n)) => match n.parse::<u32>() {
             Ok(n) => n,
@@ -172,14 +231,20 @@ fn main() -> ! {
         } = app.poll(&mut delay)
         {
             firmware::app::log_report(&r);
+            firmware::app::log_tensor(&r, false);
+            send_report(&mut uart, &r, None);
         }
         if let Some(r) = app.take_failed_report() {
             firmware::app::log_report(&r);
+            firmware::app::log_tensor(&r, false);
+            send_report(&mut uart, &r, None);
         }
     }
 
     let r = app.report();
     firmware::app::log_report(&r);
+    firmware::app::log_tensor(&r, true);
+    send_report(&mut uart, &r, None);
     let (p, f) = (r.a_paper, r.a_refined);
     let c = app.counters();
     let ic = app.identifier_counters();
@@ -229,6 +294,150 @@ fn main() -> ! {
             latched,
             header.samples
         );
+        exit(4)
+    }
+    exit(0)
+}
+
+/// The replay file's samples, read in chunks.
+struct ReplayReader {
+    file: File,
+    buf: [u8; CHUNK * replay_format::SAMPLE_LEN],
+    len: usize,
+    pos: usize,
+}
+
+impl ReplayReader {
+    fn next(&mut self) -> Option<replay_format::ReplaySample> {
+        const L: usize = replay_format::SAMPLE_LEN;
+        if self.len - self.pos < L {
+            let rest = self.len - self.pos;
+            self.buf.copy_within(self.pos..self.len, 0);
+            self.len = rest;
+            self.pos = 0;
+            while self.len < L {
+                match self.file.read(&mut self.buf[self.len..]) {
+                    Ok(0) | Err(_) => return None,
+                    Ok(n) => self.len += n,
+                }
+            }
+        }
+        let mut s = [0u8; L];
+        s.copy_from_slice(&self.buf[self.pos..self.pos + L]);
+        self.pos += L;
+        Some(replay_format::decode_sample(&s))
+    }
+}
+
+/// A sample source with no samples: in replay mode the simulated part only answers the
+/// driver's initialisation.
+fn no_samples() -> Option<[f32; 3]> {
+    None
+}
+
+/// `--replay`: the log's samples into the sample loop at the log's own rate.
+fn replay(path: &str, uart: &mut Usart1) -> ! {
+    let mut name = [0u8; 256];
+    let bytes = path.as_bytes();
+    if bytes.len() >= name.len() {
+        exit(2)
+    }
+    name[..bytes.len()].copy_from_slice(bytes);
+    let Ok(cpath) = CStr::from_bytes_until_nul(&name) else {
+        exit(2)
+    };
+    let Ok(mut file) = File::open(cpath) else {
+        defmt::error!("cannot open replay file {=str}", path);
+        exit(2)
+    };
+    let mut h = [0u8; replay_format::HEADER_LEN];
+    let mut got = 0;
+    while got < h.len() {
+        match file.read(&mut h[got..]) {
+            Ok(0) | Err(_) => exit(2),
+            Ok(n) => got += n,
+        }
+    }
+    let header = match ReplayHeader::decode(&h) {
+        Ok(hd) => hd,
+        Err(e) => {
+            defmt::error!("replay header refused: {}", e);
+            exit(2)
+        }
+    };
+    defmt::info!(
+        "replay {=str}: {=u32} samples at {=f32} Hz, noise {=f32} rad/s, full scale {=f32} rad/s, accelerometer {=bool}, rotor {}",
+        path,
+        header.samples,
+        header.rate_hz,
+        header.noise_std,
+        header.full_scale,
+        header.with_accel,
+        header.rotor
+    );
+    let mut settings = identifier_core::PipelineSettings::for_rate(header.rate_hz, header.noise_std);
+    settings.tensor.full_scale = header.full_scale;
+    let rotor = header
+        .rotor
+        .map(|(inertia, axis)| RotorConfig { inertia, axis });
+    let speed = core::cell::Cell::new(None::<f32>);
+    let mut delay = NoDelay;
+    let sim = SimIcm42688::new(no_samples as fn() -> Option<[f32; 3]>);
+    let clock = |_: &SpiInterface<SimIcm42688<fn() -> Option<[f32; 3]>>>| 0u32;
+    let app = match SampleLoop::new(Icm42688::new_spi(sim), &mut delay, Config::identifier(), clock)
+    {
+        Ok(app) => app,
+        Err(e) => {
+            defmt::error!("init failed: {}", e);
+            exit(1)
+        }
+    };
+    let Some(mut app) = app
+        .with_rotor(|| speed.get())
+        .with_pipeline(settings, header.with_accel, rotor)
+    else {
+        defmt::error!("pipeline settings refused");
+        exit(3)
+    };
+    let loop_depth = stack::depth();
+    stack::paint();
+    let report_every = {
+        let r = header.rate_hz / 10.0;
+        if r >= 1.0 && r < 1e6 { (r + 0.5) as u32 } else { 1 }
+    };
+    let mut reader = ReplayReader {
+        file,
+        buf: [0; CHUNK * replay_format::SAMPLE_LEN],
+        len: 0,
+        pos: 0,
+    };
+    let mut n = 0u32;
+    while n < header.samples {
+        let Some(s) = reader.next() else { break };
+        n += 1;
+        speed.set(rotor.map(|_| s.rotor_rad_s));
+        if let Some(r) = app.replay_sample(s.omega, s.accel, s.dt, report_every) {
+            firmware::app::log_report(&r);
+            firmware::app::log_tensor(&r, false);
+            send_report(uart, &r, None);
+        }
+    }
+    let r = app.report();
+    firmware::app::log_report(&r);
+    defmt::info!("final replay samples={=u32}", n);
+    firmware::app::log_tensor(&r, true);
+    send_report(uart, &r, None);
+    let hw = stack::high_water();
+    defmt::info!(
+        "stack: {=usize} bytes reserved; high-water {=usize} bytes during the replay loop ({=usize} of them below main's frame); sample loop state {=usize} bytes (pipeline {=usize})",
+        stack::size(),
+        hw,
+        hw.saturating_sub(loop_depth),
+        core::mem::size_of_val(&app),
+        core::mem::size_of::<identifier_core::FlightPipeline>()
+    );
+    if n != header.samples {
+        defmt::error!("the replay ended after {=u32} of {=u32} samples", n, header.samples);
         exit(4)
     }
     exit(0)

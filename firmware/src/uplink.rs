@@ -1,0 +1,132 @@
+//! Telemetry without a debug probe: each [`Report`] as one `telemetry` frame (postcard +
+//! COBS, see the `telemetry` crate) on a byte sink, a UART on the board (USART1, PA9) and
+//! under QEMU (USART1 of `netduinoplus2`, captured with `-serial file:...`). The host decodes a
+//! capture with `inertia telemetry --input FILE`.
+
+use identifier_core::{Convergence, TensorStatus};
+
+use crate::app::{LoopCounters, Report, SensorStatus};
+
+/// Where frames go: a UART's transmitter, blocking until each byte is taken.
+pub trait ByteSink {
+    /// Sends `bytes` in order.
+    fn send(&mut self, bytes: &[u8]);
+}
+
+/// The code of a tensor status in [`telemetry::TENSOR_STATUS`].
+pub fn tensor_status_code(s: TensorStatus) -> u8 {
+    match s {
+        TensorStatus::TooFewSamples => 0,
+        TensorStatus::UnitsLookWrong => 1,
+        TensorStatus::Saturated => 2,
+        TensorStatus::NoExcitation => 3,
+        TensorStatus::ModelMismatch => 4,
+        TensorStatus::PhysicallyImpossible => 5,
+        TensorStatus::Converging => 6,
+        TensorStatus::Converged => 7,
+    }
+}
+
+fn counters(c: &LoopCounters) -> telemetry::Counters {
+    telemetry::Counters {
+        samples: c.samples,
+        skipped: c.skipped,
+        bus_errors: c.bus_errors,
+        invalid: c.invalid,
+        timeouts: c.timeouts,
+        implausible: c.implausible,
+        missed: c.missed,
+        wrong_id: c.wrong_id,
+        stalled: c.stalled,
+        reinits: c.reinits,
+        reinit_failures: c.reinit_failures,
+        saturated: c.saturated,
+        accel_saturated: c.accel_saturated,
+    }
+}
+
+/// The firmware's report in the telemetry format (`restored`: the estimate restored at boot).
+pub fn to_telemetry(r: &Report, restored: Option<telemetry::Estimate>) -> telemetry::Report {
+    let t = &r.tensor;
+    telemetry::Report {
+        version: telemetry::VERSION,
+        tick: r.tick,
+        t: r.t,
+        sensor: match r.sensor {
+            SensorStatus::Ok => telemetry::Sensor::Ok,
+            SensorStatus::Failed => telemetry::Sensor::Failed,
+        },
+        estimate: telemetry::Estimate {
+            a_paper: r.a_paper,
+            converged_paper: r.convergence_paper == Convergence::Converged,
+            a_refined: r.a_refined,
+            std_a: r.std_refined,
+            converged_refined: r.convergence_refined == Convergence::Converged,
+            consistency: r.consistency,
+            samples: r.counters.samples,
+        },
+        counters: counters(&r.counters),
+        saturated_recent: r.saturated_recent,
+        rotor_rad_s: r.rotor_rad_s,
+        restored,
+        tensor: telemetry::Tensor {
+            status: tensor_status_code(t.status),
+            a: t.a,
+            std_a: t.std_a,
+            tensor: t.tensor,
+            throws: t.throws,
+            fed: t.fed,
+            not_fed: t.not_fed,
+            in_free_flight: t.in_free_flight,
+        },
+    }
+}
+
+/// Encodes `r` as one frame and sends it; false when it did not encode (cannot happen with
+/// [`telemetry::MAX_FRAME`], checked by the telemetry crate's tests).
+pub fn send_report(
+    sink: &mut impl ByteSink,
+    r: &Report,
+    restored: Option<telemetry::Estimate>,
+) -> bool {
+    let mut buf = [0u8; telemetry::MAX_FRAME];
+    match telemetry::encode(&to_telemetry(r, restored), &mut buf) {
+        Ok(frame) => {
+            sink.send(frame);
+            true
+        }
+        Err(_) => false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+    extern crate std;
+    use super::*;
+
+    struct Capture(std::vec::Vec<u8>);
+    impl ByteSink for Capture {
+        fn send(&mut self, bytes: &[u8]) {
+            self.0.extend_from_slice(bytes);
+        }
+    }
+
+    #[test]
+    fn status_codes_follow_the_names() {
+        use TensorStatus::*;
+        for s in [
+            TooFewSamples,
+            UnitsLookWrong,
+            Saturated,
+            NoExcitation,
+            ModelMismatch,
+            PhysicallyImpossible,
+            Converging,
+            Converged,
+        ] {
+            let name = telemetry::TENSOR_STATUS[usize::from(tensor_status_code(s))];
+            assert_eq!(name, std::format!("{s:?}"));
+        }
+    }
+}

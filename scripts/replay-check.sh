@@ -1,0 +1,104 @@
+#!/usr/bin/env bash
+# Real logs through the real firmware: each log is replayed under QEMU by scripts/run.sh --log
+# (the firmware's own sample loop and FlightPipeline, at the log's own rate) and its final
+# on-board estimate must equal `inertia identify`'s pooled result on the same log, bit for
+# bit: status, samples fed, and the f32 bits of a, std_a and the tensor (null on both sides
+# when undetermined). Also, per log, the telemetry frames captured from the firmware's UART
+# must decode and their last estimate must equal the one the firmware printed over defmt (its
+# IEEE-754 bits).
+#
+# Logs: the 10 thrown-FC blackbox logs in ../shared/data/thrown-fc (skipped when absent;
+# flywheel 1.689e-6 kg m^2 about -z, 12 poles), and a simulated board throw CSV
+# (host-tests gen-throw --scenario board_throw --seed 1, same flywheel, speed in rad/s).
+# Exit 1 when any log differs.
+set -euo pipefail
+source "$(dirname "${BASH_SOURCE[0]}")/setup.sh"
+cd "$ROOT"
+
+OUT=target/replay-check
+TD="${CARGO_TARGET_DIR:-target}"
+INERTIA="$TD/release/inertia"
+DATA="$ROOT/../shared/data/thrown-fc"
+mkdir -p "$OUT"
+command -v python3 >/dev/null || { echo "replay-check: python3 is needed for the bit comparison" >&2; exit 1; }
+
+log "simulated board throw (gen-throw --scenario board_throw --seed 1)"
+cargo run -q --release -p host-tests --bin gen-throw -- --scenario board_throw --seed 1 \
+    --out "$OUT/board_throw.csv" >/dev/null
+cargo build -q --release -p inertia
+
+logs=()
+if [ -d "$DATA" ]; then
+    for f in "$DATA"/device_only/*.BFL "$DATA"/proof_body/*.BFL; do [ -f "$f" ] && logs+=("$f"); done
+else
+    echo "replay-check: $DATA absent: the thrown-FC logs are skipped"
+fi
+logs+=("$OUT/board_throw.csv")
+
+fail=0
+results=()
+for f in "${logs[@]}"; do
+    name="$(basename "$f")"
+    d="$OUT/runs/$name"
+    mkdir -p "$d"
+    rotor=(--rotor-inertia 1.689e-6 --rotor-axis=-z)
+    case "$f" in *.BFL) rotor+=(--rotor-poles 12) ;; esac
+    set +e
+    "$INERTIA" identify --input "$f" "${rotor[@]}" --json "$d/identify.json" 2>"$d/identify.err"
+    id_rc=$?
+    scripts/run.sh --log "$f" "${rotor[@]}" --json "$d/firmware.json" >"$d/run.txt" 2>&1
+    fw_rc=$?
+    set -e
+    cp target/firmware-run/defmt.txt "$d/defmt.txt" 2>/dev/null || true
+    line="$(python3 - "$d" "$id_rc" "$fw_rc" <<'PY'
+import json, re, struct, sys
+d, id_rc, fw_rc = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+def bits(x):
+    if x is None: return None
+    if isinstance(x, list): return [bits(v) for v in x]
+    return struct.unpack('<I', struct.pack('<f', x))[0]
+out = []
+ok = True
+try:
+    fw = json.load(open(f"{d}/firmware.json"))
+except Exception as e:
+    print(f"different: no on-board result (run.sh exit {fw_rc}: {e})"); sys.exit()
+if id_rc not in (0, 4):
+    # identify found no free flight (exit 3): the firmware must have fed nothing either.
+    same = fw["samples_fed"] == 0 and fw["a"] is None
+    print(("equal" if same else "different") + f": identify exit {id_rc} (no free flight); on board {fw['throws_detected']} throws, {fw['samples_fed']} samples fed")
+    sys.exit()
+p = json.load(open(f"{d}/identify.json"))["pooled"]
+diffs = []
+if p["status"] != fw["status"]: diffs.append(f"status {p['status']} / {fw['status']}")
+if p["samples"] != fw["samples_fed"]: diffs.append(f"samples {p['samples']} / {fw['samples_fed']}")
+for k_id, k_fw in (("a", "a"), ("std_a", "std_a"), ("tensor_kg_m2", "tensor_kg_m2")):
+    if bits(p[k_id]) != bits(fw[k_fw]): diffs.append(f"{k_id} {p[k_id]} / {fw[k_fw]}")
+# UART telemetry == defmt (the firmware's final tensor lines carry the bits).
+tel = []
+txt = open(f"{d}/defmt.txt").read()
+tail = txt[txt.find("final replay"):]
+def hexes(key):
+    m = re.search(rf"{key}=\[([^\]]*)\]", tail)
+    return [int(h, 16) for h in m.group(1).split(",")] if m else None
+ba, bs, bj = hexes("bits_a"), hexes("bits_std_a"), hexes("bits_J")
+flat = lambda m: None if m is None else [v for row in m for v in row]
+if ba != bits(fw["a"]) or bs != bits(fw["std_a"]) or bj != bits(flat(fw["tensor_kg_m2"])):
+    tel.append("UART telemetry != defmt")
+st = re.findall(r"tensor status=(\w+) throws=(\d+) fed=(\d+)", tail)
+if not st or st[-1][0] != fw["status"] or int(st[-1][1]) != fw["throws_detected"] or int(st[-1][2]) != fw["samples_fed"]:
+    tel.append("UART status/counters != defmt")
+verdict = "equal" if not diffs else "different"
+a = fw["a"]
+astr = "none" if a is None else "[" + ", ".join(f"{v:.4f}" for v in a) + "]"
+print(f"{verdict}: {fw['throws_detected']} free flights on board, {fw['samples_fed']} samples fed, {fw['status']}, a={astr}; UART=defmt: {'yes' if not tel else '; '.join(tel)}" + ("" if not diffs else " | " + "; ".join(diffs)))
+PY
+)"
+    case "$line" in equal*"UART=defmt: yes"*) ;; *) fail=1 ;; esac
+    results+=("$(printf '%-18s %s' "$name" "$line")")
+    echo "$(printf '%-18s %s' "$name" "$line")"
+done
+echo
+echo "on-board (QEMU, replay) vs inertia identify pooled, bit for bit: ${#logs[@]} logs"
+[ "$fail" -eq 0 ] || { echo "replay-check: FAILED" >&2; exit 1; }
+echo "replay-check: OK"
