@@ -4,7 +4,6 @@
 //! Everything here is `f64` and `std`; the identifier under test is the very same
 //! `identifier-core` code the firmware runs.
 
-pub mod close_loop;
 pub mod crb;
 pub mod crb_tensor;
 pub mod estimators;

@@ -1,9 +1,8 @@
-//! The close-the-loop analysis on the measured racquet tosses in `../shared/data/racquet/`
+//! The close-the-loop analysis (`inertia::close_loop`) on the measured racquet tosses in `../shared/data/racquet/`
 //! (beside the repository; CI has it). Skips with a message only if that directory is absent.
 
-use host_tests::close_loop::analysis::{analyse, Options};
-use host_tests::close_loop::model::Effect;
-use host_tests::log_input::read_log;
+use inertia::close_loop::analysis::{analyse, Options};
+use inertia::close_loop::model::Effect;
 use std::path::PathBuf;
 
 /// `a` implied by the pendulum-measured inertias (the data's README).
@@ -34,7 +33,8 @@ fn racquet_residual_traces_to_damping() {
         return;
     };
     for (round, segments) in [("round1", 6), ("round2", 5), ("round4", 6)] {
-        let log = read_log(&export(round), None, None).unwrap();
+        let (log, _) =
+            inertia::close_loop::load(&export(round), None, None, &Default::default()).unwrap();
         assert_eq!(log.segments.len(), segments, "{round}: kept segments");
         let an = analyse(
             &log,

@@ -1,4 +1,5 @@
-//! The close-the-loop analysis on simulated logs with a known effect: each effect alone, two
+//! The close-the-loop analysis (`inertia::close_loop`, the `inertia close-loop` command) on
+//! simulated logs with a known effect: each effect alone, two
 //! together, and none. Racquet-like sizes: six tosses of 0.8 s at 100 Hz about the
 //! intermediate axis, |omega| about 20 rad/s, white gyro noise 0.015 rad/s.
 //!
@@ -8,11 +9,12 @@
 
 #![allow(clippy::needless_range_loop)]
 
-use host_tests::close_loop::analysis::{analyse, Analysis, Options};
-use host_tests::close_loop::model::Effect;
 use host_tests::gyro::{rotation, GyroModel};
-use host_tests::log_input::{Log, Segment};
 use host_tests::rigid_body::Body;
+use inertia::close_loop::analysis::{analyse, Analysis, Options};
+use inertia::close_loop::input::Log;
+use inertia::close_loop::model::Effect;
+use inertia::readers::phyphox::Segment;
 
 /// Racquet-like principal moments (x intermediate, y along the handle, z primary).
 const INERTIA: [f64; 3] = [19.5, 1.39, 20.7];
@@ -362,7 +364,7 @@ fn false_alarm_rate_on_clean_logs() {
 /// F-test or a whiteness test on it is miscalibrated, while the block residual (B) is white.
 #[test]
 fn block_residual_is_white_where_the_derivative_residual_is_not() {
-    use host_tests::close_loop::{model, stats};
+    use inertia::close_loop::{model, stats};
     let (log, a) = simulate(Truth::default(), 7, 6, 100.0);
     let ranges = log.segment_ranges();
     let pooled = |series: Vec<Vec<f64>>| {
@@ -563,5 +565,29 @@ fn each_effect_named_across_seeds() {
             effect.name()
         );
         assert!(right >= 9, "{}: {right}/10 {wrong:?}", effect.name());
+    }
+}
+
+/// Torque, damping and rotor columns of the model reproduce the simulator's right-hand side
+/// (`rigid_body::Body::rhs`) exactly.
+#[test]
+fn effect_columns_match_the_simulator() {
+    use inertia::close_loop::model::rhs;
+    let mut b = Body::free([0.6, 1.54, 1.0]);
+    b.torque = [0.01, -0.02, 0.03];
+    b.damping = [0.004, 0.005, 0.006];
+    b.rotor = [0.02, -0.01, 0.03];
+    let a = b.a();
+    let i = b.inertia;
+    let fx = [Effect::BodyTorque, Effect::Damping, Effect::RotorMomentum];
+    let mut theta = a.to_vec();
+    theta.extend((0..3).map(|k| b.torque[k] / i[k]));
+    theta.extend((0..3).map(|k| b.damping[k] / i[k]));
+    theta.extend((0..3).map(|k| b.rotor[k] / i[0]));
+    let w = [0.7, -1.1, 0.4];
+    let got = rhs(&fx, a, &theta, w);
+    let want = b.rhs(w);
+    for k in 0..3 {
+        assert!((got[k] - want[k]).abs() < 1e-12, "{got:?} {want:?}");
     }
 }

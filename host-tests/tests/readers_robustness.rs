@@ -1,11 +1,10 @@
-//! Reliability of the host tools under bad files: the log readers (phyphox, CSV, segments) and
-//! the `close-loop` command. Malformed, truncated, empty, non-UTF-8, huge and unsorted-time files
-//! must give an error that names the file and, where one line is to blame, that line; nothing
-//! may panic. Hand-written cases, then property tests over mutated and random files, then the
-//! `close-loop` binary itself.
+//! Reliability of the old log readers (`host_tests::log_input`: phyphox, CSV, segments) under
+//! bad files. Malformed, truncated, empty, non-UTF-8, huge and unsorted-time files must give an
+//! error that names the file and, where one line is to blame, that line; nothing may panic.
+//! Hand-written cases, then property tests over mutated and random files. The close-loop
+//! command on bad files is tested with the host tool (`inertia/tests/close_loop_cli.rs`).
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use host_tests::log_input::{detect, read_csv, read_log, read_phyphox, read_segments, Format};
 use proptest::prelude::*;
@@ -422,127 +421,6 @@ proptest! {
     #[test]
     fn random_bytes_never_panic(bytes in prop::collection::vec(any::<u8>(), 0..2000)) {
         assert_sane("prop/random.csv", &bytes)?;
-    }
-}
-
-// ---------------------------------------------------------------------------------------------
-// The close-loop command on bad files: an error naming file and line, exit code 1, no panic.
-
-fn close_loop(input: &Path, extra: &[&str]) -> (i32, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_close-loop"))
-        .arg("--input")
-        .arg(input)
-        .arg("--json")
-        .arg(dir().join("close_loop_out.json"))
-        .args(extra)
-        .output()
-        .expect("run close-loop");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-#[test]
-fn close_loop_reports_malformed_files_without_panicking() {
-    for b in malformed(CSV_HEADER) {
-        if b.bytes.len() > 1_000_000 {
-            continue; // the readers' own test covers the huge ones
-        }
-        let p = write(&format!("cl/{}.csv", b.name), &b.bytes);
-        let (code, err) = close_loop(&p, &[]);
-        assert!(!err.contains("panicked"), "{}: {err}", b.name);
-        assert_eq!(code, 1, "{}: exit {code}: {err}", b.name);
-        let file = format!("{}.csv", b.name);
-        assert!(err.contains(&file), "{}: {err}", b.name);
-        let line = match b.name {
-            "only_newlines" | "nul_bytes" => Some(1),
-            _ => b.line,
-        };
-        if let Some(l) = line {
-            assert!(err.contains(&format!("{file}:{l}:")), "{}: {err}", b.name);
-        }
-    }
-}
-
-#[test]
-fn close_loop_survives_degenerate_but_valid_logs() {
-    let n = 2000;
-    let cases: Vec<(&str, String)> = vec![
-        // Noise-free constant spin about one axis: nothing to identify, residual exactly zero.
-        (
-            "constant",
-            (0..n)
-                .map(|k| format!("{},1,0,0\n", k as f64 * 0.01))
-                .collect(),
-        ),
-        // All zero.
-        (
-            "zeros",
-            (0..n)
-                .map(|k| format!("{},0,0,0\n", k as f64 * 0.01))
-                .collect(),
-        ),
-        // Two rows only.
-        ("two_rows", "0,1,2,3\n0.01,1,2,3\n".into()),
-        // A gap in the middle.
-        (
-            "gap",
-            (0..n)
-                .map(|k| {
-                    format!(
-                        "{},1,2,3\n",
-                        k as f64 * 0.01 + if k > n / 2 { 1e6 } else { 0.0 }
-                    )
-                })
-                .collect(),
-        ),
-    ];
-    for (name, body) in cases {
-        let p = write(
-            &format!("cl/degenerate_{name}.csv"),
-            format!("{CSV_HEADER}{body}").as_bytes(),
-        );
-        let (code, err) = close_loop(&p, &[]);
-        assert!(!err.contains("panicked"), "{name}: {err}");
-        assert!(code == 0 || code == 1, "{name}: exit {code}: {err}");
-        if code == 1 {
-            assert!(
-                err.contains(&format!("degenerate_{name}.csv")),
-                "{name}: {err}"
-            );
-        }
-    }
-}
-
-/// Valid logs whose time steps do not fit the identifier's `f32` `max_dt` (median step above
-/// about 1.4e38 s, or below about 1e-45 s): `close-loop` derives `max_dt` from the median step;
-/// it used to unwrap the identifier's refusal and panic (found by this test, fixed since).
-#[test]
-fn close_loop_survives_extreme_time_steps() {
-    let n = 2000;
-    let cases: Vec<(&str, String)> = vec![
-        (
-            "huge_dt",
-            (0..n)
-                .map(|k| format!("{:e},1,2,3\n", k as f64 * 1e300))
-                .collect(),
-        ),
-        (
-            "tiny_dt",
-            (0..n)
-                .map(|k| format!("{:e},1,2,3\n", k as f64 * 1e-300))
-                .collect(),
-        ),
-    ];
-    for (name, body) in cases {
-        let p = write(
-            &format!("cl/extreme_{name}.csv"),
-            format!("{CSV_HEADER}{body}").as_bytes(),
-        );
-        let (code, err) = close_loop(&p, &[]);
-        assert!(!err.contains("panicked"), "{name}: {err}");
-        assert!(code == 0 || code == 1, "{name}: exit {code}: {err}");
     }
 }
 
