@@ -307,7 +307,8 @@ pub fn gate_spikes(log: &mut Log) -> Vec<Spike> {
                 .map(|j| norm(w[j]))
                 .filter(|v| v.is_finite())
                 .fold(0.0, f64::max);
-            !(d[k] <= base.max(SPIKE_RELATIVE * nb))
+            // A NaN error counts as a spike.
+            d[k].is_nan() || d[k] > base.max(SPIKE_RELATIVE * nb)
         })
         .collect();
     let mut out = Vec::new();
