@@ -10,6 +10,7 @@
 # Logs: the 10 thrown-FC blackbox logs in ../shared/data/thrown-fc (skipped when absent;
 # flywheel 1.689e-6 kg m^2 about -z, 12 poles), and a simulated board throw CSV
 # (host-tests gen-throw --scenario board_throw --seed 1, same flywheel, speed in rad/s).
+# THROWN_FC_DIR overrides where the thrown-FC logs are looked for.
 # Exit 1 when any log differs.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/setup.sh"
@@ -18,7 +19,7 @@ cd "$ROOT"
 OUT=target/replay-check
 TD="${CARGO_TARGET_DIR:-target}"
 INERTIA="$TD/release/inertia"
-DATA="$ROOT/../shared/data/thrown-fc"
+DATA="${THROWN_FC_DIR:-$ROOT/../shared/data/thrown-fc}"
 mkdir -p "$OUT"
 command -v python3 >/dev/null || { echo "replay-check: python3 is needed for the bit comparison" >&2; exit 1; }
 

@@ -318,6 +318,9 @@ pub enum InitError<E> {
 }
 
 /// What one [`SampleLoop::poll`] did.
+// `Stepped` carries the 10 Hz report (with the tensor estimate) by value: a copy of a few
+// hundred bytes per sample, kept for the simple API rather than boxed (no heap).
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Poll {

@@ -113,6 +113,30 @@ mod tests {
     }
 
     #[test]
+    fn reports_round_trip_through_the_uart_stream() {
+        use icm42688::sim::SimIcm42688;
+        use icm42688::{Config, Icm42688, SpiInterface};
+        type Src = fn() -> Option<[f32; 3]>;
+        let none: Src = || None;
+        let lp = crate::SampleLoop::new(
+            Icm42688::new_spi(SimIcm42688::new(none)),
+            &mut crate::NoDelay,
+            Config::identifier(),
+            |_: &SpiInterface<SimIcm42688<Src>>| 0u32,
+        )
+        .unwrap();
+        let r = lp.report();
+        let mut uart = Capture(std::vec::Vec::new());
+        assert!(send_report(&mut uart, &r, None));
+        assert!(send_report(&mut uart, &r, None));
+        let got = telemetry::decode_stream(&uart.0);
+        assert_eq!(got.len(), 2);
+        assert_eq!(got[1], to_telemetry(&r, None));
+        assert_eq!(got[1].tensor.status_name(), "TooFewSamples");
+        assert_eq!(got[1].tensor.a, None);
+    }
+
+    #[test]
     fn status_codes_follow_the_names() {
         use TensorStatus::*;
         for s in [

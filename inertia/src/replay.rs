@@ -92,8 +92,7 @@ pub fn export(
         b.extend_from_slice(&s.to_le_bytes());
         b.extend_from_slice(&dt_of(i).to_le_bytes());
     }
-    let mut file =
-        std::fs::File::create(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let mut file = std::fs::File::create(out).map_err(|e| format!("{}: {e}", out.display()))?;
     file.write_all(&b)
         .map_err(|e| format!("{}: {e}", out.display()))?;
     Ok(Exported {

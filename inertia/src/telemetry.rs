@@ -82,7 +82,8 @@ pub fn run(input: &Path, final_out: Option<&Path>) -> Result<(usize, usize), Str
         let Some(last) = reports.last() else {
             return Err(format!("{}: no telemetry frame decoded", input.display()));
         };
-        let text = serde_json::to_string_pretty(&final_estimate(last)).map_err(|e| e.to_string())?;
+        let text =
+            serde_json::to_string_pretty(&final_estimate(last)).map_err(|e| e.to_string())?;
         std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))?;
     }
     Ok((reports.len(), d.errors))

@@ -25,7 +25,7 @@ use firmware::replay_format::{self, ReplayHeader};
 use firmware::uplink::{send_report, ByteSink};
 use firmware::{stack, NoDelay, Poll, RotorConfig, SampleLoop};
 use icm42688::sim::{SampleSource, SimIcm42688};
-use icm42688::{Config, Icm42688, SpiInterface};
+use icm42688::{Config, GyroOdr, Icm42688, SpiInterface};
 use semihosting::fs::File;
 use semihosting::io::Read;
 
@@ -187,7 +187,23 @@ fn main() -> ! {
         defmt::error!("cannot read gyro log {=str}", path);
         exit(2)
     };
-    let config = Config::identifier();
+    // The part's ODR follows the log's rate when the part has that rate (1 kHz by default).
+    let odr = [
+        GyroOdr::Hz8000,
+        GyroOdr::Hz4000,
+        GyroOdr::Hz2000,
+        GyroOdr::Hz1000,
+        GyroOdr::Hz500,
+        GyroOdr::Hz200,
+        GyroOdr::Hz100,
+    ]
+    .into_iter()
+    .find(|o| o.hz() == header.rate_hz)
+    .unwrap_or(GyroOdr::Hz1000);
+    let config = Config {
+        odr,
+        ..Config::identifier()
+    };
     defmt::info!(
         "gyro log {=str}: {=u32} samples at {=f32} Hz; gyro {} at {} (simulated ICM-42688-P, bus error every {=u32} transfers)",
         path,
@@ -335,6 +351,9 @@ fn no_samples() -> Option<[f32; 3]> {
     None
 }
 
+/// The simulated part's bus interface in replay mode.
+type ReplayBus = SpiInterface<SimIcm42688<fn() -> Option<[f32; 3]>>>;
+
 /// `--replay`: the log's samples into the sample loop at the log's own rate.
 fn replay(path: &str, uart: &mut Usart1) -> ! {
     let mut name = [0u8; 256];
@@ -375,7 +394,8 @@ fn replay(path: &str, uart: &mut Usart1) -> ! {
         header.with_accel,
         header.rotor
     );
-    let mut settings = identifier_core::PipelineSettings::for_rate(header.rate_hz, header.noise_std);
+    let mut settings =
+        identifier_core::PipelineSettings::for_rate(header.rate_hz, header.noise_std);
     settings.tensor.full_scale = header.full_scale;
     let rotor = header
         .rotor
@@ -383,18 +403,22 @@ fn replay(path: &str, uart: &mut Usart1) -> ! {
     let speed = core::cell::Cell::new(None::<f32>);
     let mut delay = NoDelay;
     let sim = SimIcm42688::new(no_samples as fn() -> Option<[f32; 3]>);
-    let clock = |_: &SpiInterface<SimIcm42688<fn() -> Option<[f32; 3]>>>| 0u32;
-    let app = match SampleLoop::new(Icm42688::new_spi(sim), &mut delay, Config::identifier(), clock)
-    {
+    let clock = |_: &ReplayBus| 0u32;
+    let app = match SampleLoop::new(
+        Icm42688::new_spi(sim),
+        &mut delay,
+        Config::identifier(),
+        clock,
+    ) {
         Ok(app) => app,
         Err(e) => {
             defmt::error!("init failed: {}", e);
             exit(1)
         }
     };
-    let Some(mut app) = app
-        .with_rotor(|| speed.get())
-        .with_pipeline(settings, header.with_accel, rotor)
+    let Some(mut app) =
+        app.with_rotor(|| speed.get())
+            .with_pipeline(settings, header.with_accel, rotor)
     else {
         defmt::error!("pipeline settings refused");
         exit(3)
@@ -403,7 +427,11 @@ fn replay(path: &str, uart: &mut Usart1) -> ! {
     stack::paint();
     let report_every = {
         let r = header.rate_hz / 10.0;
-        if r >= 1.0 && r < 1e6 { (r + 0.5) as u32 } else { 1 }
+        if (1.0..1e6).contains(&r) {
+            (r + 0.5) as u32
+        } else {
+            1
+        }
     };
     let mut reader = ReplayReader {
         file,
@@ -437,7 +465,11 @@ fn replay(path: &str, uart: &mut Usart1) -> ! {
         core::mem::size_of::<identifier_core::FlightPipeline>()
     );
     if n != header.samples {
-        defmt::error!("the replay ended after {=u32} of {=u32} samples", n, header.samples);
+        defmt::error!(
+            "the replay ended after {=u32} of {=u32} samples",
+            n,
+            header.samples
+        );
         exit(4)
     }
     exit(0)

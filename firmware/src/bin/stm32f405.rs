@@ -1,7 +1,11 @@
 //! The firmware on an STM32F405 flight controller with the ICM-42688-P on SPI1 (SCK PA5, MISO
 //! PA6, MOSI PA7, CS PA4: the usual F405 layout, e.g. Matek F405 boards), 8 MHz crystal,
 //! core at 168 MHz. defmt goes out over RTT; `cargo flash-board` flashes and runs it with
-//! probe-rs (see `.cargo/config.toml`).
+//! probe-rs (see `.cargo/config.toml`). Without a probe: every report also goes out as a
+//! `telemetry` frame (postcard + COBS) on USART1 TX (PA9), 921 600 baud 8N1, decoded on the
+//! host by `inertia telemetry --input CAPTURE`. The frames are sent blocking from the loop: a
+//! frame of about 120 bytes takes 1.3 ms at this rate, 10 times a second, so a sample or two at
+//! 1 kHz is late and counted as missed (its time goes to the next step).
 //!
 //! The independent watchdog (IWDG, [`WATCHDOG_MS`]) runs from before the gyro's
 //! initialisation and is fed once per sample-loop iteration: a loop stuck on the bus, in a
@@ -15,15 +19,33 @@
 use cortex_m_rt::entry;
 use defmt_rtt as _;
 use embedded_hal_bus::spi::ExclusiveDevice;
+use firmware::uplink::{send_report, ByteSink};
 use firmware::{stack, Poll, SampleLoop};
 use icm42688::{Config, Icm42688};
 use panic_probe as _;
 use stm32f4xx_hal::{
     pac,
     prelude::*,
+    serial::{config::Config as SerialConfig, Tx},
     spi::{Mode, Phase, Polarity, Spi},
     watchdog::IndependentWatchdog,
 };
+
+/// Telemetry UART baud rate.
+const TELEMETRY_BAUD: u32 = 921_600;
+
+/// USART1's transmitter as the telemetry sink.
+struct Telemetry(Option<Tx<pac::USART1>>);
+
+impl ByteSink for Telemetry {
+    fn send(&mut self, bytes: &[u8]) {
+        if let Some(tx) = &mut self.0 {
+            // Blocking; the HAL's error type for a transmitter never occurs on a write.
+            let _ =
+                stm32f4xx_hal::prelude::_embedded_hal_blocking_serial_Write::bwrite_all(tx, bytes);
+        }
+    }
+}
 
 /// Independent watchdog period, ms: several times the longest legitimate iteration (a
 /// re-initialisation of the gyro, up to five resets of about 32 ms each).
@@ -58,6 +80,20 @@ fn main() -> ! {
         .pa4
         .into_push_pull_output_in_state(stm32f4xx_hal::gpio::PinState::High);
     let spi = Spi::new(dp.SPI1, (sck, miso, mosi), SPI_MODE, 10.MHz(), &clocks);
+    // Telemetry on USART1 TX = PA9 (no RX). A configuration the clocks cannot give leaves the
+    // board without telemetry, not without its loop.
+    let tx = dp
+        .USART1
+        .tx(
+            gpioa.pa9.into_alternate(),
+            SerialConfig::default().baudrate(TELEMETRY_BAUD.bps()),
+            &clocks,
+        )
+        .ok();
+    if tx.is_none() {
+        defmt::warn!("USART1 refused {=u32} baud: no telemetry", TELEMETRY_BAUD);
+    }
+    let mut telemetry = Telemetry(tx);
     let mut delay = cp.SYST.delay(&clocks);
     let timer_delay = dp.TIM5.delay_us(&clocks);
     // Setting a GPIO output cannot fail on this HAL (the error type is uninhabited).
@@ -104,6 +140,8 @@ fn main() -> ! {
         } = app.poll(&mut delay)
         {
             firmware::app::log_report(&r);
+            firmware::app::log_tensor(&r, false);
+            send_report(&mut telemetry, &r, None);
             reports = reports.wrapping_add(1);
             if reports.is_multiple_of(100) {
                 let hw = stack::high_water();
@@ -116,6 +154,8 @@ fn main() -> ! {
         }
         if let Some(r) = app.take_failed_report() {
             firmware::app::log_report(&r);
+            firmware::app::log_tensor(&r, false);
+            send_report(&mut telemetry, &r, None);
         }
     }
 }
