@@ -74,6 +74,9 @@ RUSTDOCFLAGS="-D warnings" cargo doc -p icm42688p-driver -p firmware --no-deps -
 
 log "firmware end to end under QEMU (simulated body -> gyro log -> firmware -> defmt -> checks)"
 scripts/firmware-e2e.sh
+
+log "logs replayed through the firmware under QEMU: on-board == inertia identify pooled (bit for bit), UART telemetry == defmt"
+scripts/replay-check.sh
 # ---- end of firmware section ----
 
 # ---- benchmarks, quick mode: every estimator and the Cramer-Rao bound on 8 seeds -------------
