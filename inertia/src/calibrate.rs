@@ -303,3 +303,142 @@ pub fn compare(got: &M3, known: &M3) -> Comparison {
         axis_errors_deg: [0, 1, 2].map(|i| axis_angle_deg(eg[i], ek[i])),
     }
 }
+
+/// Arguments of `inertia calibrate`.
+#[derive(clap::Args, Debug)]
+#[command(allow_negative_numbers = true)]
+pub struct CalibrateArgs {
+    /// Logs of the board (with its rotor) thrown alone.
+    #[arg(long, num_args = 1.., required = true)]
+    pub board: Vec<std::path::PathBuf>,
+    /// Logs of the board bolted to the proof body.
+    #[arg(long, num_args = 1.., required = true)]
+    pub assembly: Vec<std::path::PathBuf>,
+    /// Proof body's inertia about its own centre of mass in the log's gyro axes, kg m^2:
+    /// `Ixx,Iyy,Izz` or `Ixx,Iyy,Izz,Ixy,Ixz,Iyz`.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub proof_inertia: Vec<f64>,
+    /// Board mass, kg.
+    #[arg(long)]
+    pub board_mass: f64,
+    /// Proof body mass, kg.
+    #[arg(long)]
+    pub proof_mass: f64,
+    /// Logs of the board bolted to an unknown object (identified by difference).
+    #[arg(long, num_args = 1..)]
+    pub object: Vec<std::path::PathBuf>,
+    /// Mass of the unknown object, kg.
+    #[arg(long)]
+    pub object_mass: Option<f64>,
+    /// Rotor axis in the gyro frame: x, y, z, -x, -y or -z.
+    #[arg(long, value_parser = crate::identify::parse_axis, allow_hyphen_values = true)]
+    pub rotor_axis: [f32; 3],
+    /// Motor poles (for eRPM channels).
+    #[arg(long)]
+    pub rotor_poles: Option<u32>,
+    /// Where to write the JSON report.
+    #[arg(long)]
+    pub json: std::path::PathBuf,
+}
+
+/// The report of `inertia calibrate`.
+#[derive(Clone, Debug, Serialize)]
+pub struct CalibrationReport {
+    /// Rotor inertia, kg m^2.
+    pub rotor_inertia_kg_m2: f64,
+    /// Board tensor about its centre of mass, kg m^2 (mean of the board throws).
+    pub board_tensor_kg_m2: M3,
+    /// Relative Frobenius distance of each board throw from the mean.
+    pub board_spread: Vec<f64>,
+    /// Board's centre of mass from the IMU, m.
+    pub board_com_from_imu_m: [f64; 3],
+    /// The proof body recovered in sample (relative moment errors, axis angles).
+    pub proof_in_sample: Comparison,
+    /// The proof body recovered from each assembly throw with `j` calibrated on the others.
+    pub proof_leave_one_out: Vec<Comparison>,
+    /// The unknown object about its centre of mass, kg m^2, when `--object` was given.
+    pub object_tensor_kg_m2: Option<M3>,
+    /// Its centre of mass from the IMU, m.
+    pub object_com_from_imu_m: Option<[f64; 3]>,
+    /// Every throw identified with the unit rotor inertia.
+    pub throws: Vec<UnitThrow>,
+}
+
+/// Runs `inertia calibrate`.
+pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
+    let known: M3 = match args.proof_inertia.as_slice() {
+        [a, b, c] => [[*a, 0.0, 0.0], [0.0, *b, 0.0], [0.0, 0.0, *c]],
+        [a, b, c, xy, xz, yz] => [[*a, *xy, *xz], [*xy, *b, *yz], [*xz, *yz, *c]],
+        _ => return Err("--proof-inertia takes 3 or 6 numbers".into()),
+    };
+    let masses = [
+        args.board_mass,
+        args.proof_mass,
+        args.object_mass.unwrap_or(1.0),
+    ];
+    if masses.iter().any(|m| !(m.is_finite() && *m > 0.0)) {
+        return Err("masses must be positive".into());
+    }
+    if !args.object.is_empty() && args.object_mass.is_none() {
+        return Err("--object needs --object-mass".into());
+    }
+    let unit_all = |paths: &[std::path::PathBuf]| -> Result<Vec<UnitThrow>, String> {
+        paths
+            .iter()
+            .map(|p| {
+                let rec = crate::read(p, &Default::default()).map_err(|e| e.to_string())?;
+                unit_throw(&rec, args.rotor_axis, args.rotor_poles)
+            })
+            .collect()
+    };
+    let board = unit_all(&args.board)?;
+    let assembly = unit_all(&args.assembly)?;
+    let objects = unit_all(&args.object)?;
+    let (jb, rb) = mean(&board);
+    let (jt, rt) = mean(&assembly);
+    let (d, m, _) = difference((&jb, rb), (&jt, rt), args.board_mass, args.proof_mass);
+    let j = calibrate_j(&d, &m, &known);
+    if !(j.is_finite() && j > 0.0) {
+        return Err(format!("calibration failed: rotor inertia {j}"));
+    }
+    let proof_in_sample = compare(&object(j, &d, &m), &known);
+    let mut loo = Vec::new();
+    if assembly.len() >= 2 {
+        for k in 0..assembly.len() {
+            let others: Vec<UnitThrow> = assembly
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| *i != k)
+                .map(|(_, t)| t.clone())
+                .collect();
+            let (jt, rt) = mean(&others);
+            let (d, m, _) = difference((&jb, rb), (&jt, rt), args.board_mass, args.proof_mass);
+            let jk = calibrate_j(&d, &m, &known);
+            let (dk, mk, _) = difference(
+                (&jb, rb),
+                (&assembly[k].j1, assembly[k].imu_from_com),
+                args.board_mass,
+                args.proof_mass,
+            );
+            loo.push(compare(&object(jk, &dk, &mk), &known));
+        }
+    }
+    let (object_tensor, object_com) = if objects.is_empty() {
+        (None, None)
+    } else {
+        let (jo, ro) = mean(&objects);
+        let (d, m, c) = difference((&jb, rb), (&jo, ro), args.board_mass, masses[2]);
+        (Some(object(j, &d, &m)), Some(c))
+    };
+    Ok(CalibrationReport {
+        rotor_inertia_kg_m2: j,
+        board_tensor_kg_m2: jb.map(|r| r.map(|x| x * j)),
+        board_spread: board.iter().map(|t| rel_frobenius(&t.j1, &jb)).collect(),
+        board_com_from_imu_m: rb.map(|x| -x),
+        proof_in_sample,
+        proof_leave_one_out: loo,
+        object_tensor_kg_m2: object_tensor,
+        object_com_from_imu_m: object_com,
+        throws: board.into_iter().chain(assembly).chain(objects).collect(),
+    })
+}

@@ -31,6 +31,9 @@ enum Command {
     ExportReplay(ExportReplayArgs),
     /// Decode a captured telemetry stream (the firmware's UART) to JSON lines.
     Telemetry(TelemetryArgs),
+    /// Rotor inertia from throws of the board alone and bolted to a proof body; the board's
+    /// tensor and centre of mass; an unknown object by difference.
+    Calibrate(inertia::calibrate::CalibrateArgs),
     /// Close the loop on a gyro log: residual, effect, extended model, error before and after.
     CloseLoop(CloseLoopArgs),
 }
@@ -322,6 +325,17 @@ fn run_close_loop(args: CloseLoopArgs) -> Result<ExitCode, String> {
     Ok(ExitCode::SUCCESS)
 }
 
+fn run_calibrate(args: inertia::calibrate::CalibrateArgs) -> Result<ExitCode, String> {
+    let rep = inertia::calibrate::run(&args)?;
+    let text = serde_json::to_string_pretty(&rep).map_err(|e| e.to_string())?;
+    std::fs::write(&args.json, text).map_err(|e| format!("{}: {e}", args.json.display()))?;
+    eprintln!(
+        "rotor inertia {:.4e} kg m^2; board tensor {:?} kg m^2; board throws' spread {:?}",
+        rep.rotor_inertia_kg_m2, rep.board_tensor_kg_m2, rep.board_spread
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
 #[derive(clap::Args)]
 #[command(allow_negative_numbers = true)]
 struct ExportReplayArgs {
@@ -416,6 +430,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match cli.command {
         Command::Identify(a) => run_identify(a),
+        Command::Calibrate(a) => run_calibrate(a),
         Command::ExportReplay(a) => run_export_replay(a),
         Command::Telemetry(a) => run_telemetry(a),
         Command::CloseLoop(a) => run_close_loop(a),
