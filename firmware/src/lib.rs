@@ -54,6 +54,7 @@
 pub mod app;
 pub mod bench;
 pub mod log_format;
+pub mod persist;
 pub mod replay_format;
 pub mod uplink;
 // Stack painting needs `cortex-m`, which only the board features bring.

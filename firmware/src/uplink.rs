@@ -64,22 +64,35 @@ pub fn to_telemetry(r: &Report, restored: Option<telemetry::Estimate>) -> teleme
             converged_refined: r.convergence_refined == Convergence::Converged,
             consistency: r.consistency,
             samples: r.counters.samples,
+            tensor: None,
         },
         counters: counters(&r.counters),
         saturated_recent: r.saturated_recent,
         rotor_rad_s: r.rotor_rad_s,
         restored,
-        tensor: telemetry::Tensor {
-            status: tensor_status_code(t.status),
-            a: t.a,
-            std_a: t.std_a,
-            tensor: t.tensor,
-            throws: t.throws,
-            fed: t.fed,
-            not_fed: t.not_fed,
-            in_free_flight: t.in_free_flight,
-        },
+        tensor: tensor(t),
     }
+}
+
+/// The tensor estimate in the telemetry format.
+pub fn tensor(t: &crate::app::TensorReport) -> telemetry::Tensor {
+    telemetry::Tensor {
+        status: tensor_status_code(t.status),
+        a: t.a,
+        std_a: t.std_a,
+        tensor: t.tensor,
+        throws: t.throws,
+        fed: t.fed,
+        not_fed: t.not_fed,
+        in_free_flight: t.in_free_flight,
+    }
+}
+
+/// What is persisted: the report's estimate with its tensor estimate.
+pub fn persisted(r: &Report) -> telemetry::Estimate {
+    let mut e = to_telemetry(r, None).estimate;
+    e.tensor = Some(tensor(&r.tensor));
+    e
 }
 
 /// Encodes `r` as one frame and sends it; false when it did not encode (cannot happen with

@@ -26,7 +26,7 @@ pub const VERSION: u8 = 2;
 
 /// Longest frame: the largest serialised [`Report`] (varints at their longest) plus COBS
 /// overhead and the terminating zero.
-pub const MAX_FRAME: usize = 384;
+pub const MAX_FRAME: usize = 512;
 
 /// The sensor's state.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -54,6 +54,9 @@ pub struct Estimate {
     pub consistency: f32,
     /// Samples integrated when this estimate was made.
     pub samples: u32,
+    /// The free-flight pipeline's tensor estimate: set in what is persisted (and restored);
+    /// `None` in the periodic reports, which carry it in [`Report::tensor`].
+    pub tensor: Option<Tensor>,
 }
 
 /// Names of the tensor estimate's status codes ([`Tensor::status`]), in code order: those of
@@ -155,6 +158,9 @@ pub fn decode_frame(frame: &mut [u8]) -> Result<Report, postcard::Error> {
     postcard::from_bytes_cobs(frame)
 }
 
+/// Longest serialised [`Estimate`] (tensor included), bytes.
+pub const MAX_ESTIMATE: usize = 192;
+
 /// Serialises an [`Estimate`] (plain postcard, no framing: for flash).
 pub fn encode_estimate<'a>(
     e: &Estimate,
@@ -226,6 +232,7 @@ mod tests {
             converged_refined: true,
             consistency: -1.3e-6,
             samples: u32::MAX - k,
+            tensor: None,
         };
         Report {
             version: VERSION,
@@ -303,6 +310,18 @@ mod tests {
         r.tick = u32::MAX;
         r.saturated_recent = u32::MAX;
         r.rotor_rad_s = Some(1.0);
+        let big = Tensor {
+            status: 7,
+            a: Some([1.0; 3]),
+            std_a: Some([1.0; 3]),
+            tensor: Some([[1.0; 3]; 3]),
+            throws: u32::MAX,
+            fed: u32::MAX,
+            not_fed: u32::MAX,
+            in_free_flight: true,
+        };
+        r.estimate.tensor = Some(big);
+        r.restored = Some(r.estimate);
         r.tensor = Tensor {
             status: 7,
             a: Some([1.0; 3]),
@@ -317,8 +336,9 @@ mod tests {
         let n = encode(&r, &mut buf).unwrap().len();
         assert!(n <= MAX_FRAME, "{n}");
         assert_eq!(decode_frame(&mut buf[..n]).unwrap(), r);
-        let mut b = [0u8; 64];
+        let mut b = [0u8; 256];
         let bytes = encode_estimate(&r.estimate, &mut b).unwrap();
+        assert!(bytes.len() <= MAX_ESTIMATE, "{}", bytes.len());
         assert_eq!(decode_estimate(bytes).unwrap(), r.estimate);
     }
 }

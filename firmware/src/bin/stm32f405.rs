@@ -7,6 +7,11 @@
 //! frame of about 120 bytes takes 1.3 ms at this rate, 10 times a second, so a sample or two at
 //! 1 kHz is late and counted as missed (its time goes to the next step).
 //!
+//! The last good estimate (tensor `Converged`, new samples since the last save) is saved to
+//! flash sectors 10-11 (`firmware::persist`, a sequential-storage map) and restored at boot;
+//! every report then carries it as `restored`. Saving blocks the loop (a page erase up to 2 s,
+//! with the watchdog stretched meanwhile).
+//!
 //! The independent watchdog (IWDG, [`WATCHDOG_MS`]) runs from before the gyro's
 //! initialisation and is fed once per sample-loop iteration: a loop stuck on the bus, in a
 //! re-initialisation or anywhere else resets the board. (QEMU's `netduinoplus2` machine, on
@@ -19,17 +24,55 @@
 use cortex_m_rt::entry;
 use defmt_rtt as _;
 use embedded_hal_bus::spi::ExclusiveDevice;
-use firmware::uplink::{send_report, ByteSink};
+use firmware::persist::{EstimateStore, SavePolicy, STM32F405_RANGE};
+use firmware::uplink::{persisted, send_report, ByteSink};
 use firmware::{stack, Poll, SampleLoop};
 use icm42688::{Config, Icm42688};
 use panic_probe as _;
 use stm32f4xx_hal::{
+    flash::{FlashExt, LockedFlash},
     pac,
     prelude::*,
     serial::{config::Config as SerialConfig, Tx},
     spi::{Mode, Phase, Polarity, Spi},
     watchdog::IndependentWatchdog,
 };
+
+/// Watchdog period while an estimate is saved: a sector erase (once every few hundred saves)
+/// takes up to 2 s on the STM32F405 (datasheet, 128 KiB sector, x32 parallelism).
+const WATCHDOG_SAVE_MS: u32 = 4000;
+
+/// The on-chip flash for the estimate store (sectors 10 and 11, reserved in `memory.x`):
+/// the HAL's blocking flash behind the async traits `sequential-storage` takes (every
+/// operation completes before it returns).
+struct BoardFlash(LockedFlash);
+
+impl embedded_storage_async::nor_flash::ErrorType for BoardFlash {
+    type Error = stm32f4xx_hal::flash::Error;
+}
+
+impl embedded_storage_async::nor_flash::ReadNorFlash for BoardFlash {
+    const READ_SIZE: usize = 1;
+    async fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        embedded_storage::nor_flash::ReadNorFlash::read(&mut self.0, offset, bytes)
+    }
+    fn capacity(&self) -> usize {
+        embedded_storage::nor_flash::ReadNorFlash::capacity(&self.0)
+    }
+}
+
+impl embedded_storage_async::nor_flash::NorFlash for BoardFlash {
+    const WRITE_SIZE: usize = 1;
+    const ERASE_SIZE: usize = 128 * 1024;
+    async fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+        let mut f = self.0.unlocked();
+        embedded_storage::nor_flash::NorFlash::erase(&mut f, from, to)
+    }
+    async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        let mut f = self.0.unlocked();
+        embedded_storage::nor_flash::NorFlash::write(&mut f, offset, bytes)
+    }
+}
 
 /// Telemetry UART baud rate.
 const TELEMETRY_BAUD: u32 = 921_600;
@@ -94,6 +137,17 @@ fn main() -> ! {
         defmt::warn!("USART1 refused {=u32} baud: no telemetry", TELEMETRY_BAUD);
     }
     let mut telemetry = Telemetry(tx);
+    // The last good estimate of an earlier boot, sent with every report.
+    let mut store = EstimateStore::new(BoardFlash(LockedFlash::new(dp.FLASH)), STM32F405_RANGE);
+    let restored = store.as_mut().and_then(|s| s.restore());
+    if let Some(e) = &restored {
+        defmt::info!(
+            "restored from flash: estimate of {=u32} samples, tensor {}",
+            e.samples,
+            e.tensor.map(|t| t.status_name())
+        );
+    }
+    let mut policy = SavePolicy::new();
     let mut delay = cp.SYST.delay(&clocks);
     let timer_delay = dp.TIM5.delay_us(&clocks);
     // Setting a GPIO output cannot fail on this HAL (the error type is uninhabited).
@@ -141,7 +195,16 @@ fn main() -> ! {
         {
             firmware::app::log_report(&r);
             firmware::app::log_tensor(&r, false);
-            send_report(&mut telemetry, &r, None);
+            send_report(&mut telemetry, &r, restored);
+            if policy.due(&r) {
+                if let Some(s) = &mut store {
+                    watchdog.start(WATCHDOG_SAVE_MS.millis());
+                    if !s.save(&persisted(&r)) {
+                        defmt::warn!("saving the estimate to flash failed");
+                    }
+                    watchdog.start(WATCHDOG_MS.millis());
+                }
+            }
             reports = reports.wrapping_add(1);
             if reports.is_multiple_of(100) {
                 let hw = stack::high_water();
@@ -155,7 +218,7 @@ fn main() -> ! {
         if let Some(r) = app.take_failed_report() {
             firmware::app::log_report(&r);
             firmware::app::log_tensor(&r, false);
-            send_report(&mut telemetry, &r, None);
+            send_report(&mut telemetry, &r, restored);
         }
     }
 }
