@@ -193,7 +193,8 @@ grep -E ' final |stack:' "$OUT/defmt.txt" || true
 echo
 echo "true a = ($(sed -n 's/^truth=//p' "$OUT/reference.txt")), A2/A1, A3/A1 = ($(sed -n 's/^truth_ratios=//p' "$OUT/reference.txt"))"
 echo "host reference (same samples, same code on x86_64): a_paper $(sed -n 's/^a_paper=//p' "$OUT/reference.txt"), a_refined $(sed -n 's/^a_refined=//p' "$OUT/reference.txt")"
-grep -E 'tensor (status|a|J)=' "$OUT/defmt.txt" | tail -n 3 | sed 's/^INFO  /tensor (free-flight pipeline; the simulated part has no accelerometer, so every sample counts as free): /' || true
+echo "free-flight pipeline (the simulated part reads zero specific force: the gate takes every sample after the release guard as free):"
+grep -E 'tensor (status|a|J)=' "$OUT/defmt.txt" | tail -n 3 | sed 's/^INFO  /  /' || true
 if [ -s "$OUT/uart.bin" ]; then
     "$INERTIA" telemetry --input "$OUT/uart.bin" --final-json "$OUT/final.json" >"$OUT/telemetry.jsonl"
     [ -z "$json" ] || cp "$OUT/final.json" "$json"
