@@ -924,12 +924,14 @@ fn flywheel(seeds: u64) -> String {
             .collect(),
     );
     let mut s = String::new();
+    s.push_str("\n## Flywheel throw: the absolute tensor with a known rotor momentum\n\n");
+    s.push_str("The board thrown (`throw_sim::board_throw_config`, non-diagonal J, 15-25 rad/s, clipping at 2000 deg/s) at **4 kHz with 0.5 s of free flight** and the flywheel spin-up inside it (idle 175 rad/s to 1250 rad/s and back); white gyro noise 2e-3 rad/s, neither the gyro nor the rotor speed quantised (the bound's noise model). ");
+    s.push_str("`TensorEstimator` (settings `TensorSettings::for_rate(4000, 2e-3)`, full scale 34.9 rad/s) is fed the true free flight with `h = j_r omega_r e` from the logged rotor speed. ");
     let _ = writeln!(
         s,
-        "\n## Flywheel throw: the absolute tensor with a known rotor momentum\n\n{}{}{}\n",
-        "The board thrown (`throw_sim::board_throw_config`, non-diagonal J, 15-25 rad/s, clipping at 2000 deg/s) at **4 kHz with 0.5 s of free flight** and the flywheel spin-up inside it (idle 175 rad/s to 1250 rad/s and back); white gyro noise 2e-3 rad/s, neither the gyro nor the rotor speed quantised (the bound's noise model). ",
-        "`TensorEstimator` (settings `TensorSettings::for_rate(4000, 2e-3)`, full scale 34.9 rad/s) is fed the true free flight with `h = j_r omega_r e` from the logged rotor speed. ",
-        format!("Bound: `crb_tensor::absolute_bound` (six entries and w(0), no bias), RMS over seeds. {} seeds; absolute tensor given on {} of them.", seeds, ok.len())
+        "Bound: `crb_tensor::absolute_bound` (six entries and w(0), no bias), RMS over seeds. {} seeds; absolute tensor given on {} of them.\n",
+        seeds,
+        ok.len()
     );
     let _ = writeln!(
         s,
