@@ -188,6 +188,8 @@ struct Axis {
     sgg: f32,
     sw: f32,
     swg: f32,
+    /// `sum e^2` of the open block, `e = w - c - a G` at the block's start values.
+    see: f32,
 }
 
 /// The result of a block update of one axis.
@@ -212,6 +214,7 @@ impl Axis {
             sgg: 0.0,
             sw: 0.0,
             swg: 0.0,
+            see: 0.0,
         }
     }
 
@@ -224,6 +227,25 @@ impl Axis {
         self.sgg += g * g;
         self.sw += w;
         self.swg += w * g;
+        let e = w - self.c - self.a * g;
+        self.see += e * e;
+    }
+
+    /// `sum (w - c' - a' G)^2` over the open block at the updated `(c', a')`, from the sums at
+    /// the block's start values (no cancellation of the large `sum w^2`).
+    fn block_rss(&self, m: f32, s: &Solved) -> f32 {
+        let se = self.sw - m * self.c - self.a * self.sg;
+        let seg = self.swg - self.c * self.sg - self.a * self.sgg;
+        let (dc, da) = (s.c - self.c, s.a - self.a);
+        let r = self.see - 2.0 * dc * se - 2.0 * da * seg
+            + m * dc * dc
+            + 2.0 * dc * da * self.sg
+            + da * da * self.sgg;
+        if r > 0.0 && r.is_finite() {
+            r
+        } else {
+            0.0
+        }
     }
 
     /// The information-form update with the `m` samples of the open block: the intercept's
@@ -260,6 +282,7 @@ impl Axis {
         self.sgg = 0.0;
         self.sw = 0.0;
         self.swg = 0.0;
+        self.see = 0.0;
     }
 
     fn commit(&mut self, s: Solved) {
@@ -366,6 +389,10 @@ pub struct Refined {
     exposure: Exposure,
     /// The estimator's side of the trust, as of the last completed block.
     verdict: Verdict,
+    /// Sum of the squared residuals of completed blocks and their count (three per sample):
+    /// [`Refined::noise_estimate`].
+    rss: f32,
+    rss_n: u32,
 }
 
 impl Refined {
@@ -392,6 +419,8 @@ impl Refined {
             monitor: ConvergenceMonitor::new(),
             counters: Counters::default(),
             torque_noise: 0.0,
+            rss: 0.0,
+            rss_n: 0,
             exposure: Exposure::new(),
             verdict: Verdict::NONE,
         })
@@ -490,8 +519,26 @@ impl Refined {
     /// `noise_std` is the actual gyro noise, and it does not include discretisation bias
     /// (below `1e-5` with [`RefinedSettings::for_rate`]).
     pub fn std_a(&self) -> [f32; 3] {
-        let sigma = self.settings.noise_std;
+        let sigma = self.sigma();
         self.std_per_sigma().map(|x| x * sigma)
+    }
+
+    /// The gyro noise seen in the data: `sqrt(sum e^2 / (n - 6))` over the residuals
+    /// `e = w_i - c_i - a_i G_i` of every completed block at its updated estimate (three axes,
+    /// two parameters each), once at least 30 residuals are in; `None` before. It includes
+    /// whatever the model leaves out, which is why the reported uncertainty uses it.
+    pub fn noise_estimate(&self) -> Option<f32> {
+        if self.rss_n < 30 {
+            return None;
+        }
+        let v = self.rss / (self.rss_n - 6) as f32;
+        (v > 0.0 && v.is_finite()).then(|| sqrt_approx(v))
+    }
+
+    /// The `sigma` behind [`Refined::std_a`] and the trust: [`Refined::noise_estimate`] when
+    /// there is one, else [`RefinedSettings::noise_std`].
+    fn sigma(&self) -> f32 {
+        self.noise_estimate().unwrap_or(self.settings.noise_std)
     }
 
     /// How far the estimate of the last completed block can be trusted ([`Trust`], by
@@ -524,7 +571,8 @@ impl Refined {
     /// The estimator's side of the trust for the committed estimate.
     fn judge(&self) -> Verdict {
         let s = &self.settings;
-        let s2 = s.noise_std * s.noise_std;
+        let sigma = self.sigma();
+        let s2 = sigma * sigma;
         let var = self.axes.map(|x| x.var_per_sigma2() * s2);
         let a = self.block_estimate();
         let half_prior = 0.5 * s.prior_std;
@@ -632,6 +680,9 @@ impl Refined {
         else {
             return false;
         };
+        let rss = x.block_rss(m, &sx) + y.block_rss(m, &sy) + z.block_rss(m, &sz);
+        self.rss += rss;
+        self.rss_n = self.rss_n.saturating_add(3 * u32::from(self.m));
         let [x, y, z] = &mut self.axes;
         x.commit(sx);
         y.commit(sy);
