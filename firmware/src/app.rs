@@ -58,9 +58,8 @@ pub fn refined_settings(config: &Config) -> RefinedSettings {
 /// function and the same fields `inertia identify` sets from a log).
 pub fn pipeline_settings(config: &Config) -> PipelineSettings {
     let r = refined_settings(config);
-    let mut s = PipelineSettings::for_rate(config.odr.hz(), r.noise_std);
-    s.tensor.full_scale = identifier_settings(config).full_scale;
-    s
+    PipelineSettings::for_rate(config.odr.hz(), r.noise_std)
+        .with_full_scale(identifier_settings(config).full_scale)
 }
 
 /// A rotor whose angular momentum goes with each sample to the free-flight pipeline:
@@ -86,9 +85,10 @@ impl RotorConfig {
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TensorReport {
-    /// Why it is or is not to be trusted.
+    /// Why `a` is or is not to be trusted ([`FlightPipeline::ratios`]).
     pub status: TensorStatus,
-    /// The paper's ratios `a` from the tensor, when determined.
+    /// The recommended ratios `a` ([`FlightPipeline::ratios`]: the tensor's with a rotor or
+    /// products of inertia, else the refined identifier's on the same samples).
     pub a: Option<[f32; 3]>,
     /// Their standard deviations.
     pub std_a: Option<[f32; 3]>,
@@ -757,10 +757,11 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
     /// The free-flight pipeline's estimate as reported.
     pub fn tensor_report(&self) -> TensorReport {
         let e = self.pipeline.estimate();
+        let r = self.pipeline.ratios();
         TensorReport {
-            status: e.status,
-            a: e.a,
-            std_a: e.std_a,
+            status: r.status,
+            a: r.a,
+            std_a: r.std_a,
             tensor: e.tensor,
             throws: self.pipeline.throws(),
             fed: e.samples,

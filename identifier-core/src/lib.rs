@@ -98,7 +98,9 @@ pub use extended::{
 pub use free_flight::{FreeFlightGate, GateSettings, WindowFit};
 pub use identifier::Identifier;
 pub use inertia::{consistency, InertiaRatios};
-pub use pipeline::{Exit, FlightPipeline, Pending, Pipeline, PipelineSettings};
+pub use pipeline::{
+    Exit, FlightPipeline, Pending, Pipeline, PipelineSettings, RatioSource, Ratios,
+};
 pub use refined::{Refined, RefinedSettings};
 pub use settings::{GainMatrix, Settings, SettingsError, SignChangeCorrection};
 pub use status::{Counters, Estimate, SampleStatus};

@@ -15,8 +15,9 @@
 //! the delay is zero.
 
 use crate::free_flight::{FreeFlightGate, GateSettings, WindowFit};
-use crate::status::SampleStatus;
-use crate::tensor::{TensorEstimate, TensorEstimator, TensorSettings};
+use crate::refined::{Refined, RefinedSettings};
+use crate::status::{SampleStatus, Trust};
+use crate::tensor::{TensorEstimate, TensorEstimator, TensorModel, TensorSettings, TensorStatus};
 
 /// Tuning of [`Pipeline`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -24,6 +25,8 @@ use crate::tensor::{TensorEstimate, TensorEstimator, TensorSettings};
 pub struct PipelineSettings {
     /// The estimator.
     pub tensor: TensorSettings,
+    /// The ratio estimator fed the same samples ([`Pipeline::ratios`]).
+    pub refined: RefinedSettings,
     /// The gate.
     pub gate: GateSettings,
     /// Seconds after the start of the first free window before samples are fed.
@@ -40,12 +43,45 @@ impl PipelineSettings {
     pub fn for_rate(rate_hz: f32, noise_std: f32) -> Self {
         PipelineSettings {
             tensor: TensorSettings::for_rate(rate_hz, noise_std),
+            refined: RefinedSettings::for_rate(rate_hz, noise_std),
             gate: GateSettings::for_rate(rate_hz),
             guard_release: 0.05,
             guard_catch: 0.03,
             rate_hz,
         }
     }
+
+    /// The same settings with the gyro's full scale (rad/s) given to both estimators: a
+    /// sample at or beyond it is saturated.
+    pub fn with_full_scale(mut self, full_scale: f32) -> Self {
+        self.tensor.full_scale = full_scale;
+        self.refined.full_scale = full_scale;
+        self
+    }
+}
+
+/// Which estimator gave [`Pipeline::ratios`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum RatioSource {
+    /// The tensor estimator (rotor momentum, or products of inertia needed).
+    Tensor,
+    /// The refined identifier (principal axes, no rotor).
+    Refined,
+}
+
+/// The recommended ratios: [`Pipeline::ratios`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Ratios {
+    /// `a = ((A2-A3)/A1, (A3-A1)/A2, (A1-A2)/A3)`, `None` before there is information.
+    pub a: Option<[f32; 3]>,
+    /// Standard deviations of `a`.
+    pub std_a: Option<[f32; 3]>,
+    /// Why it is or is not to be trusted.
+    pub status: TensorStatus,
+    /// Which estimator gave them.
+    pub source: RatioSource,
 }
 
 /// One sample waiting in the delay line.
@@ -93,6 +129,9 @@ pub struct Pipeline<const N: usize> {
     gate: FreeFlightGate,
     use_gate: bool,
     estimator: TensorEstimator,
+    refined: Refined,
+    /// A non-zero rotor momentum reached the estimator.
+    rotor_seen: bool,
     line: [Pending; N],
     head: usize,
     len: usize,
@@ -114,6 +153,7 @@ impl<const N: usize> Pipeline<N> {
     pub fn new(settings: PipelineSettings, with_accel: bool) -> Option<Self> {
         let gate = FreeFlightGate::new(settings.gate)?;
         let estimator = TensorEstimator::new(settings.tensor)?;
+        let refined = Refined::new(settings.refined)?;
         let rate = settings.rate_hz;
         let usable = rate.is_finite()
             && rate > 0.0
@@ -131,13 +171,20 @@ impl<const N: usize> Pipeline<N> {
         } else {
             want as usize
         };
-        let gr = settings.guard_release * rate;
+        // Without an accelerometer there is no release to guard against: every sample counts.
+        let gr = if with_accel {
+            settings.guard_release * rate
+        } else {
+            0.0
+        };
         let guard_release = if gr >= 1e6 { 1_000_000 } else { gr as u32 };
         Some(Pipeline {
             settings,
             gate,
             use_gate: with_accel,
             estimator,
+            refined,
+            rotor_seen: false,
             line: [Pending {
                 index: 0,
                 omega: [0.0; 3],
@@ -163,6 +210,66 @@ impl<const N: usize> Pipeline<N> {
     /// The estimate from every sample fed so far.
     pub fn estimate(&self) -> TensorEstimate {
         self.estimator.estimate()
+    }
+
+    /// The recommended ratios `a` with their standard deviations and status, from the samples
+    /// fed so far:
+    ///
+    /// * with a rotor momentum, or when the tensor estimate needs its products of inertia
+    ///   (the sensor axes are not principal axes): the tensor's `a` ([`TensorEstimate`]);
+    /// * otherwise (the paper's setting: principal axes, no rotor) the refined identifier's
+    ///   ([`Refined`], fed exactly the same samples): it models the integral's own noise and
+    ///   stays near the Cramer-Rao bound, and its standard deviation uses the noise seen in its
+    ///   residuals. Its [`Trust`] is reported as the [`TensorStatus`] of the same meaning.
+    pub fn ratios(&self) -> Ratios {
+        let t = self.estimator.estimate();
+        let principal = t.model == TensorModel::Principal || t.normalized.is_none();
+        if self.rotor_seen || !principal {
+            return Ratios {
+                a: t.a,
+                std_a: t.std_a,
+                status: t.status,
+                source: RatioSource::Tensor,
+            };
+        }
+        let trust = self.refined.trust();
+        let status = match trust {
+            Trust::NoInformation | Trust::TooFewSamples => TensorStatus::TooFewSamples,
+            Trust::NoExcitation => TensorStatus::NoExcitation,
+            Trust::Saturated => TensorStatus::Saturated,
+            Trust::PhysicallyImpossible => TensorStatus::PhysicallyImpossible,
+            Trust::UnitsLookWrong => TensorStatus::UnitsLookWrong,
+            Trust::Converging => TensorStatus::Converging,
+            Trust::Converged => TensorStatus::Converged,
+        };
+        // The tensor's verdicts on the units and the clipping hold for the same samples.
+        let status = match t.status {
+            TensorStatus::UnitsLookWrong | TensorStatus::Saturated => t.status,
+            _ => status,
+        };
+        let informed = trust.has_information() && self.refined.noise_estimate().is_some();
+        Ratios {
+            a: informed.then(|| self.refined.block_estimate()),
+            std_a: informed.then(|| self.refined.std_a()),
+            status,
+            source: RatioSource::Refined,
+        }
+    }
+
+    /// Ends the stretch being fed (a hand-chosen segment ends): the next fed sample starts new
+    /// integrals in both estimators; what they learnt is kept. Samples still in the delay line
+    /// are unaffected.
+    pub fn end_stretch(&mut self) {
+        if self.feeding {
+            self.estimator.end_stretch();
+            self.refined.restart();
+            self.feeding = false;
+        }
+    }
+
+    /// The refined identifier fed the same samples.
+    pub fn refined(&self) -> &Refined {
+        &self.refined
     }
 
     /// The estimator (for its counters).
@@ -249,6 +356,7 @@ impl<const N: usize> Pipeline<N> {
         if !allowed {
             if self.feeding {
                 self.estimator.end_stretch();
+                self.refined.restart();
                 self.feeding = false;
             }
             return Exit {
@@ -263,6 +371,8 @@ impl<const N: usize> Pipeline<N> {
         let b = self.bias();
         p.omega = [p.omega[0] - b[0], p.omega[1] - b[1], p.omega[2] - b[2]];
         let status = self.estimator.step(p.omega, p.h, p.dt);
+        self.rotor_seen |= p.h.iter().any(|x| *x != 0.0);
+        self.refined.step(p.omega, p.dt);
         Exit {
             sample: p,
             fed: Some(status),

@@ -128,13 +128,23 @@ impl TensorSettings {
     /// Settings for a gyro sampled at `rate_hz` with white noise `noise_std` (rad/s per
     /// sample): the longest step is ten sample periods but at most 0.1 s (no thrown body is
     /// followed at under 100 Hz, and a log whose steps all exceed it has the wrong time unit);
-    /// everything else is rate-independent. Invalid inputs give settings that
+    /// at least 50 ms of samples (20 to 200) before an estimate; everything else is
+    /// rate-independent. Invalid inputs give settings that
     /// [`TensorEstimator::new`] refuses.
     pub fn for_rate(rate_hz: f32, noise_std: f32) -> Self {
         let mut s = Self::new();
         s.noise_std = noise_std;
         let m = 10.0 / rate_hz;
         s.max_dt = if m < 0.1 { m } else { 0.1 };
+        // 50 ms of samples, between 20 and 200: a 0.85 s toss at 100 Hz has 85.
+        let n = rate_hz * 0.05;
+        s.min_samples = if n >= 200.0 {
+            200
+        } else if n >= 20.0 {
+            n as u32
+        } else {
+            20
+        };
         s
     }
 

@@ -7,9 +7,7 @@
 //! operations). Per-throw results re-run a fresh [`TensorEstimator`] over exactly the samples
 //! the pipeline fed during that throw.
 
-use identifier_core::{
-    FlightPipeline, PipelineSettings, TensorEstimate, TensorEstimator, TensorStatus,
-};
+use identifier_core::{FlightPipeline, PipelineSettings, Ratios, TensorEstimate, TensorStatus};
 use serde::Serialize;
 
 use crate::recording::Recording;
@@ -49,8 +47,13 @@ pub struct EstimateJson {
     pub end_s: f64,
     /// Samples used.
     pub samples: u32,
-    /// Why it is or is not to be trusted (`Converged` only when it is).
+    /// Why `a` is or is not to be trusted (`Converged` only when it is).
     pub status: String,
+    /// Which estimator gave `a`: `Refined` (principal axes, no rotor: the paper's setting) or
+    /// `Tensor` (rotor momentum, or products of inertia needed).
+    pub a_source: String,
+    /// Why the tensor is or is not to be trusted.
+    pub tensor_status: String,
     /// `Full` or `Principal` (products of inertia insignificant and set to zero).
     pub model: String,
     /// `J`, kg m^2, when a rotor momentum fixes the scale; else null.
@@ -61,7 +64,7 @@ pub struct EstimateJson {
     pub tensor_normalized: Option<[[f32; 3]; 3]>,
     /// Standard deviation of each entry of `tensor_normalized`.
     pub tensor_normalized_std: Option<[[f32; 3]; 3]>,
-    /// The paper's ratios `a`.
+    /// The paper's ratios `a` from the recommended estimator (`a_source`).
     pub a: Option<[f32; 3]>,
     /// Standard deviations of `a`.
     pub std_a: Option<[f32; 3]>,
@@ -76,19 +79,21 @@ pub struct EstimateJson {
 }
 
 impl EstimateJson {
-    fn from(e: &TensorEstimate, start_s: f64, end_s: f64) -> Self {
+    fn from(e: &TensorEstimate, r: &Ratios, start_s: f64, end_s: f64) -> Self {
         EstimateJson {
             start_s,
             end_s,
             samples: e.samples,
-            status: format!("{:?}", e.status),
+            status: format!("{:?}", r.status),
+            a_source: format!("{:?}", r.source),
+            tensor_status: format!("{:?}", e.status),
             model: format!("{:?}", e.model),
             tensor_kg_m2: e.tensor,
             tensor_std_kg_m2: e.tensor_std,
             tensor_normalized: e.normalized,
             tensor_normalized_std: e.normalized_std,
-            a: e.a,
-            std_a: e.std_a,
+            a: r.a,
+            std_a: r.std_a,
             principal_moments: e.principal_moments,
             principal_axes: e.principal_axes,
             residual_ratio: e.residual_ratio,
@@ -311,8 +316,7 @@ pub fn identify(
                 .into(),
         );
     }
-    let mut settings = PipelineSettings::for_rate(rate, noise);
-    settings.tensor.full_scale = rec.gyro_full_scale;
+    let settings = PipelineSettings::for_rate(rate, noise).with_full_scale(rec.gyro_full_scale);
     let dt_of = |i: usize| -> f32 {
         if i == 0 {
             dt_med as f32
@@ -324,12 +328,13 @@ pub fn identify(
     // Which samples count as free flight, and the pooled on-board estimate.
     let mut fed_runs: Vec<Vec<usize>> = Vec::new();
     let pooled_est;
+    let pooled_ratios;
     let bias;
     let detection;
     if let Some(segs) = &opts.segments {
         detection = false;
         bias = [0.0; 3];
-        let mut pooled = TensorEstimator::new(settings.tensor)
+        let mut pooled = FlightPipeline::new(settings, false)
             .ok_or_else(|| IdentifyError::Settings("invalid estimator settings".into()))?;
         for &(s, e) in segs {
             let idx: Vec<usize> = (0..n).filter(|&i| rec.t[i] >= s && rec.t[i] <= e).collect();
@@ -338,13 +343,14 @@ pub fn identify(
                 continue;
             }
             for &i in &idx {
-                pooled.step(rec.gyro[i], h[i], dt_of(i));
+                pooled.step(rec.gyro[i], [0.0; 3], h[i], dt_of(i));
             }
             pooled.end_stretch();
             fed_runs.push(idx);
         }
         progress(n);
         pooled_est = pooled.estimate();
+        pooled_ratios = pooled.ratios();
     } else {
         let accel = rec.accel.as_ref();
         detection = accel.is_some();
@@ -373,6 +379,7 @@ pub fn identify(
         }
         progress(n);
         pooled_est = p.estimate();
+        pooled_ratios = p.ratios();
         bias = p.bias();
     }
     if fed_runs.iter().all(|r| r.is_empty()) {
@@ -382,14 +389,14 @@ pub fn identify(
         .iter()
         .filter(|r| !r.is_empty())
         .map(|run| {
-            let mut e = TensorEstimator::new(settings.tensor).expect("settings validated above");
+            let mut e = FlightPipeline::new(settings, false).expect("settings validated above");
             for &i in run {
                 let w = rec.gyro[i];
                 let w = [w[0] - bias[0], w[1] - bias[1], w[2] - bias[2]];
-                e.step(w, h[i], dt_of(i));
+                e.step(w, [0.0; 3], h[i], dt_of(i));
             }
             let (a, b) = (run[0], run[run.len() - 1]);
-            EstimateJson::from(&e.estimate(), rec.t[a], rec.t[b])
+            EstimateJson::from(&e.estimate(), &e.ratios(), rec.t[a], rec.t[b])
         })
         .collect();
     let first = fed_runs
@@ -403,11 +410,11 @@ pub fn identify(
         .find(|r| !r.is_empty())
         .map(|r| r[r.len() - 1])
         .unwrap_or(0);
-    let pooled = EstimateJson::from(&pooled_est, rec.t[first], rec.t[last]);
-    if pooled_est.status != TensorStatus::Converged {
+    let pooled = EstimateJson::from(&pooled_est, &pooled_ratios, rec.t[first], rec.t[last]);
+    if pooled_ratios.status != TensorStatus::Converged {
         warnings.push(format!(
             "pooled estimate is not to be trusted: {:?}",
-            pooled_est.status
+            pooled_ratios.status
         ));
     }
     Ok(Report {

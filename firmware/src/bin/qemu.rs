@@ -394,9 +394,8 @@ fn replay(path: &str, uart: &mut Usart1) -> ! {
         header.with_accel,
         header.rotor
     );
-    let mut settings =
-        identifier_core::PipelineSettings::for_rate(header.rate_hz, header.noise_std);
-    settings.tensor.full_scale = header.full_scale;
+    let settings = identifier_core::PipelineSettings::for_rate(header.rate_hz, header.noise_std)
+        .with_full_scale(header.full_scale);
     let rotor = header
         .rotor
         .map(|(inertia, axis)| RotorConfig { inertia, axis });
