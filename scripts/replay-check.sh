@@ -35,6 +35,11 @@ else
     echo "replay-check: $DATA absent: the thrown-FC logs are skipped"
 fi
 logs+=("$OUT/board_throw.csv")
+# No rotor, principal axes (the paper's setting): the ratios come from the refined identifier
+# fed by the same pipeline.
+cargo run -q --release -p host-tests --bin gen-throw -- --scenario no_rotor_toss --seed 2 \
+    --out "$OUT/no_rotor_toss.csv" >/dev/null
+logs+=("$OUT/no_rotor_toss.csv")
 
 fail=0
 results=()
@@ -43,7 +48,7 @@ for f in "${logs[@]}"; do
     d="$OUT/runs/$name"
     mkdir -p "$d"
     rotor=(--rotor-inertia 1.689e-6 --rotor-axis=-z)
-    case "$f" in *.BFL) rotor+=(--rotor-poles 12) ;; esac
+    case "$f" in *.BFL) rotor+=(--rotor-poles 12) ;; *no_rotor*) rotor=() ;; esac
     set +e
     "$INERTIA" identify --input "$f" "${rotor[@]}" --json "$d/identify.json" 2>"$d/identify.err"
     id_rc=$?
