@@ -764,7 +764,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
             std_a: r.std_a,
             tensor: e.tensor,
             throws: self.pipeline.throws(),
-            fed: e.samples,
+            fed: self.pipeline.fed_inputs(),
             not_fed: self.not_fed,
             in_free_flight: self.pipeline.in_free_flight(),
         }

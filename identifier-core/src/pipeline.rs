@@ -33,21 +33,42 @@ pub struct PipelineSettings {
     pub guard_release: f32,
     /// Seconds a sample waits in the delay line (the catch guard), at most the line's capacity.
     pub guard_catch: f32,
-    /// Nominal sample rate, Hz (turns the guards into sample counts).
+    /// Nominal sample rate of the input, Hz (turns the guards into sample counts).
     pub rate_hz: f32,
+    /// Input samples averaged into one estimator sample (1 to 16). The motion of a thrown body
+    /// is slow against a gyro at several kHz; averaging `d` samples keeps the information
+    /// (white noise averages down by `sqrt(d)`) and divides the per-sample cost of the gate
+    /// and the estimators by `d`. The other settings are for the decimated rate.
+    pub decimation: u8,
 }
 
 impl PipelineSettings {
     /// Settings for a gyro at `rate_hz` with white noise `noise_std` rad/s: guards of 50 ms
     /// after the release and 30 ms before the catch.
+    ///
+    /// Above 2 kHz the input is averaged down to about 2 kHz (`decimation = round(rate /
+    /// 2000)`: 4 at 8 kHz, 2 at 4 kHz, 1 at 2 kHz and below); the estimators and the gate get
+    /// the decimated rate and the averaged noise `noise_std / sqrt(decimation)`.
     pub fn for_rate(rate_hz: f32, noise_std: f32) -> Self {
+        let d = rate_hz / 2000.0 + 0.5;
+        let decimation: u8 = if d >= 16.0 {
+            16
+        } else if d >= 1.0 {
+            d as u8
+        } else {
+            1
+        };
+        let df = decimation as f32;
+        let rate = rate_hz / df;
+        let noise = noise_std / crate::symmetric::sqrt(df);
         PipelineSettings {
-            tensor: TensorSettings::for_rate(rate_hz, noise_std),
-            refined: RefinedSettings::for_rate(rate_hz, noise_std),
-            gate: GateSettings::for_rate(rate_hz),
+            tensor: TensorSettings::for_rate(rate, noise),
+            refined: RefinedSettings::for_rate(rate, noise),
+            gate: GateSettings::for_rate(rate),
             guard_release: 0.05,
             guard_catch: 0.03,
             rate_hz,
+            decimation,
         }
     }
 
@@ -88,14 +109,47 @@ pub struct Ratios {
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Pending {
-    /// Index of the sample since the pipeline started (0-based).
+    /// Index of the estimator sample since the pipeline started (0-based; after decimation).
     pub index: u32,
+    /// Index of the first input sample averaged into it.
+    pub first_input: u32,
+    /// Input samples averaged into it.
+    pub inputs: u8,
     /// Rate, rad/s, as measured.
     pub omega: [f32; 3],
     /// Rotor momentum, kg m^2/s.
     pub h: [f32; 3],
     /// Time step, s.
     pub dt: f32,
+}
+
+/// One input sample: rate, specific force, rotor momentum, time step.
+type Raw = ([f32; 3], [f32; 3], [f32; 3], f32);
+
+/// Input samples being averaged into one estimator sample.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Group {
+    omega: [f32; 3],
+    accel: [f32; 3],
+    h: [f32; 3],
+    dt: f32,
+    n: u8,
+    first: u32,
+    /// A refused input sample (non-finite, bad time step, saturated) in the group: it is
+    /// passed on as it is, with the group's time, so the estimators refuse it as before.
+    taint: Option<Raw>,
+}
+
+impl Group {
+    const EMPTY: Group = Group {
+        omega: [0.0; 3],
+        accel: [0.0; 3],
+        h: [0.0; 3],
+        dt: 0.0,
+        n: 0,
+        first: 0,
+        taint: None,
+    };
 }
 
 /// What happened to the sample that left the delay line.
@@ -139,8 +193,12 @@ pub struct Pipeline<const N: usize> {
     guard_release: u32,
     free_since: Option<u32>,
     index: u32,
+    /// Input samples so far, and the group being averaged.
+    input_index: u32,
+    group: Group,
     feeding: bool,
     throws: u32,
+    fed_inputs: u32,
 }
 
 /// The capacity used by the firmware and the host tool (so both give the same bits): 256
@@ -154,9 +212,11 @@ impl<const N: usize> Pipeline<N> {
         let gate = FreeFlightGate::new(settings.gate)?;
         let estimator = TensorEstimator::new(settings.tensor)?;
         let refined = Refined::new(settings.refined)?;
-        let rate = settings.rate_hz;
+        let rate = settings.rate_hz / settings.decimation as f32;
         let usable = rate.is_finite()
             && rate > 0.0
+            && settings.decimation >= 1
+            && settings.decimation <= 16
             && settings.guard_release >= 0.0
             && settings.guard_catch >= 0.0;
         if !usable {
@@ -187,6 +247,8 @@ impl<const N: usize> Pipeline<N> {
             rotor_seen: false,
             line: [Pending {
                 index: 0,
+                first_input: 0,
+                inputs: 0,
                 omega: [0.0; 3],
                 h: [0.0; 3],
                 dt: 0.0,
@@ -197,8 +259,11 @@ impl<const N: usize> Pipeline<N> {
             guard_release,
             free_since: if with_accel { None } else { Some(0) },
             index: 0,
+            input_index: 0,
+            group: Group::EMPTY,
             feeding: false,
             throws: 0,
+            fed_inputs: 0,
         })
     }
 
@@ -292,6 +357,11 @@ impl<const N: usize> Pipeline<N> {
         self.throws
     }
 
+    /// Input samples (before decimation) that reached the estimators.
+    pub fn fed_inputs(&self) -> u32 {
+        self.fed_inputs
+    }
+
     /// True while the gate holds free flight.
     pub fn in_free_flight(&self) -> bool {
         self.free_since.is_some()
@@ -301,6 +371,75 @@ impl<const N: usize> Pipeline<N> {
     /// accelerometer), rotor momentum (kg m^2/s), time step (s). Returns the sample that left
     /// the delay line, if one did, and what was done with it.
     pub fn step(&mut self, omega: [f32; 3], accel: [f32; 3], h: [f32; 3], dt: f32) -> Option<Exit> {
+        let input = self.input_index;
+        self.input_index = self.input_index.saturating_add(1);
+        let d = self.settings.decimation;
+        if d <= 1 {
+            return self.step_decimated(omega, accel, h, dt, input, 1);
+        }
+        let g = &mut self.group;
+        if g.n == 0 {
+            g.first = input;
+        }
+        let fs = self.settings.tensor.full_scale;
+        let finite = omega
+            .iter()
+            .chain(accel.iter())
+            .chain(h.iter())
+            .all(|x| x.is_finite());
+        let good_dt = dt.is_finite() && dt > 0.0;
+        let refused = !finite || !good_dt || omega.iter().any(|w| w.abs() >= fs);
+        if refused {
+            if g.taint.is_none() {
+                g.taint = Some((omega, accel, h, dt));
+            }
+        } else {
+            for k in 0..3 {
+                if let (Some(o), Some(a), Some(r)) =
+                    (g.omega.get_mut(k), g.accel.get_mut(k), g.h.get_mut(k))
+                {
+                    *o += omega.get(k).copied().unwrap_or(0.0);
+                    *a += accel.get(k).copied().unwrap_or(0.0);
+                    *r += h.get(k).copied().unwrap_or(0.0);
+                }
+            }
+        }
+        if dt.is_finite() && dt > 0.0 {
+            g.dt += dt;
+        }
+        g.n += 1;
+        if g.n < d {
+            return None;
+        }
+        let done = *g;
+        *g = Group::EMPTY;
+        let good = f32::from(done.n) - if done.taint.is_some() { 1.0 } else { 0.0 };
+        let (o, a, hh, step) = match done.taint {
+            // The refused sample goes on with the group's time (a bad dt stays bad).
+            Some((o, a, hh, t)) => (o, a, hh, if t.is_finite() && t > 0.0 { done.dt } else { t }),
+            None => {
+                let k = 1.0 / good;
+                (
+                    done.omega.map(|x| x * k),
+                    done.accel.map(|x| x * k),
+                    done.h.map(|x| x * k),
+                    done.dt,
+                )
+            }
+        };
+        self.step_decimated(o, a, hh, step, done.first, done.n)
+    }
+
+    /// One estimator sample (after decimation) through gate, delay line and estimators.
+    fn step_decimated(
+        &mut self,
+        omega: [f32; 3],
+        accel: [f32; 3],
+        h: [f32; 3],
+        dt: f32,
+        first_input: u32,
+        inputs: u8,
+    ) -> Option<Exit> {
         let index = self.index;
         self.index = self.index.saturating_add(1);
         if self.use_gate {
@@ -326,6 +465,8 @@ impl<const N: usize> Pipeline<N> {
         }
         let pending = Pending {
             index,
+            first_input,
+            inputs,
             omega,
             h,
             dt,
@@ -370,6 +511,7 @@ impl<const N: usize> Pipeline<N> {
         }
         let b = self.bias();
         p.omega = [p.omega[0] - b[0], p.omega[1] - b[1], p.omega[2] - b[2]];
+        self.fed_inputs = self.fed_inputs.saturating_add(u32::from(p.inputs));
         let status = self.estimator.step(p.omega, p.h, p.dt);
         self.rotor_seen |= p.h.iter().any(|x| *x != 0.0);
         self.refined.step(p.omega, p.dt);

@@ -535,10 +535,17 @@ impl Refined {
         (v > 0.0 && v.is_finite()).then(|| sqrt_approx(v))
     }
 
-    /// The `sigma` behind [`Refined::std_a`] and the trust: [`Refined::noise_estimate`] when
-    /// there is one, else [`RefinedSettings::noise_std`].
+    /// The `sigma` behind [`Refined::std_a`] and the trust: [`Refined::noise_estimate`] once
+    /// 200 samples' residuals are in; before, the larger of it and
+    /// [`RefinedSettings::noise_std`] (a few residuals of a fit that has just absorbed them
+    /// understate the noise, and an early `Converged` must not come from that).
     fn sigma(&self) -> f32 {
-        self.noise_estimate().unwrap_or(self.settings.noise_std)
+        let configured = self.settings.noise_std;
+        match self.noise_estimate() {
+            Some(s) if self.rss_n >= 600 => s,
+            Some(s) if s > configured => s,
+            _ => configured,
+        }
     }
 
     /// How far the estimate of the last completed block can be trusted ([`Trust`], by
@@ -574,13 +581,23 @@ impl Refined {
         let sigma = self.sigma();
         let s2 = sigma * sigma;
         let var = self.axes.map(|x| x.var_per_sigma2() * s2);
+        // Both sides are judged conservatively: precision with the larger noise, physical
+        // possibility with the smaller one (the configured noise when the residuals are
+        // noisier: deg/s data read as rad/s has 57x the noise, and that noise must not make an
+        // impossible consistency value look possible).
+        let low = if sigma < s.noise_std {
+            sigma
+        } else {
+            s.noise_std
+        };
+        let var_low = self.axes.map(|x| x.var_per_sigma2() * low * low);
         let a = self.block_estimate();
         let half_prior = 0.5 * s.prior_std;
         let folded = self.counters.integrated.saturating_sub(u32::from(self.m));
         Verdict {
             enough: folded >= MIN_SAMPLES,
             excited: var.iter().all(|v| *v <= half_prior * half_prior),
-            possible: physically_possible(a, var),
+            possible: physically_possible(a, var_low),
             settled: precise(var, s.eps),
         }
     }

@@ -45,7 +45,7 @@ pub struct EstimateJson {
     pub start_s: f64,
     /// Last sample used, s.
     pub end_s: f64,
-    /// Samples used.
+    /// Log samples that reached the estimators (before the pipeline's averaging).
     pub samples: u32,
     /// Why `a` is or is not to be trusted (`Converged` only when it is).
     pub status: String,
@@ -329,6 +329,7 @@ pub fn identify(
     let mut fed_runs: Vec<Vec<usize>> = Vec::new();
     let pooled_est;
     let pooled_ratios;
+    let pooled_inputs;
     let bias;
     let detection;
     if let Some(segs) = &opts.segments {
@@ -351,6 +352,7 @@ pub fn identify(
         progress(n);
         pooled_est = pooled.estimate();
         pooled_ratios = pooled.ratios();
+        pooled_inputs = pooled.fed_inputs();
     } else {
         let accel = rec.accel.as_ref();
         detection = accel.is_some();
@@ -362,15 +364,17 @@ pub fn identify(
             let f = accel.map(|a| a[i]).unwrap_or([0.0; 3]);
             if let Some(exit) = p.step(rec.gyro[i], f, h[i], dt_of(i)) {
                 if exit.fed.is_some() {
-                    let k = exit.sample.index as usize;
+                    // The estimator sample averages `inputs` log samples from `first_input`.
+                    let k = exit.sample.first_input as usize;
                     let new_run = last_fed.is_none_or(|l| k > l + max_gap);
                     if new_run {
                         fed_runs.push(Vec::new());
                     }
+                    let end = (k + exit.sample.inputs as usize).min(n);
                     if let Some(run) = fed_runs.last_mut() {
-                        run.push(k);
+                        run.extend(k..end);
                     }
-                    last_fed = Some(k);
+                    last_fed = Some(end.saturating_sub(1));
                 }
             }
             if i % 65536 == 0 {
@@ -380,6 +384,7 @@ pub fn identify(
         progress(n);
         pooled_est = p.estimate();
         pooled_ratios = p.ratios();
+        pooled_inputs = p.fed_inputs();
         bias = p.bias();
     }
     if fed_runs.iter().all(|r| r.is_empty()) {
@@ -390,13 +395,21 @@ pub fn identify(
         .filter(|r| !r.is_empty())
         .map(|run| {
             let mut e = FlightPipeline::new(settings, false).expect("settings validated above");
+            let mut prev: Option<usize> = None;
             for &i in run {
+                // Stretches of a throw separated by held-back samples: no integral across.
+                if prev.is_some_and(|p| i != p + 1) {
+                    e.end_stretch();
+                }
+                prev = Some(i);
                 let w = rec.gyro[i];
                 let w = [w[0] - bias[0], w[1] - bias[1], w[2] - bias[2]];
                 e.step(w, [0.0; 3], h[i], dt_of(i));
             }
             let (a, b) = (run[0], run[run.len() - 1]);
-            EstimateJson::from(&e.estimate(), &e.ratios(), rec.t[a], rec.t[b])
+            let mut j = EstimateJson::from(&e.estimate(), &e.ratios(), rec.t[a], rec.t[b]);
+            j.samples = e.fed_inputs();
+            j
         })
         .collect();
     let first = fed_runs
@@ -410,7 +423,8 @@ pub fn identify(
         .find(|r| !r.is_empty())
         .map(|r| r[r.len() - 1])
         .unwrap_or(0);
-    let pooled = EstimateJson::from(&pooled_est, &pooled_ratios, rec.t[first], rec.t[last]);
+    let mut pooled = EstimateJson::from(&pooled_est, &pooled_ratios, rec.t[first], rec.t[last]);
+    pooled.samples = pooled_inputs;
     if pooled_ratios.status != TensorStatus::Converged {
         warnings.push(format!(
             "pooled estimate is not to be trusted: {:?}",
