@@ -1,0 +1,89 @@
+//! The shared pipeline on simulated hand throws (held, swung, released, tumbling, with and
+//! without a flywheel spin-up, caught): no sample from before the release or after the catch
+//! reaches the estimators, most of the free flight does, and a still or clipped log is never
+//! `Converged`.
+use host_tests::throw_sim::{
+    board_throw, clipped_toss, no_rotor_toss, still, tumbling_with_spinup, SimThrow,
+};
+use identifier_core::{FlightPipeline, PipelineSettings, TensorStatus};
+
+struct Outcome {
+    fed_first: Option<f64>,
+    fed_last: Option<f64>,
+    fed: usize,
+    status: TensorStatus,
+}
+
+fn run(sim: &SimThrow) -> Outcome {
+    let rate = sim.config.rate_hz as f32;
+    let j_r = sim.config.rotor.inertia as f32;
+    let axis = sim.config.rotor.unit_axis().map(|x| x as f32);
+    let ps =
+        PipelineSettings::for_rate(rate, sim.config.gyro.noise_std as f32).with_full_scale(34.9);
+    let mut p = FlightPipeline::new(ps, true).unwrap();
+    let mut out = Outcome {
+        fed_first: None,
+        fed_last: None,
+        fed: 0,
+        status: TensorStatus::TooFewSamples,
+    };
+    for k in 0..sim.t.len() {
+        let h = axis.map(|a| a * j_r * sim.rotor_rad_s[k]);
+        if let Some(e) = p.step(sim.gyro[k], sim.accel[k], h, sim.dt() as f32) {
+            if e.fed.is_some() {
+                let first = sim.t[e.sample.first_input as usize];
+                let last = sim.t[(e.sample.first_input as usize + e.sample.inputs as usize - 1)
+                    .min(sim.t.len() - 1)];
+                out.fed_first.get_or_insert(first);
+                out.fed_last = Some(last);
+                out.fed += e.sample.inputs as usize;
+            }
+        }
+    }
+    out.status = p.ratios().status;
+    out
+}
+
+#[test]
+fn hand_and_catch_never_reach_the_estimators() {
+    let scenarios: [(&str, fn(u64) -> SimThrow); 3] = [
+        ("board_throw", board_throw),
+        ("tumbling_with_spinup", tumbling_with_spinup),
+        ("no_rotor_toss", no_rotor_toss),
+    ];
+    for (name, f) in scenarios {
+        for seed in 1..=6 {
+            let sim = f(seed);
+            let (r, c) = (sim.release_s.unwrap(), sim.catch_s.unwrap());
+            let free = sim.free_flight().unwrap().len();
+            let o = run(&sim);
+            let (a, b) = (o.fed_first.expect("nothing fed"), o.fed_last.unwrap());
+            println!(
+                "{name} seed {seed}: release {r:.3} catch {c:.3}; fed {a:.3}..{b:.3} ({} of {free} free samples), {:?}",
+                o.fed, o.status
+            );
+            assert!(a >= r, "{name} {seed}: a sample before the release was fed");
+            assert!(b < c, "{name} {seed}: a sample after the catch was fed");
+            assert!(
+                c - b >= 0.02,
+                "{name} {seed}: fed within 20 ms of the catch"
+            );
+            assert!(
+                o.fed * 10 >= free * 6,
+                "{name} {seed}: less than 60 % of the free flight fed"
+            );
+        }
+    }
+}
+
+#[test]
+fn still_and_clipped_are_never_converged() {
+    for seed in 1..=3 {
+        let o = run(&still(seed));
+        println!("still {seed}: fed {}, {:?}", o.fed, o.status);
+        assert_eq!(o.fed, 0);
+        let o = run(&clipped_toss(seed));
+        println!("clipped {seed}: fed {}, {:?}", o.fed, o.status);
+        assert_ne!(o.status, TensorStatus::Converged);
+    }
+}
