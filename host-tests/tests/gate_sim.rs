@@ -7,6 +7,9 @@ use host_tests::throw_sim::{
 };
 use identifier_core::{FlightPipeline, PipelineSettings, TensorStatus};
 
+/// A scenario of the simulator: name and generator.
+type Scenario = (&'static str, fn(u64) -> SimThrow);
+
 struct Outcome {
     fed_first: Option<f64>,
     fed_last: Option<f64>,
@@ -46,7 +49,7 @@ fn run(sim: &SimThrow) -> Outcome {
 
 #[test]
 fn hand_and_catch_never_reach_the_estimators() {
-    let scenarios: [(&str, fn(u64) -> SimThrow); 3] = [
+    let scenarios: [Scenario; 3] = [
         ("board_throw", board_throw),
         ("tumbling_with_spinup", tumbling_with_spinup),
         ("no_rotor_toss", no_rotor_toss),

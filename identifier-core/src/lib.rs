@@ -86,6 +86,7 @@ pub mod invariant;
 mod linalg;
 pub mod pipeline;
 pub mod refined;
+pub mod refined_bias;
 pub mod settings;
 pub mod status;
 pub mod symmetric;
@@ -102,6 +103,7 @@ pub use pipeline::{
     Exit, FlightPipeline, Pending, Pipeline, PipelineSettings, RatioSource, Ratios,
 };
 pub use refined::{Refined, RefinedSettings};
+pub use refined_bias::RefinedBias;
 pub use settings::{GainMatrix, Settings, SettingsError, SignChangeCorrection};
 pub use status::{Counters, Estimate, SampleStatus};
 pub use status::{Exposure, Trust, Verdict};

@@ -16,7 +16,8 @@
 
 use crate::free_flight::{FreeFlightGate, GateSettings, WindowFit};
 use crate::refined::{Refined, RefinedSettings};
-use crate::status::{SampleStatus, Trust};
+use crate::refined_bias::RefinedBias;
+use crate::status::{physically_possible, precise, SampleStatus, Trust};
 use crate::tensor::{TensorEstimate, TensorEstimator, TensorModel, TensorSettings, TensorStatus};
 
 /// Tuning of [`Pipeline`].
@@ -89,6 +90,9 @@ pub enum RatioSource {
     Tensor,
     /// The refined identifier (principal axes, no rotor).
     Refined,
+    /// The refined identifier with a constant gyro bias (principal axes, no rotor, a bias
+    /// detected).
+    RefinedBias,
 }
 
 /// The recommended ratios: [`Pipeline::ratios`].
@@ -184,6 +188,8 @@ pub struct Pipeline<const N: usize> {
     use_gate: bool,
     estimator: TensorEstimator,
     refined: Refined,
+    /// The refined identifier with a constant gyro bias, fed the same samples.
+    refined_bias: RefinedBias,
     /// A non-zero rotor momentum reached the estimator.
     rotor_seen: bool,
     line: [Pending; N],
@@ -212,6 +218,8 @@ impl<const N: usize> Pipeline<N> {
         let gate = FreeFlightGate::new(settings.gate)?;
         let estimator = TensorEstimator::new(settings.tensor)?;
         let refined = Refined::new(settings.refined)?;
+        let rs = &settings.refined;
+        let refined_bias = RefinedBias::new(rs.block, rs.max_dt, rs.full_scale, rs.noise_std)?;
         let rate = settings.rate_hz / settings.decimation as f32;
         let usable = rate.is_finite()
             && rate > 0.0
@@ -244,6 +252,7 @@ impl<const N: usize> Pipeline<N> {
             use_gate: with_accel,
             estimator,
             refined,
+            refined_bias,
             rotor_seen: false,
             line: [Pending {
                 index: 0,
@@ -280,8 +289,12 @@ impl<const N: usize> Pipeline<N> {
     /// The recommended ratios `a` with their standard deviations and status, from the samples
     /// fed so far:
     ///
-    /// * with a rotor momentum, or when the tensor estimate needs its products of inertia
-    ///   (the sensor axes are not principal axes): the tensor's `a` ([`TensorEstimate`]);
+    /// * with a rotor momentum: the tensor's `a` ([`TensorEstimate`]);
+    /// * a constant gyro bias detected (the refined identifier and its bias-augmented twin
+    ///   [`RefinedBias`] disagree beyond their noise): the bias model's, never `Converged` when
+    ///   the tensor also wants products of inertia (the two cannot be told apart);
+    /// * no bias, products of inertia needed (the sensor axes are not principal axes): the
+    ///   tensor's;
     /// * otherwise (the paper's setting: principal axes, no rotor) the refined identifier's
     ///   ([`Refined`], fed exactly the same samples): it models the integral's own noise and
     ///   stays near the Cramer-Rao bound, and its standard deviation uses the noise seen in its
@@ -289,7 +302,7 @@ impl<const N: usize> Pipeline<N> {
     pub fn ratios(&self) -> Ratios {
         let t = self.estimator.estimate();
         let principal = t.model == TensorModel::Principal || t.normalized.is_none();
-        if self.rotor_seen || !principal {
+        if self.rotor_seen {
             return Ratios {
                 a: t.a,
                 std_a: t.std_a,
@@ -313,9 +326,69 @@ impl<const N: usize> Pipeline<N> {
             _ => status,
         };
         let informed = trust.has_information() && self.refined.noise_estimate().is_some();
+        let (a_r, s_r) = (self.refined.block_estimate(), self.refined.std_a());
+        // Hausman test of a constant gyro bias: without one, the refined identifier and its
+        // bias-augmented twin (same samples) differ only by noise of variance
+        // var_bias - var_refined; a bias moves them apart. Beyond 3.5 standard deviations on
+        // any axis the bias model is used (its standard deviation is honest with a bias; the
+        // refined one is not).
+        if let (true, Some(s_b)) = (informed, self.refined_bias.std_a()) {
+            let a_b = self.refined_bias.estimate();
+            let mut biased = false;
+            for (((ar, ab), sb), sr) in a_r.iter().zip(a_b.iter()).zip(s_b.iter()).zip(s_r.iter()) {
+                let (d, vb, vr) = (ar - ab, sb * sb, sr * sr);
+                let v = if vb > vr { vb - vr } else { 0.0 };
+                let v = if v > 1e-4 * vb { v } else { 1e-4 * vb };
+                if d * d > 12.25 * v {
+                    biased = true;
+                }
+            }
+            // A body whose sensor axes are not principal axes also makes the two disagree
+            // (both assume principal axes): when the tensor wants products of inertia, the
+            // model whose residual is closer to the gyro noise is taken.
+            if biased && !principal {
+                let tensor_noise = t.residual_ratio * self.settings.tensor.noise_std;
+                let bias_noise = self.refined_bias.noise_estimate().unwrap_or(f32::INFINITY);
+                if tensor_noise <= bias_noise {
+                    biased = false;
+                }
+            }
+            if biased {
+                // The refined identifier's own verdicts on the estimate do not hold for the
+                // bias model's: judge it afresh (the data-side verdicts stay). When the tensor
+                // also wants products of inertia, a bias and products cannot be told apart
+                // from these data: never Converged then.
+                let var = s_b.map(|x| x * x);
+                let status = match status {
+                    TensorStatus::TooFewSamples
+                    | TensorStatus::NoExcitation
+                    | TensorStatus::UnitsLookWrong
+                    | TensorStatus::Saturated => status,
+                    _ if !physically_possible(a_b, var) => TensorStatus::PhysicallyImpossible,
+                    _ if !principal => TensorStatus::ModelMismatch,
+                    _ if precise(var, self.settings.refined.eps) => TensorStatus::Converged,
+                    _ => TensorStatus::Converging,
+                };
+                return Ratios {
+                    a: Some(a_b),
+                    std_a: Some(s_b),
+                    status,
+                    source: RatioSource::RefinedBias,
+                };
+            }
+        }
+        if !principal {
+            // No bias, products of inertia needed: the sensor axes are not principal axes.
+            return Ratios {
+                a: t.a,
+                std_a: t.std_a,
+                status: t.status,
+                source: RatioSource::Tensor,
+            };
+        }
         Ratios {
-            a: informed.then(|| self.refined.block_estimate()),
-            std_a: informed.then(|| self.refined.std_a()),
+            a: informed.then_some(a_r),
+            std_a: informed.then_some(s_r),
             status,
             source: RatioSource::Refined,
         }
@@ -328,6 +401,7 @@ impl<const N: usize> Pipeline<N> {
         if self.feeding {
             self.estimator.end_stretch();
             self.refined.restart();
+            self.refined_bias.restart();
             self.feeding = false;
         }
     }
@@ -498,6 +572,7 @@ impl<const N: usize> Pipeline<N> {
             if self.feeding {
                 self.estimator.end_stretch();
                 self.refined.restart();
+                self.refined_bias.restart();
                 self.feeding = false;
             }
             return Exit {
@@ -515,6 +590,7 @@ impl<const N: usize> Pipeline<N> {
         let status = self.estimator.step(p.omega, p.h, p.dt);
         self.rotor_seen |= p.h.iter().any(|x| *x != 0.0);
         self.refined.step(p.omega, p.dt);
+        self.refined_bias.step(p.omega, p.dt);
         Exit {
             sample: p,
             fed: Some(status),

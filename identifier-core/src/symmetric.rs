@@ -41,6 +41,11 @@ pub type Sym<const N: usize> = [[f32; N]; N];
 /// Lower Cholesky factor `L` with `m = L L^T`, or `None` when `m` is not numerically positive
 /// definite (a pivot `<= tol * max diagonal`, or anything non-finite).
 pub fn cholesky<const N: usize>(m: &Sym<N>) -> Option<Sym<N>> {
+    cholesky_rel(m, 1e-7)
+}
+
+/// [`cholesky`] with the pivot tolerance `rel * max diagonal` given.
+pub fn cholesky_rel<const N: usize>(m: &Sym<N>, rel: f32) -> Option<Sym<N>> {
     let mut maxd = 0.0f32;
     for i in 0..N {
         if !(m[i][i] > maxd) {
@@ -51,7 +56,7 @@ pub fn cholesky<const N: usize>(m: &Sym<N>) -> Option<Sym<N>> {
     if !(maxd > 0.0 && maxd.is_finite()) {
         return None;
     }
-    let tol = maxd * 1e-7;
+    let tol = maxd * rel;
     let mut l = [[0.0f32; N]; N];
     for j in 0..N {
         let mut d = m[j][j];

@@ -204,6 +204,9 @@ fn exercise_tensor() {
             ));
         }
         black_box(p.estimate());
+        black_box(p.ratios());
+        black_box(p.fed_inputs());
+        p.end_stretch();
         black_box(p.gate_fit());
         black_box(p.bias());
         black_box(p.throws());

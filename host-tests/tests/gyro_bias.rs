@@ -1,0 +1,61 @@
+//! A constant gyro bias in a gyro-only log (no accelerometer, so no still period to learn it
+//! from): the pipeline's ratios switch to the bias-augmented refined identifier when the two
+//! estimators disagree beyond their noise, and the reported standard deviation stays honest;
+//! without a bias the plain refined identifier is kept.
+use host_tests::gyro::GyroModel;
+use host_tests::rigid_body::Body;
+use identifier_core::{FlightPipeline, PipelineSettings, RatioSource};
+
+fn run(bias: f64, seeds: u64) -> ([f64; 3], [f64; 3], usize) {
+    let body = Body::free([0.6, 1.54, 1.0]);
+    let truth = body.a();
+    let tr = body.simulate([1.0, 1.0, 1.0], 20.0, 1000.0, 8);
+    let mut e2 = [0.0f64; 3];
+    let mut z2 = [0.0f64; 3];
+    let mut chose_bias = 0;
+    for seed in 0..seeds {
+        let meas = GyroModel::noisy(2e-3, seed).measure(&tr);
+        let mut p = FlightPipeline::new(PipelineSettings::for_rate(1000.0, 2e-3), false).unwrap();
+        for w in &meas {
+            let w = [w[0] + bias, w[1] - bias, w[2] + 0.5 * bias].map(|v| v as f32);
+            p.step(w, [0.0; 3], [0.0; 3], 1e-3);
+        }
+        p.end_stretch();
+        let r = p.ratios();
+        if r.source == RatioSource::RefinedBias {
+            chose_bias += 1;
+        }
+        let (a, s) = (r.a.unwrap(), r.std_a.unwrap());
+        for i in 0..3 {
+            let e = a[i] as f64 - truth[i];
+            e2[i] += e * e;
+            z2[i] += (e / s[i] as f64).powi(2);
+        }
+    }
+    let n = seeds as f64;
+    (
+        e2.map(|x| (x / n).sqrt() * 1e4),
+        z2.map(|x| (x / n).sqrt()),
+        chose_bias,
+    )
+}
+
+#[test]
+fn gyro_bias_is_detected_and_the_std_stays_honest() {
+    for bias in [0.0, 0.001, 0.002, 0.01, 0.03] {
+        let (rms, cal, chose) = run(bias, 20);
+        println!("bias {bias}: chose the bias model in {chose}/20, RMS x1e4 {rms:.2?}, RMS(err/std) {cal:.2?}");
+        for c in cal {
+            assert!(c < 2.0, "bias {bias}: calibration {c}");
+        }
+        if bias == 0.0 {
+            assert!(
+                chose <= 1,
+                "no bias, yet the bias model was chosen {chose} times"
+            );
+        }
+        if bias >= 0.01 {
+            assert_eq!(chose, 20);
+        }
+    }
+}
