@@ -25,8 +25,9 @@
 //! # Still periods and the gyro bias
 //!
 //! A window is still when the specific force stays within [`GateSettings::still_accel`] of
-//! one `g` and every rate stays below [`GateSettings::still_rate`]; the mean rate over the
-//! last run of still windows is the gyro bias, subtracted by [`crate::pipeline::Pipeline`] before the
+//! one `g`, every rate stays below [`GateSettings::still_rate`] and the rates' spread over the
+//! window stays below [`GateSettings::still_spread`]; the mean rate over the
+//! longest run of still windows so far is the gyro bias, subtracted by [`crate::pipeline::Pipeline`] before the
 //! estimator sees a sample.
 
 use crate::symmetric::{cholesky, cholesky_solve, sqrt};
@@ -51,13 +52,17 @@ pub struct GateSettings {
     pub max_offset: f32,
     /// Still: `| |f| - g |` below this, m/s^2, on every sample of the window.
     pub still_accel: f32,
-    /// Still: every rate component below this, rad/s.
+    /// Still: every rate component below this, rad/s (above any plausible gyro bias).
     pub still_rate: f32,
+    /// Still: the standard deviation of every rate component over the window below this,
+    /// rad/s (a hand turning the body slowly is not still; the gyro's own noise is far less).
+    pub still_spread: f32,
 }
 
 impl GateSettings {
     /// Settings for a sample rate: blocks of about 2.5 ms, windows of about 40 ms (16 blocks),
-    /// residual 2 m/s^2 (0.2 g), offset up to 0.1 m, still within 0.5 m/s^2 and 0.2 rad/s.
+    /// residual 2 m/s^2 (0.2 g), offset up to 0.1 m, still within 0.5 m/s^2 of `g`, rates
+    /// below 0.05 rad/s (3 deg/s) and their spread over the window below 0.01 rad/s.
     pub fn for_rate(rate_hz: f32) -> Self {
         let b = rate_hz * 0.0025;
         let block = if b >= 1024.0 {
@@ -73,7 +78,8 @@ impl GateSettings {
             max_residual: 2.0,
             max_offset: 0.1,
             still_accel: 0.5,
-            still_rate: 0.2,
+            still_rate: 0.05,
+            still_spread: 0.01,
         }
     }
 
@@ -88,6 +94,7 @@ impl GateSettings {
             && pos(self.max_offset)
             && pos(self.still_accel)
             && pos(self.still_rate)
+            && pos(self.still_spread)
     }
 }
 
@@ -100,6 +107,8 @@ struct BlockSums {
     kf: [f32; 3],
     ff: f32,
     w: [f32; 3],
+    /// Sum of the squared rates (the window's spread of the rate).
+    ww: [f32; 3],
     n: u16,
     /// Every sample still.
     still: bool,
@@ -111,6 +120,7 @@ impl BlockSums {
         kf: [0.0; 3],
         ff: 0.0,
         w: [0.0; 3],
+        ww: [0.0; 3],
         n: 0,
         still: true,
     };
@@ -123,6 +133,9 @@ impl BlockSums {
             *a += b;
         }
         for (a, b) in self.w.iter_mut().zip(o.w.iter()) {
+            *a += b;
+        }
+        for (a, b) in self.ww.iter_mut().zip(o.ww.iter()) {
             *a += b;
         }
         self.ff += o.ff;
@@ -175,6 +188,8 @@ pub struct FreeFlightGate {
     /// Sum of the rates and sample count over the current run of still windows.
     still_sum: [f32; 3],
     still_n: u32,
+    /// Samples behind the bias in use (the longest still run so far).
+    bias_n: u32,
 }
 
 impl FreeFlightGate {
@@ -191,6 +206,7 @@ impl FreeFlightGate {
             bias: None,
             still_sum: [0.0; 3],
             still_n: 0,
+            bias_n: 0,
         })
     }
 
@@ -231,8 +247,15 @@ impl FreeFlightGate {
                 && omega.iter().all(|w| w.abs() < self.settings.still_rate)
         };
         self.open.still &= still;
-        for (s, w) in self.open.w.iter_mut().zip(omega.iter()) {
+        for ((s, q), w) in self
+            .open
+            .w
+            .iter_mut()
+            .zip(self.open.ww.iter_mut())
+            .zip(omega.iter())
+        {
             *s += w;
+            *q += w * w;
         }
         if let Some((w0, f0)) = self.prev {
             let inv = 1.0 / dt;
@@ -273,8 +296,8 @@ impl FreeFlightGate {
             }
         }
         let fit = self.fit(&sum);
-        // The bias is the mean rate over the whole current run of still blocks (a longer
-        // average than one window: its noise is sigma / sqrt(samples)).
+        // The bias is the mean rate over the longest run of still blocks so far (a bench is
+        // longer than any pause in a hand, and the average's noise is sigma / sqrt(samples)).
         let newest = self.ring.get(idx).copied().unwrap_or(BlockSums::ZERO);
         if fit.still {
             if self.still_n == 0 {
@@ -286,8 +309,11 @@ impl FreeFlightGate {
                 }
                 self.still_n = self.still_n.saturating_add(newest.n as u32);
             }
-            let n = self.still_n as f32;
-            self.bias = Some(self.still_sum.map(|x| x / n));
+            if self.still_n >= self.bias_n {
+                let n = self.still_n as f32;
+                self.bias = Some(self.still_sum.map(|x| x / n));
+                self.bias_n = self.still_n;
+            }
         } else {
             self.still_n = 0;
             self.still_sum = [0.0; 3];
@@ -319,7 +345,13 @@ impl FreeFlightGate {
             && r.iter().all(|x| x.is_finite());
         WindowFit {
             free,
-            still: s.still,
+            still: s.still && {
+                let lim = self.settings.still_spread * self.settings.still_spread;
+                (0..3).all(|k| {
+                    let m = s.w.get(k).copied().unwrap_or(0.0) / n;
+                    s.ww.get(k).copied().unwrap_or(0.0) / n - m * m < lim
+                })
+            },
             residual,
             offset: r,
             samples: s.n as u32,

@@ -52,6 +52,19 @@ fn main() {
             e.step(sim.gyro[k], h(k), sim.dt() as f32);
         }
         let mut ps = PipelineSettings::for_rate(rate, sigma as f32);
+        if std::env::var_os("NO_BIAS").is_some() {
+            // No still period is recognised: no gyro bias is subtracted.
+            ps.gate.still_spread = 1e-12;
+        }
+        if std::env::var_os("NO_DECIMATION").is_some() {
+            // The pipeline without its averaging (the settings at the input rate).
+            ps = PipelineSettings::for_rate(1000.0, sigma as f32);
+            ps.tensor = identifier_core::TensorSettings::for_rate(rate, sigma as f32);
+            ps.refined = identifier_core::RefinedSettings::for_rate(rate, sigma as f32);
+            ps.gate = identifier_core::GateSettings::for_rate(rate);
+            ps.rate_hz = rate;
+            ps.decimation = 1;
+        }
         ps.tensor.full_scale = 34.9;
         let mut p = FlightPipeline::new(ps, true).unwrap();
         for k in 0..sim.t.len() {
