@@ -48,7 +48,17 @@ fn main() {
         let mut ts = TensorSettings::for_rate(rate, sigma as f32);
         ts.full_scale = 34.9;
         let mut e = TensorEstimator::new(ts).unwrap();
-        for k in range.clone() {
+        // TRIM_START / TRIM_END (s): the true free flight shortened, to separate the effect of
+        // the gate's guards from the rest of the pipeline.
+        let trim = |v: &str| -> usize {
+            std::env::var(v)
+                .ok()
+                .and_then(|x| x.parse::<f64>().ok())
+                .map(|s| (s / sim.dt()) as usize)
+                .unwrap_or(0)
+        };
+        let (t0, t1) = (trim("TRIM_START"), trim("TRIM_END"));
+        for k in (range.start + t0)..(range.end.saturating_sub(t1)) {
             e.step(sim.gyro[k], h(k), sim.dt() as f32);
         }
         let mut ps = PipelineSettings::for_rate(rate, sigma as f32);
