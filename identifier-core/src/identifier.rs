@@ -65,6 +65,17 @@ struct Anchor {
 /// The identifier's whole state: a fixed-size value, no heap, no buffers
 /// (`core::mem::size_of::<Identifier>()`: 216 bytes on x86_64, settings and the
 /// [`Exposure`] of [`Identifier::trust`] included).
+///
+/// ```
+/// use identifier_core::{Identifier, SampleStatus, Settings};
+///
+/// // The paper's identifier with C = -3 E; a NaN sample is refused and changes nothing.
+/// let mut id = Identifier::new(Settings::with_lambda(3.0)).unwrap();
+/// id.step([1.0, 1.0, 1.0], 1e-3);
+/// let before = id.estimate();
+/// assert_eq!(id.step([f32::NAN, 1.0, 1.0], 1e-3).status, SampleStatus::NonFinite);
+/// assert_eq!(id.estimate(), before);
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Identifier {

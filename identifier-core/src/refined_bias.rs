@@ -179,6 +179,17 @@ impl BiasAxis {
 }
 
 /// The refined identifier with a constant gyro bias: one [`RefinedBias::step`] per sample.
+///
+/// ```
+/// use identifier_core::RefinedBias;
+///
+/// // Blocks of 32 samples, steps up to 0.1 s, no clipping, 2e-3 rad/s of gyro noise.
+/// let mut b = RefinedBias::new(32, 0.1, f32::INFINITY, 2e-3).unwrap();
+/// for _ in 0..100 {
+///     b.step([0.5, -0.2, 1.0], 1e-3);
+/// }
+/// assert!(b.std_a().is_none()); // fewer than 200 samples' residuals: no uncertainty yet
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RefinedBias {
     axes: [BiasAxis; 3],
