@@ -1,7 +1,8 @@
 //! Fuzz target for the core's `step` functions: arbitrary bytes become settings and a sequence
 //! of `(omega, dt)` samples, mixing plausible rates (so that the integration is reached) with
 //! raw bit patterns and special values. The same sequence drives the paper's `Identifier`, the
-//! `Refined` identifier and the `ExtendedIdentifier`. After every step the documented
+//! `Refined` identifier, the `ExtendedIdentifier` and the `FlightPipeline` (with an
+//! accelerometer and a rotor momentum derived from the rates). After every step the documented
 //! invariants are checked; a violation aborts, and libFuzzer reports the input.
 //!
 //! Layout: a 12-byte header for the settings, then records of 8 bytes
@@ -15,6 +16,7 @@ use identifier_core::{
     Identifier, InertiaRatios, Refined, RefinedSettings, SampleStatus, Settings,
     SignChangeCorrection,
 };
+use identifier_core::{FlightPipeline, PipelineSettings, TensorStatus};
 use libfuzzer_sys::fuzz_target;
 
 struct Bytes<'a>(&'a [u8]);
@@ -171,6 +173,10 @@ struct Others {
     refined: Option<Refined>,
     extended: Option<ExtendedIdentifier>,
     refined_anchored: u32,
+    /// The shared flight pipeline (gate, delay line, tensor, refined and bias models), fed the
+    /// same rates with an accelerometer and a rotor momentum derived from them.
+    pipeline: Option<FlightPipeline>,
+    steps: u32,
 }
 
 impl Others {
@@ -189,14 +195,44 @@ impl Others {
         x.full_scale = s.full_scale;
         x.max_dt = s.max_dt;
         x.initial_estimate = s.initial_estimate;
+        let rate = [1000.0, 100.0, 8000.0, 3000.0][usize::from(k / 32 % 4)];
+        let pipeline = FlightPipeline::new(
+            PipelineSettings::for_rate(rate, r.noise_std).with_full_scale(s.full_scale),
+            k & 64 != 0,
+        );
         Others {
             refined: Refined::new(r),
             extended: ExtendedIdentifier::new(x),
             refined_anchored: 0,
+            pipeline,
+            steps: 0,
         }
     }
 
     fn step(&mut self, omega: [f32; 3], dt: f32, full_scale: f32) {
+        if let Some(p) = self.pipeline.as_mut() {
+            let accel = [omega[1] * 0.3, omega[2] * 0.1, 9.8 - omega[0] * 0.01];
+            let h = [0.0, 0.0, omega[0] * 1e-6];
+            let _ = p.step(omega, accel, h, dt);
+            self.steps += 1;
+            // The estimate is cheap enough to check only now and then.
+            if self.steps % 97 == 0 {
+                let e = p.estimate();
+                for v in [e.a, e.std_a, e.principal_moments].into_iter().flatten() {
+                    assert!(v.iter().all(|x| x.is_finite()), "{e:?}");
+                }
+                for m in [e.tensor, e.normalized, e.tensor_std].into_iter().flatten() {
+                    assert!(m.iter().flatten().all(|x| x.is_finite()), "{e:?}");
+                }
+                let r = p.ratios();
+                if let Some(a) = r.a {
+                    assert!(a.iter().all(|x| x.is_finite()), "{r:?}");
+                }
+                if r.status == TensorStatus::Converged {
+                    assert!(r.std_a.is_some_and(|s| s.iter().all(|x| x.is_finite())));
+                }
+            }
+        }
         let want = refusal(omega, dt, full_scale);
         if let Some(r) = self.refined.as_mut() {
             let before = (r.block_estimate(), r.estimate());
