@@ -26,7 +26,10 @@ fn path() -> &'static PathBuf {
 
 fn check_err(e: &ReadError, lines: usize) {
     let msg = e.to_string();
-    assert!(msg.contains("Raw Data.csv"), "error does not name the file: {msg}");
+    assert!(
+        msg.contains("Raw Data.csv"),
+        "error does not name the file: {msg}"
+    );
     if let Some(l) = e.line() {
         assert!(l >= 1 && l <= lines, "line {l} of {lines}: {msg}");
     }
