@@ -17,7 +17,7 @@ use host_tests::crb_tensor::{
     absolute_bound, ratio_bound, ratio_bound_constrained_from_crb, scale_free_bound, FreeFlight,
     ENTRIES, ENTRY_NAMES,
 };
-use host_tests::estimators::{all_methods, batch_ls, onboard, tensor, Method, Scenario};
+use host_tests::estimators::{all_methods, batch_ls, onboard, pipeline, tensor, Method, Scenario};
 use host_tests::plot::{write_svg, Chart, Series};
 use host_tests::throw_sim::{board_throw_config, simulate};
 use identifier_core::{TensorEstimator, TensorSettings};
@@ -1138,6 +1138,7 @@ fn main() -> Result<()> {
     let root = repo_root();
     let mut methods = all_methods();
     methods.push(Box::new(tensor::TensorMethod));
+    methods.push(Box::new(pipeline::PipelineRatios));
     if a.diagnose {
         for sc in Scenario::all() {
             diagnose(&sc);

@@ -18,6 +18,7 @@ pub mod batch_ls;
 pub mod ekf;
 pub mod ml;
 pub mod onboard;
+pub mod pipeline;
 pub mod rls;
 pub mod tensor;
 
