@@ -363,9 +363,14 @@ impl Samples {
     }
 
     fn vec3(&self, at: Location, what: &str, v: [f64; 3]) -> Result<[f32; 3], ReadError> {
-        let mut out = [0.0; 3];
+        let out = v.map(|x| x as f32);
+        if out.iter().all(|x| x.is_finite()) {
+            return Ok(out);
+        }
+        // The label is built only for the error (formatting one per value cost most of the
+        // reading time of a long log).
         for k in 0..3 {
-            out[k] = self.finite(at, &format!("{what} {}", AXES[k]), v[k])?;
+            self.finite(at, &format!("{what} {}", AXES[k]), v[k])?;
         }
         Ok(out)
     }
