@@ -6,7 +6,7 @@
 //! | you have | use | gives |
 //! |---|---|---|
 //! | a thrown or tumbling vehicle with gyro and accelerometer (and rotor speeds, if any rotor turns) | [`FlightPipeline`]: free-flight gate, guards, gyro bias, [`TensorEstimator`] | the tensor `J` in the sensor frame (kg m^2 with a known rotor momentum, else up to scale), principal moments and axes, `a`, standard deviations, a [`TensorStatus`] |
-//! | gyro samples of a free tumble, axes taken as principal | [`Refined`] (near the Cramer-Rao bound) or [`TensorEstimator`] | `a` with standard deviations and a [`Trust`] |
+//! | gyro samples of a free tumble, axes taken as principal | [`Refined`] (near the Cramer-Rao bound); [`RefinedBias`] with an unknown gyro bias; [`FlightPipeline::ratios`] chooses | `a` with standard deviations and a [`Trust`] |
 //! | the paper's method, as published | [`Identifier`] (V.F. Shcherbak's invariant relations, with the sign-change correction) | `a` and the paper's convergence criterion; on noisy data 30-700x the bound |
 //! | a model with one extra effect (bias, torque, damping, products, rotor) | [`ExtendedIdentifier`] | `a` and the effect |
 //!
