@@ -1,4 +1,5 @@
-//! Line charts written as SVG for the close-loop report (`residual.svg`, `estimates.svg`).
+//! Line charts written as SVG: the close-loop report (`residual.svg`, `estimates.svg`) and the
+//! repository's figures (`host-tests` re-exports this module).
 
 use anyhow::{Context, Result};
 use plotters::prelude::*;
