@@ -9,17 +9,16 @@
 //!   (`--gyro-unit`, `--time-unit`) to convert or to confirm them ([`check_units`]);
 //! * segments: one that lies outside the log, or two that overlap (their samples would count
 //!   twice), are errors naming the segments ([`Log::new`]); rows of a segments file with
-//!   `keep` false are skipped before their numbers are read ([`read_segments`]: phyphox writes
+//!   `keep` false are skipped before their numbers are read ([`crate::readers::phyphox::read_segments`]: phyphox writes
 //!   rejected rows such as `28,,,false,random noise`).
 //!
 //! And one repair: isolated spikes (a single sample that neither side of its neighbourhood
 //! predicts, such as one 100 rad/s or 1e30 reading in a clean log) are replaced by the mean of
 //! their neighbours before the fit ([`gate_spikes`]), so one bad sample invents no effect.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use crate::readers::phyphox::Segment;
-use crate::readers::{fields, number, quote, read_lines, Location, ReadError};
 use crate::readers::{DEG_PER_SEC_SUSPECT_RAD_S, SUSTAINED_S};
 use crate::Recording;
 
@@ -107,74 +106,6 @@ impl Log {
             .map(|s| format!("{} [{} s, {} s]", s.label, s.start, s.end))
             .collect()
     }
-}
-
-/// Reads a segments file (`segment,start,end,keep,comment`, as phyphox writes it; leading
-/// spaces, quotes, `;` with decimal commas and a missing final newline tolerated). Rows whose
-/// `keep` is false are skipped before their times are read (a rejected row may leave them
-/// empty); an empty `keep` means true. Returned sorted by start.
-pub fn read_segments(path: &Path) -> Result<Vec<Segment>, ReadError> {
-    let lines = read_lines(path)?;
-    let Some(h) = lines.first() else {
-        return Err(ReadError::new(path, "empty file"));
-    };
-    let head = fields(h);
-    let col = |name: &str| head.iter().position(|c| c.eq_ignore_ascii_case(name));
-    let (Some(cs), Some(ce)) = (col("start"), col("end")) else {
-        return Err(ReadError::at(
-            path,
-            Location::Line(1),
-            format!("header needs start and end columns, found {}", quote(h)),
-        ));
-    };
-    let (cl, ck) = (col("segment"), col("keep"));
-    let mut out = Vec::new();
-    for (i, line) in lines.iter().enumerate().skip(1) {
-        let n = i + 1;
-        let at = Location::Line(n);
-        if line.trim().is_empty() {
-            continue;
-        }
-        let f = fields(line);
-        let get = |c: usize| f.get(c).map(String::as_str);
-        let keep = match ck.and_then(get).map(str::to_ascii_lowercase).as_deref() {
-            None | Some("") | Some("true") | Some("1") | Some("yes") => true,
-            Some("false") | Some("0") | Some("no") => false,
-            Some(other) => {
-                return Err(ReadError::at(
-                    path,
-                    at,
-                    format!("keep must be true/false/empty, found {}", quote(other)),
-                ))
-            }
-        };
-        if !keep {
-            continue;
-        }
-        let (Some(s), Some(e)) = (get(cs), get(ce)) else {
-            return Err(ReadError::at(
-                path,
-                at,
-                "truncated row: missing start or end",
-            ));
-        };
-        let start = number(path, n, "start", s)?;
-        let end = number(path, n, "end", e)?;
-        if end <= start {
-            return Err(ReadError::at(
-                path,
-                at,
-                format!("end {end} is not after start {start}"),
-            ));
-        }
-        let label = cl
-            .and_then(get)
-            .filter(|l| !l.is_empty())
-            .map_or_else(|| format!("{}", out.len()), str::to_string);
-        out.push(Segment { label, start, end });
-    }
-    out.sort_by(|a, b| a.start.total_cmp(&b.start));
-    Ok(out)
 }
 
 /// Median time step above which the time column looks like ms or us read as seconds, s.

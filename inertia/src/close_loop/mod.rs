@@ -4,7 +4,7 @@
 //! `inertia close-loop` ([`load`] reads and checks its input).
 //!
 //! Input goes through the crate's readers ([`crate::read`]: phyphox, named-column CSV,
-//! blackbox, ULog), the segments through [`input::read_segments`]; [`input`] holds the checks
+//! blackbox, ULog), the segments through [`crate::readers::phyphox::read_segments`]; [`input`] holds the checks
 //! that refuse what cannot be trusted (units, segments) and the spike gate.
 
 pub mod analysis;
@@ -47,7 +47,7 @@ pub fn load(
     };
     let segs = match &seg_file {
         Some(p) => {
-            let s = input::read_segments(p).map_err(|e| e.to_string())?;
+            let s = crate::readers::phyphox::read_segments(p).map_err(|e| e.to_string())?;
             if s.is_empty() {
                 return Err(format!("{}: no kept segment", p.display()));
             }

@@ -87,9 +87,10 @@ pub fn segments_file(path: &Path) -> Option<PathBuf> {
     p.is_file().then_some(p)
 }
 
-/// Reads a phyphox `segments.csv` (`segment,start,end,keep,comment`; leading spaces, quotes
-/// and a missing final newline tolerated). Rows with `keep` false are dropped; the rest are
-/// returned sorted by start.
+/// Reads a segments file (`segment,start,end,keep,comment`, as phyphox writes it; leading
+/// spaces, quotes, `;` with decimal commas and a missing final newline tolerated). Rows whose
+/// `keep` is false are skipped before their times are read (a rejected row may leave them
+/// empty); an empty `keep` means true. Returned sorted by start.
 pub fn read_segments(path: &Path) -> Result<Vec<Segment>, ReadError> {
     let lines = read_lines(path)?;
     let Some(h) = lines.first() else {
@@ -114,6 +115,20 @@ pub fn read_segments(path: &Path) -> Result<Vec<Segment>, ReadError> {
         }
         let f = fields(line);
         let get = |c: usize| f.get(c).map(String::as_str);
+        let keep = match ck.and_then(get).map(str::to_ascii_lowercase).as_deref() {
+            None | Some("") | Some("true") | Some("1") | Some("yes") => true,
+            Some("false") | Some("0") | Some("no") => false,
+            Some(other) => {
+                return Err(ReadError::at(
+                    path,
+                    at,
+                    format!("keep must be true/false/empty, found {}", quote(other)),
+                ))
+            }
+        };
+        if !keep {
+            continue;
+        }
         let (Some(s), Some(e)) = (get(cs), get(ce)) else {
             return Err(ReadError::at(
                 path,
@@ -130,23 +145,11 @@ pub fn read_segments(path: &Path) -> Result<Vec<Segment>, ReadError> {
                 format!("end {end} is not after start {start}"),
             ));
         }
-        let keep = match ck.and_then(get).map(str::to_ascii_lowercase).as_deref() {
-            None | Some("") | Some("true") | Some("1") | Some("yes") => true,
-            Some("false") | Some("0") | Some("no") => false,
-            Some(other) => {
-                return Err(ReadError::at(
-                    path,
-                    at,
-                    format!("keep must be true/false/empty, found {}", quote(other)),
-                ))
-            }
-        };
-        if keep {
-            let label = cl
-                .and_then(get)
-                .map_or_else(|| format!("{}", out.len()), str::to_string);
-            out.push(Segment { label, start, end });
-        }
+        let label = cl
+            .and_then(get)
+            .filter(|l| !l.is_empty())
+            .map_or_else(|| format!("{}", out.len()), str::to_string);
+        out.push(Segment { label, start, end });
     }
     out.sort_by(|a, b| a.start.total_cmp(&b.start));
     Ok(out)
@@ -186,6 +189,12 @@ mod tests {
         assert_eq!(s.len(), 2);
         assert_eq!(s[0].label, "2");
         assert_eq!(s[1].start, 2.5);
+        // phyphox's rejected rows may leave the times empty: skipped before they are read.
+        let p = tmp(
+            "segrej.csv",
+            b"segment,start,end,keep,comment\n28,,,false,noise\n1,1.0,2.0,,\n",
+        );
+        assert_eq!(read_segments(&p).unwrap().len(), 1);
         let p = tmp("segbad.csv", b"segment,start,end\n1,3.0,2.0\n");
         assert_eq!(read_segments(&p).unwrap_err().line(), Some(2));
     }
