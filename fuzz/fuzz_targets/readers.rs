@@ -10,7 +10,8 @@ use std::path::PathBuf;
 use std::sync::OnceLock;
 
 use inertia::close_loop::analysis::{analyse, Options};
-use inertia::close_loop::{input::read_segments, load};
+use inertia::close_loop::load;
+use inertia::readers::phyphox::read_segments;
 use inertia::readers::{csv::read_csv, detect, phyphox::read_phyphox};
 use inertia::{ReadError, ReadOptions, Recording};
 use libfuzzer_sys::fuzz_target;
