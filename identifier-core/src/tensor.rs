@@ -1009,23 +1009,7 @@ fn solve_normalized(lam: &Sym<6>, equations: u32, principal: bool) -> Option<Sol
         let z = cholesky_solve(&l, &b);
         let inv = cholesky_inverse(&l);
         let j = [z[0], z[1], 1.0 - z[0] - z[1], 0.0, 0.0, 0.0];
-        let mut cov = [[0.0f32; 6]; 6];
-        // cov_j = Z inv Z^T over the two columns.
-        let cols = [z0, z1];
-        for (r, row) in cov.iter_mut().enumerate() {
-            for (c, e) in row.iter_mut().enumerate() {
-                let mut s = 0.0;
-                for (a, ca) in cols.iter().enumerate() {
-                    for (b, cb) in cols.iter().enumerate() {
-                        let iab = inv.get(a).and_then(|x| x.get(b)).copied().unwrap_or(0.0);
-                        s += ca.get(r).copied().unwrap_or(0.0)
-                            * iab
-                            * cb.get(c).copied().unwrap_or(0.0);
-                    }
-                }
-                *e = s;
-            }
-        }
+        let cov = z_inv_zt(&[z0, z1], &inv);
         (j, cov, 2u32)
     } else {
         let cols: [[f32; 6]; 5] = core::array::from_fn(zcol);
@@ -1044,21 +1028,7 @@ fn solve_normalized(lam: &Sym<6>, equations: u32, principal: bool) -> Option<Sol
         let z = cholesky_solve(&l, &b);
         let inv = cholesky_inverse(&l);
         let j = [z[0], z[1], 1.0 - z[0] - z[1], z[2], z[3], z[4]];
-        let mut cov = [[0.0f32; 6]; 6];
-        for (r, row) in cov.iter_mut().enumerate() {
-            for (c, e) in row.iter_mut().enumerate() {
-                let mut s = 0.0;
-                for (a, ca) in cols.iter().enumerate() {
-                    for (bb, cb) in cols.iter().enumerate() {
-                        let iab = inv.get(a).and_then(|x| x.get(bb)).copied().unwrap_or(0.0);
-                        s += ca.get(r).copied().unwrap_or(0.0)
-                            * iab
-                            * cb.get(c).copied().unwrap_or(0.0);
-                    }
-                }
-                *e = s;
-            }
-        }
+        let cov = z_inv_zt(&cols, &inv);
         (j, cov, 5u32)
     };
     let rss = dot6(&j, &lz(&j));
@@ -1072,6 +1042,25 @@ fn solve_normalized(lam: &Sym<6>, equations: u32, principal: bool) -> Option<Sol
         cov: cov_small,
         s2,
     })
+}
+
+/// `Z inv Z^T`: the covariance of `j = e_zz + Z z` from that of the free entries `z`
+/// (`cols` the columns of `Z`).
+fn z_inv_zt<const K: usize>(cols: &[[f32; 6]; K], inv: &Sym<K>) -> Sym<6> {
+    let mut cov = [[0.0f32; 6]; 6];
+    for (r, row) in cov.iter_mut().enumerate() {
+        for (c, e) in row.iter_mut().enumerate() {
+            let mut s = 0.0;
+            for (ca, ia) in cols.iter().zip(inv.iter()) {
+                for (cb, iab) in cols.iter().zip(ia.iter()) {
+                    s +=
+                        ca.get(r).copied().unwrap_or(0.0) * iab * cb.get(c).copied().unwrap_or(0.0);
+                }
+            }
+            *e = s;
+        }
+    }
+    cov
 }
 
 /// Absolute solution `Lambda j = eta` (full, or the diagonal block for the principal model).
