@@ -742,25 +742,9 @@ impl Refined {
     fn accumulate(&mut self, u: [f32; 3], v: [f32; 3], h: f32) {
         // f = (w2 w3, w3 w1, w1 w2); the integral's increment by the trapezoid, with the end
         // correction h^2/12 (f'(u) - f'(v)), f' = (w1 (a2 w3^2 + a3 w2^2), ...) by (1).
-        let half = 0.5 * h;
-        let mut dg = [
-            half * (u[1] * u[2] + v[1] * v[2]),
-            half * (u[2] * u[0] + v[2] * v[0]),
-            half * (u[0] * u[1] + v[0] * v[1]),
-        ];
-        if self.settings.end_correction {
-            let qv = [v[0] * v[0], v[1] * v[1], v[2] * v[2]];
-            let [x, y, z] = &self.axes;
-            let b = [x.a, y.a, z.a];
-            let qu = [u[0] * u[0], u[1] * u[1], u[2] * u[2]];
-            let k = h * h * (1.0 / 12.0);
-            dg[0] +=
-                k * (u[0] * (b[1] * qu[2] + b[2] * qu[1]) - v[0] * (b[1] * qv[2] + b[2] * qv[1]));
-            dg[1] +=
-                k * (u[1] * (b[2] * qu[0] + b[0] * qu[2]) - v[1] * (b[2] * qv[0] + b[0] * qv[2]));
-            dg[2] +=
-                k * (u[2] * (b[0] * qu[1] + b[1] * qu[0]) - v[2] * (b[0] * qv[1] + b[1] * qv[0]));
-        }
+        let [x, y, z] = &self.axes;
+        let a = self.settings.end_correction.then_some([x.a, y.a, z.a]);
+        let dg = integral_step(u, v, h, a);
         let [x, y, z] = &mut self.axes;
         x.add(dg[0], v[0]);
         y.add(dg[1], v[1]);
@@ -768,6 +752,27 @@ impl Refined {
         self.m = self.m.saturating_add(1);
         self.block_time += h;
     }
+}
+
+/// The increment of `G = integral (w2 w3, w3 w1, w1 w2) dt` from the sample `u` to the sample
+/// `v` taken `h` later: the trapezoid, plus, with `a`, the end correction
+/// `h^2/12 (f'(u) - f'(v))`, `f' = (w1 (a2 w3^2 + a3 w2^2), ...)` by (1) (fourth order).
+pub(crate) fn integral_step(u: [f32; 3], v: [f32; 3], h: f32, a: Option<[f32; 3]>) -> [f32; 3] {
+    let half = 0.5 * h;
+    let mut dg = [
+        half * (u[1] * u[2] + v[1] * v[2]),
+        half * (u[2] * u[0] + v[2] * v[0]),
+        half * (u[0] * u[1] + v[0] * v[1]),
+    ];
+    if let Some(b) = a {
+        let qv = [v[0] * v[0], v[1] * v[1], v[2] * v[2]];
+        let qu = [u[0] * u[0], u[1] * u[1], u[2] * u[2]];
+        let k = h * h * (1.0 / 12.0);
+        dg[0] += k * (u[0] * (b[1] * qu[2] + b[2] * qu[1]) - v[0] * (b[1] * qv[2] + b[2] * qv[1]));
+        dg[1] += k * (u[1] * (b[2] * qu[0] + b[0] * qu[2]) - v[1] * (b[2] * qv[0] + b[0] * qv[2]));
+        dg[2] += k * (u[2] * (b[0] * qu[1] + b[1] * qu[0]) - v[2] * (b[0] * qv[1] + b[1] * qv[0]));
+    }
+    dg
 }
 
 #[cfg(test)]

@@ -24,6 +24,7 @@
 // (scripts/check-no-panic.sh) proves no bounds check survives.
 #![allow(clippy::indexing_slicing, clippy::needless_range_loop)]
 
+use crate::refined::integral_step;
 use crate::symmetric::{cholesky_inverse, cholesky_rel, cholesky_solve, sqrt, Sym};
 
 /// Pivot tolerance: the regressors are nearly collinear over a short block (all grow about
@@ -266,24 +267,16 @@ impl RefinedBias {
         }
         let half = 0.5 * dt;
         let v = omega;
-        self.g[0] += half * (u[1] * u[2] + v[1] * v[2]);
-        self.g[1] += half * (u[2] * u[0] + v[2] * v[0]);
-        self.g[2] += half * (u[0] * u[1] + v[0] * v[1]);
+        // The refined identifier's integral with its end correction (fourth order: at
+        // 100-200 Hz the plain trapezoid leaves a bias that would look like a gyro bias), and
+        // the same correction for W with w' from (1).
+        let a = self.estimate();
+        let dg = integral_step(u, v, dt, Some(a));
         for i in 0..3 {
+            self.g[i] += dg[i];
             self.wsum[i] += half * (u[i] + v[i]);
         }
-        // The trapezoid's end correction h^2/12 (f'(u) - f'(v)), with the derivatives from (1)
-        // and the current estimate, as in the refined identifier (fourth order: at 100-200 Hz
-        // the plain trapezoid leaves a bias that would look like a gyro bias).
-        let a = self.estimate();
         let k = dt * dt * (1.0 / 12.0);
-        let (qu, qv) = (u.map(|x| x * x), v.map(|x| x * x));
-        self.g[0] +=
-            k * (u[0] * (a[1] * qu[2] + a[2] * qu[1]) - v[0] * (a[1] * qv[2] + a[2] * qv[1]));
-        self.g[1] +=
-            k * (u[1] * (a[2] * qu[0] + a[0] * qu[2]) - v[1] * (a[2] * qv[0] + a[0] * qv[2]));
-        self.g[2] +=
-            k * (u[2] * (a[0] * qu[1] + a[1] * qu[0]) - v[2] * (a[0] * qv[1] + a[1] * qv[0]));
         self.wsum[0] += k * a[0] * (u[1] * u[2] - v[1] * v[2]);
         self.wsum[1] += k * a[1] * (u[2] * u[0] - v[2] * v[0]);
         self.wsum[2] += k * a[2] * (u[0] * u[1] - v[0] * v[1]);
