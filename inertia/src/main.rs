@@ -184,8 +184,16 @@ fn parse_segments(path: &PathBuf) -> Result<Vec<(f64, f64)>, String> {
     Ok(out)
 }
 
-fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
-    let rotor = match (args.rotor_inertia, args.rotor_axis) {
+/// The rotor options (both or neither) and the noise option of `identify` and
+/// `export-replay`, checked the same way for both: a replay must be refused exactly when
+/// `identify` would refuse.
+fn rotor_and_noise(
+    inertia: Option<f32>,
+    axis: Option<[f32; 3]>,
+    poles: Option<u32>,
+    noise_std: Option<f32>,
+) -> Result<Option<Rotor>, String> {
+    let rotor = match (inertia, axis) {
         (None, None) => None,
         (Some(j), Some(axis)) => {
             if !(j.is_finite() && j > 0.0) {
@@ -194,16 +202,26 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
             Some(Rotor {
                 inertia: j,
                 axis,
-                poles: args.rotor_poles,
+                poles,
             })
         }
         _ => return Err("--rotor-inertia and --rotor-axis go together".into()),
     };
-    if let Some(s) = args.noise_std {
+    if let Some(s) = noise_std {
         if !(s.is_finite() && s > 0.0) {
             return Err(format!("--noise-std {s} must be positive"));
         }
     }
+    Ok(rotor)
+}
+
+fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
+    let rotor = rotor_and_noise(
+        args.rotor_inertia,
+        args.rotor_axis,
+        args.rotor_poles,
+        args.noise_std,
+    )?;
     let segments = args.segments.as_ref().map(parse_segments).transpose()?;
     let opts = ReadOptions {
         gyro_unit: args.gyro_unit,
@@ -380,25 +398,12 @@ struct TelemetryArgs {
 }
 
 fn run_export_replay(args: ExportReplayArgs) -> Result<ExitCode, String> {
-    let rotor = match (args.rotor_inertia, args.rotor_axis) {
-        (None, None) => None,
-        (Some(j), Some(axis)) => {
-            if !(j.is_finite() && j > 0.0) {
-                return Err(format!("--rotor-inertia {j} must be positive"));
-            }
-            Some(Rotor {
-                inertia: j,
-                axis,
-                poles: args.rotor_poles,
-            })
-        }
-        _ => return Err("--rotor-inertia and --rotor-axis go together".into()),
-    };
-    if let Some(s) = args.noise_std {
-        if !(s.is_finite() && s > 0.0) {
-            return Err(format!("--noise-std {s} must be positive"));
-        }
-    }
+    let rotor = rotor_and_noise(
+        args.rotor_inertia,
+        args.rotor_axis,
+        args.rotor_poles,
+        args.noise_std,
+    )?;
     let opts = ReadOptions {
         gyro_unit: args.gyro_unit,
         time_unit: args.time_unit,
