@@ -757,7 +757,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
     /// The free-flight pipeline's estimate as reported.
     pub fn tensor_report(&self) -> TensorReport {
         let e = self.pipeline.estimate();
-        let r = self.pipeline.ratios();
+        let r = self.pipeline.ratios_with(&e);
         TensorReport {
             status: r.status,
             a: r.a,

@@ -300,7 +300,13 @@ impl<const N: usize> Pipeline<N> {
     ///   stays near the Cramer-Rao bound, and its standard deviation uses the noise seen in its
     ///   residuals. Its [`Trust`] is reported as the [`TensorStatus`] of the same meaning.
     pub fn ratios(&self) -> Ratios {
-        let t = self.estimator.estimate();
+        self.ratios_with(&self.estimator.estimate())
+    }
+
+    /// [`Pipeline::ratios`] given the tensor estimate `t` = [`Pipeline::estimate`] already
+    /// computed (the estimate costs a few thousand operations: a report that needs both
+    /// computes it once).
+    pub fn ratios_with(&self, t: &TensorEstimate) -> Ratios {
         let principal = t.model == TensorModel::Principal || t.normalized.is_none();
         if self.rotor_seen {
             return Ratios {

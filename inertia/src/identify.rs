@@ -351,7 +351,7 @@ pub fn identify(
         }
         progress(n);
         pooled_est = pooled.estimate();
-        pooled_ratios = pooled.ratios();
+        pooled_ratios = pooled.ratios_with(&pooled_est);
         pooled_inputs = pooled.fed_inputs();
     } else {
         let accel = rec.accel.as_ref();
@@ -383,7 +383,7 @@ pub fn identify(
         }
         progress(n);
         pooled_est = p.estimate();
-        pooled_ratios = p.ratios();
+        pooled_ratios = p.ratios_with(&pooled_est);
         pooled_inputs = p.fed_inputs();
         bias = p.bias();
     }
@@ -407,7 +407,8 @@ pub fn identify(
                 e.step(w, [0.0; 3], h[i], dt_of(i));
             }
             let (a, b) = (run[0], run[run.len() - 1]);
-            let mut j = EstimateJson::from(&e.estimate(), &e.ratios(), rec.t[a], rec.t[b]);
+            let est = e.estimate();
+            let mut j = EstimateJson::from(&est, &e.ratios_with(&est), rec.t[a], rec.t[b]);
             j.samples = e.fed_inputs();
             j
         })
