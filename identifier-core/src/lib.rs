@@ -91,6 +91,7 @@ pub mod settings;
 pub mod status;
 pub mod symmetric;
 pub mod tensor;
+pub mod trajectory;
 
 pub use convergence::{Convergence, ConvergenceMonitor};
 pub use extended::{
@@ -110,3 +111,4 @@ pub use status::{Exposure, Trust, Verdict};
 pub use tensor::{
     TensorCounters, TensorEstimate, TensorEstimator, TensorModel, TensorSettings, TensorStatus,
 };
+pub use trajectory::{FlightRatioFit, RatioFit, RatioFitEstimate, StretchOutcome};

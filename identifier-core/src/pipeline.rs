@@ -19,6 +19,7 @@ use crate::refined::{Refined, RefinedSettings};
 use crate::refined_bias::RefinedBias;
 use crate::status::{physically_possible, precise, SampleStatus, Trust};
 use crate::tensor::{TensorEstimate, TensorEstimator, TensorModel, TensorSettings, TensorStatus};
+use crate::trajectory::{FlightRatioFit, RatioFit, RatioFitEstimate};
 
 /// Tuning of [`Pipeline`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -93,6 +94,9 @@ pub enum RatioSource {
     /// The refined identifier with a constant gyro bias (principal axes, no rotor, a bias
     /// detected).
     RefinedBias,
+    /// The output-error fit of the whole trajectory ([`RatioFit`]: principal axes, no rotor,
+    /// free flights that have ended), with a constant gyro bias when its test found one.
+    Trajectory,
 }
 
 /// The recommended ratios: [`Pipeline::ratios`].
@@ -190,6 +194,8 @@ pub struct Pipeline<const N: usize> {
     refined: Refined,
     /// The refined identifier with a constant gyro bias, fed the same samples.
     refined_bias: RefinedBias,
+    /// The output-error fit of (1), fed the same samples, fitted at each stretch's end.
+    trajectory: FlightRatioFit,
     /// A non-zero rotor momentum reached the estimator.
     rotor_seen: bool,
     line: [Pending; N],
@@ -220,6 +226,7 @@ impl<const N: usize> Pipeline<N> {
         let refined = Refined::new(settings.refined)?;
         let rs = &settings.refined;
         let refined_bias = RefinedBias::new(rs.block, rs.max_dt, rs.full_scale, rs.noise_std)?;
+        let trajectory = RatioFit::new(rs.full_scale, rs.max_dt, rs.noise_std);
         let rate = settings.rate_hz / settings.decimation as f32;
         let usable = rate.is_finite()
             && rate > 0.0
@@ -253,6 +260,7 @@ impl<const N: usize> Pipeline<N> {
             estimator,
             refined,
             refined_bias,
+            trajectory,
             rotor_seen: false,
             line: [Pending {
                 index: 0,
@@ -290,12 +298,16 @@ impl<const N: usize> Pipeline<N> {
     /// fed so far:
     ///
     /// * with a rotor momentum: the tensor's `a` ([`TensorEstimate`]);
+    /// * once a free flight has ended, principal axes (or a gyro bias found): the output-error
+    ///   fit of the whole trajectory ([`RatioFit`], all three axes jointly, the rigid-body
+    ///   constraint built in, a constant bias when its likelihood-ratio test finds one), the
+    ///   efficient estimator for white gyro noise;
     /// * a constant gyro bias detected (the refined identifier and its bias-augmented twin
     ///   [`RefinedBias`] disagree beyond their noise): the bias model's, never `Converged` when
     ///   the tensor also wants products of inertia (the two cannot be told apart);
     /// * no bias, products of inertia needed (the sensor axes are not principal axes): the
     ///   tensor's;
-    /// * otherwise (the paper's setting: principal axes, no rotor) the refined identifier's
+    /// * otherwise (during the first free flight, or no fit) the refined identifier's
     ///   ([`Refined`], fed exactly the same samples): it models the integral's own noise and
     ///   stays near the Cramer-Rao bound, and its standard deviation uses the noise seen in its
     ///   residuals. Its [`Trust`] is reported as the [`TensorStatus`] of the same meaning.
@@ -331,6 +343,11 @@ impl<const N: usize> Pipeline<N> {
             TensorStatus::UnitsLookWrong | TensorStatus::Saturated => t.status,
             _ => status,
         };
+        if let Some(fe) = self.trajectory.estimate() {
+            if principal || fe.biased {
+                return self.trajectory_ratios(&fe, status, principal);
+            }
+        }
         let informed = trust.has_information() && self.refined.noise_estimate().is_some();
         let (a_r, s_r) = (self.refined.block_estimate(), self.refined.std_a());
         // Hausman test of a constant gyro bias: without one, the refined identifier and its
@@ -409,6 +426,46 @@ impl<const N: usize> Pipeline<N> {
         }
     }
 
+    /// The trajectory fit's ratios judged afresh: the data-side verdicts (`status` from the
+    /// refined identifier and the tensor: too few samples, no excitation, units, clipping)
+    /// stay; then a bias that the tensor would rather explain by products of inertia is
+    /// ambiguous (`ModelMismatch`), a residual beyond `mismatch_ratio` times the configured
+    /// noise is `ModelMismatch`, and `Converged` needs every standard deviation within `eps`.
+    fn trajectory_ratios(
+        &self,
+        fe: &RatioFitEstimate,
+        status: TensorStatus,
+        principal: bool,
+    ) -> Ratios {
+        let var = fe.std_a.map(|x| x * x);
+        let noise = self.settings.refined.noise_std;
+        let status = match status {
+            TensorStatus::TooFewSamples
+            | TensorStatus::NoExcitation
+            | TensorStatus::UnitsLookWrong
+            | TensorStatus::Saturated => status,
+            _ if !physically_possible(fe.a, var) => TensorStatus::PhysicallyImpossible,
+            _ if !principal => TensorStatus::ModelMismatch,
+            _ if fe.noise.is_nan() || fe.noise > self.settings.tensor.mismatch_ratio * noise => {
+                TensorStatus::ModelMismatch
+            }
+            _ if precise(var, self.settings.refined.eps) => TensorStatus::Converged,
+            _ => TensorStatus::Converging,
+        };
+        Ratios {
+            a: Some(fe.a),
+            std_a: Some(fe.std_a),
+            status,
+            source: RatioSource::Trajectory,
+        }
+    }
+
+    /// The output-error fit fed the same samples (its pooled estimate covers the stretches
+    /// that have ended).
+    pub fn trajectory(&self) -> &FlightRatioFit {
+        &self.trajectory
+    }
+
     /// Ends the stretch being fed (a hand-chosen segment ends): the next fed sample starts new
     /// integrals in both estimators; what they learnt is kept. Samples still in the delay line
     /// are unaffected.
@@ -417,6 +474,7 @@ impl<const N: usize> Pipeline<N> {
             self.estimator.end_stretch();
             self.refined.restart();
             self.refined_bias.restart();
+            self.trajectory.close();
             self.feeding = false;
         }
     }
@@ -588,6 +646,8 @@ impl<const N: usize> Pipeline<N> {
                 self.estimator.end_stretch();
                 self.refined.restart();
                 self.refined_bias.restart();
+                // The free flight has ended: its trajectory is fitted now (once per flight).
+                self.trajectory.close();
                 self.feeding = false;
             }
             return Exit {
@@ -606,6 +666,7 @@ impl<const N: usize> Pipeline<N> {
         self.rotor_seen |= p.h.iter().any(|x| *x != 0.0);
         self.refined.step(p.omega, p.dt);
         self.refined_bias.step(p.omega, p.dt);
+        self.trajectory.step(p.omega, p.dt);
         Exit {
             sample: p,
             fed: Some(status),

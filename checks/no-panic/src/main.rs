@@ -23,7 +23,8 @@ use identifier_core::{
     SignChangeCorrection,
 };
 use identifier_core::{
-    FlightPipeline, FreeFlightGate, GateSettings, PipelineSettings, TensorEstimator, TensorSettings,
+    FlightPipeline, FreeFlightGate, GateSettings, PipelineSettings, RatioFit, TensorEstimator,
+    TensorSettings,
 };
 
 extern "C" {
@@ -212,8 +213,25 @@ fn exercise_tensor() {
         black_box(p.throws());
         black_box(p.in_free_flight());
         black_box(p.estimator().counters());
+        black_box(p.trajectory().estimate());
         black_box(&p);
     }
+    let mut rf = black_box(RatioFit::<64>::new(
+        black_box(34.9),
+        black_box(0.1),
+        black_box(2e-3),
+    ));
+    for _ in 0..black_box(1000usize) {
+        rf.step(black_box([1.0, -0.5, 0.25]), black_box(1e-3));
+    }
+    black_box(rf.close());
+    black_box(rf.estimate());
+    black_box(rf.last_outcome());
+    black_box(rf.open_samples());
+    if black_box(false) {
+        rf.reset();
+    }
+    black_box(&rf);
     if let Some(mut e) = TensorEstimator::new(black_box(TensorSettings::new())) {
         for _ in 0..black_box(1000usize) {
             black_box(e.step(
