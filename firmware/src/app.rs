@@ -705,6 +705,13 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
     /// One sample into the free-flight pipeline: the rotor's momentum from the
     /// [`RotorSpeedSource`]'s speed of this sample (zero without a rotor configured or a
     /// speed), the gate decides, the delay line commits.
+    /// Ends the free flight being fed, if any (a replayed log has ended): its trajectory is
+    /// fitted now, as at a catch, so the final report includes it. The host tool does the same
+    /// at the end of a log, which keeps the two bit for bit equal.
+    pub fn end_flight(&mut self) {
+        self.pipeline.end_stretch();
+    }
+
     fn feed_pipeline(&mut self, omega: [f32; 3], accel: [f32; 3], dt: f32) {
         let h = match (self.rotor_config, self.last_inputs.rotor_rad_s) {
             (Some(r), Some(speed)) => r.momentum(speed),

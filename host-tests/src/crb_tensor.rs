@@ -482,18 +482,47 @@ pub fn ratio_bound(
     let jn = [[mn[0], 0.0, 0.0], [0.0, mn[1], 0.0], [0.0, 0.0, mn[2]]];
     let ff = FreeFlight::free(jn, omega0, n, rate_hz);
     let cov3 = if products_known_zero {
-        let dirs = trace_free_directions()[..2].to_vec();
-        let traj = sensitivities(&ff, &dirs, false);
-        let cov = inverse_spd(&gram(&ff, &traj, 2, false))? * (sigma * sigma);
-        let c2 = SMatrix::<f64, 2, 2>::from_fn(|a, b| cov[(a, b)]);
-        let m = SMatrix::<f64, 3, 2>::new(1.0, 0.0, 0.0, 1.0, -1.0, -1.0);
-        m * c2 * m.transpose()
+        principal_moments_cov(&ff, sigma, false)?
     } else {
         let b = scale_free_bound(&ff, sigma, false)?;
         SMatrix::<f64, 3, 3>::from_fn(|a, c| b.cov_j[(a, c)])
     };
     let g = ratio_jacobian(mn);
     let cov_a = g * cov3 * g.transpose();
+    Some(RatioBound {
+        std_a: std::array::from_fn(|i| cov_a[(i, i)].max(0.0).sqrt()),
+        cov_a,
+    })
+}
+
+/// Covariance bound of the three trace-1 principal moments of a diagonal body (two free
+/// directions `diag(1,0,-1)`, `diag(0,1,-1)`, with `w(0)` and, if `bias`, a constant gyro bias).
+fn principal_moments_cov(ff: &FreeFlight, sigma: f64, bias: bool) -> Option<SMatrix<f64, 3, 3>> {
+    let dirs = trace_free_directions()[..2].to_vec();
+    let traj = sensitivities(ff, &dirs, false);
+    let cov = inverse_spd(&gram(ff, &traj, 2, bias))? * (sigma * sigma);
+    let c2 = SMatrix::<f64, 2, 2>::from_fn(|a, b| cov[(a, b)]);
+    let m = SMatrix::<f64, 3, 2>::new(1.0, 0.0, 0.0, 1.0, -1.0, -1.0);
+    Some(m * c2 * m.transpose())
+}
+
+/// (d) The ratios `a` of a torque-free diagonal body, principal axes known, with an unknown
+/// constant gyro bias `b` (`y_k = w(t_k) + b + n_k`): parameters `(p, w(0), b)`, two moments up
+/// to scale, eight in all. The bound of the model [`identifier_core::RatioFit`] uses when its
+/// test finds a bias.
+pub fn ratio_bound_with_bias(
+    moments: [f64; 3],
+    omega0: [f64; 3],
+    n: usize,
+    rate_hz: f64,
+    sigma: f64,
+) -> Option<RatioBound> {
+    let tr = moments[0] + moments[1] + moments[2];
+    let mn = moments.map(|v| v / tr);
+    let jn = [[mn[0], 0.0, 0.0], [0.0, mn[1], 0.0], [0.0, 0.0, mn[2]]];
+    let ff = FreeFlight::free(jn, omega0, n, rate_hz);
+    let g = ratio_jacobian(mn);
+    let cov_a = g * principal_moments_cov(&ff, sigma, true)? * g.transpose();
     Some(RatioBound {
         std_a: std::array::from_fn(|i| cov_a[(i, i)].max(0.0).sqrt()),
         cov_a,

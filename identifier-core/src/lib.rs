@@ -102,6 +102,7 @@ pub use identifier::Identifier;
 pub use inertia::{consistency, InertiaRatios};
 pub use pipeline::{
     Exit, FlightPipeline, Pending, Pipeline, PipelineSettings, RatioSource, Ratios,
+    TRAJECTORY_FIT_RATIO,
 };
 pub use refined::{Refined, RefinedSettings};
 pub use refined_bias::RefinedBias;

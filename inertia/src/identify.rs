@@ -382,6 +382,9 @@ pub fn identify(
             }
         }
         progress(n);
+        // The log ends: a free flight still open is fitted now (the trajectory fit runs at
+        // each stretch's end, as the firmware's does at the catch).
+        p.end_stretch();
         pooled_est = p.estimate();
         pooled_ratios = p.ratios_with(&pooled_est);
         pooled_inputs = p.fed_inputs();
@@ -406,6 +409,7 @@ pub fn identify(
                 let w = [w[0] - bias[0], w[1] - bias[1], w[2] - bias[2]];
                 e.step(w, [0.0; 3], h[i], dt_of(i));
             }
+            e.end_stretch();
             let (a, b) = (run[0], run[run.len() - 1]);
             let est = e.estimate();
             let mut j = EstimateJson::from(&est, &e.ratios_with(&est), rec.t[a], rec.t[b]);

@@ -257,6 +257,8 @@ fn main() -> ! {
         }
     }
 
+    // The log has ended: a flight still being fed ends with it.
+    app.end_flight();
     let r = app.report();
     firmware::app::log_report(&r);
     firmware::app::log_tensor(&r, true);

@@ -1,8 +1,8 @@
 //! What `inertia identify` reports for a gyro-only log, as a method of the ratio benchmark:
 //! the shared [`FlightPipeline`] without accelerometer (every sample is free flight), its
-//! recommended ratios ([`FlightPipeline::ratios`]: the refined identifier, or its
-//! bias-augmented twin when a constant gyro bias is detected, or the tensor when products of
-//! inertia are needed) with their standard deviations.
+//! recommended ratios ([`FlightPipeline::ratios`]: the trajectory fit once the record has
+//! ended and the model fits, else the refined identifier, its bias-augmented twin or the
+//! tensor) with their standard deviations.
 
 use super::{ekf::noise_from_data, Method};
 use identifier_core::{FlightPipeline, PipelineSettings, Ratios};
