@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Accuracy and cost of the on-board identifiers and their peers, one command:
-#   1. instructions per step of the paper identifier, the refined identifier and two f32 EKFs on
-#      the Cortex-M4F, release and flight (opt-level s, fat LTO) builds: bench-mcu under QEMU
-#      netduinoplus2 (STM32F405) with -icount -> docs/bench/instructions.csv
+#   1. instructions per step of the paper identifier, the refined identifier, two f32 EKFs, the
+#      tensor estimator, the flight pipeline and the ratio fit (and per close() of the ratio fit,
+#      the fit of one free flight, after its result was checked) on the Cortex-M4F, release and
+#      flight (opt-level s, fat LTO) builds: bench-mcu under QEMU netduinoplus2 (STM32F405) with
+#      -icount -> docs/bench/instructions.csv
 #   2. all methods on the same Monte Carlo seeds, Cramer-Rao bounds, host ns/sample, racquet
 #      spread -> stdout, BENCHMARKS.md, docs/bench/*.svg
 # Options are passed to bench-estimators: --quick (8 seeds, writes nothing), --seeds N,

@@ -1,7 +1,7 @@
 //! Pieces of the Cortex-M4F instruction-count benchmark that are plain `no_std` code: an `f32`
-//! joint state and parameter EKF written the way the host peer is (dense 6x6 covariance), and a
-//! deterministic test signal (the paper's body from `omega0 = (1, 1, 1)` at 1 kHz with
-//! pseudo-random noise).
+//! joint state and parameter EKF written the way the host peer is (dense 6x6 covariance), and
+//! deterministic test signals (the paper's body from `omega0 = (1, 1, 1)` at 1 kHz, and a fast
+//! racquet-like toss at 100 Hz, both with pseudo-random noise).
 #![no_std]
 #![allow(clippy::needless_range_loop)]
 
@@ -180,30 +180,76 @@ impl Ekf32 {
     }
 }
 
-/// Deterministic test signal: the paper's body (`a = (0.9, 0.2597, -0.94)`) from
-/// `omega0 = (1, 1, 1)`, sampled every `dt` by RK4 in `f32`, plus uniform pseudo-random noise of
+/// `a` of (1) of the paper's body, moments `(0.6, 1.54, 1.0)`.
+pub const PAPER_A: [f32; 3] = [0.9, 0.259_740_26, -0.94];
+
+/// Principal moments of the racquet-like body of [`Signal::toss`].
+pub const RACQUET_MOMENTS: [f32; 3] = [12.3, 1.0, 13.3];
+
+/// `a` of (1) for principal moments `m`: `a1 = (m2 - m3)/m1` and cyclic.
+pub fn ratios(m: [f32; 3]) -> [f32; 3] {
+    [
+        (m[1] - m[2]) / m[0],
+        (m[2] - m[0]) / m[1],
+        (m[0] - m[1]) / m[2],
+    ]
+}
+
+/// Deterministic test signal: a body with ratios `a` from `omega0`, integrated in `f32` with
+/// classical RK4 (`substeps` steps per sample period `dt`), plus uniform pseudo-random noise of
 /// standard deviation `sigma` (a linear congruential generator).
 pub struct Signal {
+    a: [f32; 3],
     w: [f32; 3],
     dt: f32,
+    substeps: u32,
     sigma: f32,
     seed: u32,
 }
 
 impl Signal {
-    /// The signal at 1 kHz with `sigma = 2e-3 rad/s`.
+    /// The paper's body (`a = (0.9, 0.2597, -0.94)`) from `omega0 = (1, 1, 1)` at 1 kHz with
+    /// `sigma = 2e-3 rad/s`; one RK4 step per sample (the motion is slow against 1 kHz).
     pub fn paper() -> Self {
         Signal {
+            a: PAPER_A,
             w: [1.0, 1.0, 1.0],
             dt: 1e-3,
+            substeps: 1,
             sigma: 2e-3,
             seed: 12345,
         }
     }
 
+    /// A short fast toss of a racquet-like body, moments `(12.3, 1.0, 13.3)` (about the
+    /// unstable intermediate axis: it flips), from `omega0 = (7.9, -1.8, 0.5)` rad/s at 100 Hz
+    /// with `sigma = 1e-2 rad/s`. Ten RK4 steps per sample: at about 8 rad/s one 10 ms step
+    /// would leave a truncation error per sample of the order of the `f32` rounding of the
+    /// rates; with 1 ms steps it is far below it.
+    pub fn toss() -> Self {
+        Signal {
+            a: ratios(RACQUET_MOMENTS),
+            w: [7.9, -1.8, 0.5],
+            dt: 1e-2,
+            substeps: 10,
+            sigma: 1e-2,
+            seed: 54321,
+        }
+    }
+
+    /// `a` of the body.
+    pub fn a(&self) -> [f32; 3] {
+        self.a
+    }
+
     /// Sample period.
     pub fn dt(&self) -> f32 {
         self.dt
+    }
+
+    /// White noise per sample and axis, rad/s.
+    pub fn sigma(&self) -> f32 {
+        self.sigma
     }
 
     fn uniform(&mut self) -> f32 {
@@ -216,24 +262,28 @@ impl Signal {
 
     /// The next noisy sample.
     pub fn next_sample(&mut self) -> [f32; 3] {
-        const A: [f32; 3] = [0.9, 0.259_740_26, -0.94];
-        let f = |w: [f32; 3]| [A[0] * w[1] * w[2], A[1] * w[2] * w[0], A[2] * w[0] * w[1]];
-        let h = self.dt;
+        let a = self.a;
+        let f = |w: [f32; 3]| [a[0] * w[1] * w[2], a[1] * w[2] * w[0], a[2] * w[0] * w[1]];
+        // `dt / 1` is `dt` exactly: the paper's signal is the same bits as with one step.
+        let h = self.dt / self.substeps as f32;
         let w = self.w;
-        let k1 = f(w);
-        let k2 = f([
-            w[0] + 0.5 * h * k1[0],
-            w[1] + 0.5 * h * k1[1],
-            w[2] + 0.5 * h * k1[2],
-        ]);
-        let k3 = f([
-            w[0] + 0.5 * h * k2[0],
-            w[1] + 0.5 * h * k2[1],
-            w[2] + 0.5 * h * k2[2],
-        ]);
-        let k4 = f([w[0] + h * k3[0], w[1] + h * k3[1], w[2] + h * k3[2]]);
-        for i in 0..3 {
-            self.w[i] = w[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        for _ in 0..self.substeps {
+            let x = self.w;
+            let k1 = f(x);
+            let k2 = f([
+                x[0] + 0.5 * h * k1[0],
+                x[1] + 0.5 * h * k1[1],
+                x[2] + 0.5 * h * k1[2],
+            ]);
+            let k3 = f([
+                x[0] + 0.5 * h * k2[0],
+                x[1] + 0.5 * h * k2[1],
+                x[2] + 0.5 * h * k2[2],
+            ]);
+            let k4 = f([x[0] + h * k3[0], x[1] + h * k3[1], x[2] + h * k3[2]]);
+            for i in 0..3 {
+                self.w[i] = x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            }
         }
         // Uniform on [-0.5, 0.5) has std 1/sqrt(12).
         let s = self.sigma * 3.464_101_6;

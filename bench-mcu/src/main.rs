@@ -3,15 +3,24 @@
 //! of the model; the tick-to-instruction factor is calibrated on a block of a known number of
 //! `nop`s, and the cost of reading SysTick is subtracted. Each method runs `N` steps on the
 //! same test signal (samples generated before timing each step).
+//!
+//! SysTick is 24 bits at the model's 168 MHz core clock: it wraps every 2^24 ticks, about 1e8
+//! instructions. A step is far shorter and needs no more than the masked difference. A whole
+//! `RatioFit::close` (one Gauss-Newton fit of a free flight) can be longer, so those calls are
+//! timed with `measure_long`, which counts the wraps in the SysTick exception; its wrap
+//! counting is checked against the short clock on a loop of nops that spans about 2.5 wraps.
 #![no_std]
 #![no_main]
 
+use core::sync::atomic::{AtomicU32, Ordering};
+
 use bench_mcu::{Ekf32, Ekf32Sparse, Signal};
-use cortex_m::peripheral::{syst::SystClkSource, Peripherals, SYST};
-use cortex_m_rt::entry;
+use cortex_m::peripheral::{syst::SystClkSource, Peripherals, SCB, SYST};
+use cortex_m_rt::{entry, exception};
 use identifier_core::{
-    FlightPipeline, FreeFlightGate, GateSettings, Identifier, PipelineSettings, Refined,
-    RefinedSettings, Settings, TensorEstimator, TensorSettings,
+    FlightPipeline, FlightRatioFit, FreeFlightGate, GateSettings, Identifier, PipelineSettings,
+    RatioFitEstimate, Refined, RefinedSettings, Settings, StretchOutcome, TensorEstimator,
+    TensorSettings,
 };
 use semihosting::println;
 
@@ -38,6 +47,14 @@ fn nops_1000() {
             ".endr",
             options(nomem, nostack, preserves_flags)
         );
+    }
+}
+
+/// `n` blocks of 1000 nops: the check of `measure_long` against the short clock.
+#[inline(never)]
+fn nop_blocks(n: u32) {
+    for _ in 0..n {
+        nops_1000();
     }
 }
 
@@ -82,15 +99,111 @@ fn once<F: FnOnce()>(f: F) -> u32 {
     elapsed(t0, t1)
 }
 
+/// SysTick wraps seen by its exception while `measure_long` has the exception enabled.
+static WRAPS: AtomicU32 = AtomicU32::new(0);
+
+#[exception]
+fn SysTick() {
+    WRAPS.fetch_add(1, Ordering::Relaxed);
+}
+
+/// Ticks since the last reset of `WRAPS`, `2^24` per wrap: valid while the SysTick exception
+/// is enabled.
+#[inline(always)]
+fn now_long() -> u64 {
+    // With interrupts masked the handler cannot run between the two reads, so a wrap that
+    // happened in between shows only as the pending bit. The reads are a few instructions
+    // apart: a count read after that wrap is near the reload value, one read before it near
+    // zero, which tells whether the count already includes the wrap.
+    cortex_m::interrupt::free(|_| {
+        let wraps = WRAPS.load(Ordering::Relaxed);
+        let cur = SYST::get_current();
+        let unseen = SCB::is_pendst_pending() && cur > 0x0080_0000;
+        let wraps = u64::from(wraps) + u64::from(unseen);
+        (wraps << 24) + u64::from(0x00FF_FFFF - cur)
+    })
+}
+
+/// Ticks of one call of `f`, however long (up to `2^56` ticks), and its result. The SysTick
+/// exception is on only here, so that the short measurements never count its handler; here
+/// it costs a few tens of instructions per `2^24` ticks (about 1e8 instructions).
+fn measure_long<R, F: FnOnce() -> R>(syst: &mut SYST, f: F) -> (u64, R) {
+    WRAPS.store(0, Ordering::Relaxed);
+    syst.enable_interrupt();
+    let t0 = now_long();
+    let r = f();
+    let t1 = now_long();
+    syst.disable_interrupt();
+    (t1.saturating_sub(t0), r)
+}
+
+/// `measure_worst` of `FlightRatioFit::step` on a fresh fit set up as `FlightPipeline` sets it
+/// up at 1 kHz. Not inlined: with the 7 KiB fit in `main`'s frame, the other measurements'
+/// locals would move beyond the reach of short load offsets and their counts would change.
+#[inline(never)]
+fn ratio_fit_steps() -> (f32, u32) {
+    let rs = RefinedSettings::for_rate(1000.0, 2e-3);
+    let mut fit = FlightRatioFit::new(rs.full_scale, rs.max_dt, rs.noise_std);
+    measure_worst(|w, dt| {
+        core::hint::black_box(&mut fit).step(core::hint::black_box(w), dt);
+    })
+}
+
+/// A free flight of `samples` samples of `sig` in a fresh `FlightRatioFit` set up as
+/// `FlightPipeline` sets it up for the signal's rate and noise (untimed), then one timed
+/// `close()`: its ticks, the outcome and the estimate. Not inlined, for the same reason as
+/// `ratio_fit_steps`.
+#[inline(never)]
+fn flight_close(
+    syst: &mut SYST,
+    mut sig: Signal,
+    samples: u32,
+) -> (u64, StretchOutcome, Option<RatioFitEstimate>) {
+    let rs = RefinedSettings::for_rate(1.0 / sig.dt(), sig.sigma());
+    let mut fit = FlightRatioFit::new(rs.full_scale, rs.max_dt, rs.noise_std);
+    let dt = sig.dt();
+    for _ in 0..samples {
+        fit.step(sig.next_sample(), dt);
+    }
+    let (ticks, outcome) = measure_long(syst, || core::hint::black_box(&mut fit).close());
+    (ticks, outcome, fit.estimate())
+}
+
+/// Prints the check of a closed flight and stops the run (exit code `code`) unless the fit
+/// succeeded (`StretchOutcome::Fitted`) with every `a_i` within `tol` of the truth: no
+/// instruction count is reported for a fit that failed.
+fn check_fit(
+    name: &str,
+    outcome: StretchOutcome,
+    est: Option<RatioFitEstimate>,
+    truth: [f32; 3],
+    tol: f32,
+    code: i32,
+) {
+    let a = est.map_or([f32::NAN; 3], |e| e.a);
+    let sd = est.map_or([f32::NAN; 3], |e| e.std_a);
+    println!(
+        "# check {}: {:?}, a = ({:.5}, {:.5}, {:.5}), std ({:.1e}, {:.1e}, {:.1e}), truth ({:.5}, {:.5}, {:.5})",
+        name, outcome, a[0], a[1], a[2], sd[0], sd[1], sd[2], truth[0], truth[1], truth[2]
+    );
+    // False for a NaN too.
+    let near = (0..3).all(|i| (a[i] - truth[i]).abs() <= tol);
+    if outcome != StretchOutcome::Fitted || !near {
+        println!("# check {} FAILED (tolerance {:.0e} on a)", name, tol);
+        semihosting::process::exit(code);
+    }
+}
+
 #[entry]
 fn main() -> ! {
-    let Some(mut p) = Peripherals::take() else {
+    let Some(p) = Peripherals::take() else {
         semihosting::process::exit(2)
     };
-    p.SYST.set_clock_source(SystClkSource::Core);
-    p.SYST.set_reload(0x00FF_FFFF);
-    p.SYST.clear_current();
-    p.SYST.enable_counter();
+    let mut syst = p.SYST;
+    syst.set_clock_source(SystClkSource::Core);
+    syst.set_reload(0x00FF_FFFF);
+    syst.clear_current();
+    syst.enable_counter();
 
     // Calibration: ticks for 100 x 1000 nops, and the cost of an empty measurement.
     let t0 = now();
@@ -281,12 +394,74 @@ fn main() -> ! {
         m,
         "Cortex-M4F QEMU -icount; bench-mcu replica of the three per-axis outer-product sums of one tensor step (rows, 21+6+6+2 multiply-adds per axis)",
     );
+    // The output-error fit of the ratios (`FlightRatioFit = RatioFit<256>`, what the pipeline
+    // runs): per sample it adds to a block sum (and when the 256 blocks are full merges them
+    // pairwise: the worst call); once per free flight `close()` fits the whole trajectory.
+    worst(
+        "ratio-fit-step",
+        ratio_fit_steps(),
+        "Cortex-M4F QEMU -icount; FlightRatioFit::step (RatioFit<256>) at 1 kHz (4000 samples: four pairwise merges of the 256 blocks; the worst call is one)",
+    );
+    // The long clock: 250 000 x 1000 nops span about 2.5 SysTick wraps; the same loop over 100
+    // blocks, timed with the short clock, must take 2500 times fewer ticks. A wrap counted
+    // wrongly would move the ratio by some 40 %; the short clock's rounding by 1e-4.
+    let short = once(|| nop_blocks(core::hint::black_box(100)));
+    let (long, ()) = measure_long(&mut syst, || nop_blocks(core::hint::black_box(250_000)));
+    let ratio = long as f32 / (2500.0 * short as f32);
+    let (empty_long, ()) = measure_long(&mut syst, || {});
     println!(
-        "# sizes (bytes): TensorEstimator {}, FlightPipeline {}, Refined {}, Identifier {}",
+        "# long clock: {} ticks for 2500 x the {} ticks of the short clock (ratio {:.5}); empty measurement {} ticks",
+        long, short, ratio, empty_long
+    );
+    let agree = (ratio - 1.0).abs() < 1e-3;
+    if !agree {
+        println!("# long clock check FAILED");
+        semihosting::process::exit(10)
+    }
+    // Closes, each reported only after its fit was checked (tolerance on `a` about ten times
+    // the fit's own standard deviation); the time at 168 MHz assumes one instruction per
+    // cycle (flash wait states and FPU stalls would add).
+    let report_long = |name: &str, ticks: u64, how: &str| {
+        let instr = ticks.saturating_sub(empty_long) as f32 * per_tick;
+        println!("{},{:.0},{}", name, instr, how);
+        println!(
+            "# {}: about {:.1} ms at 168 MHz (estimate: 1 instruction per cycle)",
+            name,
+            instr / 168e3
+        );
+    };
+    let sig = Signal::paper();
+    let truth = sig.a();
+    let (ticks, outcome, fitted) = flight_close(&mut syst, sig, 20_000);
+    check_fit(
+        "ratio-fit-close-paper-20s",
+        outcome,
+        fitted,
+        truth,
+        2e-4,
+        11,
+    );
+    report_long(
+        "ratio-fit-close-paper-20s",
+        ticks,
+        "Cortex-M4F QEMU -icount; one FlightRatioFit::close() after 20 s of the paper's body at 1 kHz (noise 2e-3 rad/s; 158 blocks of up to 128 samples after seven pairwise merges)",
+    );
+    let sig = Signal::toss();
+    let truth = sig.a();
+    let (ticks, outcome, fitted) = flight_close(&mut syst, sig, 85);
+    check_fit("ratio-fit-close-toss-85", outcome, fitted, truth, 5e-3, 12);
+    report_long(
+        "ratio-fit-close-toss-85",
+        ticks,
+        "Cortex-M4F QEMU -icount; one FlightRatioFit::close() after a 0.85 s toss of a racquet-like body at 100 Hz (85 samples: 85 one-sample blocks; noise 1e-2 rad/s)",
+    );
+    println!(
+        "# sizes (bytes): TensorEstimator {}, FlightPipeline {}, Refined {}, Identifier {}, FlightRatioFit {}",
         core::mem::size_of::<TensorEstimator>(),
         core::mem::size_of::<FlightPipeline>(),
         core::mem::size_of::<Refined>(),
-        core::mem::size_of::<Identifier>()
+        core::mem::size_of::<Identifier>(),
+        core::mem::size_of::<FlightRatioFit>()
     );
     let ta = est.a.unwrap_or([f32::NAN; 3]);
     println!(
