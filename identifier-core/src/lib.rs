@@ -84,6 +84,7 @@ pub mod identifier;
 pub mod inertia;
 pub mod invariant;
 mod linalg;
+mod output_error;
 pub mod pipeline;
 pub mod refined;
 pub mod refined_bias;

@@ -81,62 +81,8 @@
     clippy::neg_cmp_op_on_partial_ord
 )]
 
-use crate::symmetric::{cholesky_inverse, cholesky_rel, cholesky_solve, sqrt, Sym};
-
-/// One block of samples: count, start time, sums of time since the block's start, of its
-/// square, and of the rates.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Block {
-    n: f32,
-    t0: f32,
-    st: f32,
-    stt: f32,
-    w: [f32; 3],
-}
-
-impl Block {
-    const EMPTY: Block = Block {
-        n: 0.0,
-        t0: 0.0,
-        st: 0.0,
-        stt: 0.0,
-        w: [0.0; 3],
-    };
-
-    /// Mean time of the block's samples.
-    fn mean_time(&self) -> f32 {
-        self.t0 + self.st / self.n
-    }
-
-    /// Variance of the block's sample times.
-    fn time_var(&self) -> f32 {
-        let m = self.st / self.n;
-        let v = self.stt / self.n - m * m;
-        if v > 0.0 {
-            v
-        } else {
-            0.0
-        }
-    }
-
-    /// Mean rate.
-    fn mean(&self) -> [f32; 3] {
-        let k = 1.0 / self.n;
-        [self.w[0] * k, self.w[1] * k, self.w[2] * k]
-    }
-
-    /// This block and the later `o` as one, sums referred to this block's start.
-    fn merge(&self, o: &Block) -> Block {
-        let d = o.t0 - self.t0;
-        Block {
-            n: self.n + o.n,
-            t0: self.t0,
-            st: self.st + o.st + o.n * d,
-            stt: self.stt + o.stt + 2.0 * d * o.st + o.n * d * d,
-            w: [self.w[0] + o.w[0], self.w[1] + o.w[1], self.w[2] + o.w[2]],
-        }
-    }
-}
+use crate::output_error::{bias_found, levenberg, scaled_inverse, Block, BlockBuffer, Pooled};
+use crate::symmetric::{sqrt, Sym};
 
 /// The pooled estimate of [`RatioFit`]: ratios, moments and their uncertainty.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -182,32 +128,12 @@ pub enum StretchOutcome {
 /// Output-error fit of (1) over free flights, `N` blocks per flight (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RatioFit<const N: usize> {
-    blocks: [Block; N],
-    len: usize,
-    /// Samples per block at the current merge level.
-    span: f32,
-    cur: Block,
-    /// Time since the stretch's first sample, compensated sum (`t + t_lo`).
-    t: f32,
-    t_lo: f32,
-    started: bool,
-    /// A time step that could not be used: the stretch takes no more samples.
-    frozen: bool,
-    samples: u32,
+    buf: BlockBuffer<N, 3>,
     full_scale: f32,
     max_dt: f32,
     noise_std: f32,
-    // Pooled over closed stretches.
-    info: Sym<2>,
-    /// `sum M_s (p_s - p_ref)`: referred to the first stretch's `p`, so that the pooled mean
-    /// of one stretch is its own `p` bit for bit (the information is large and nearly
-    /// singular; `M^-1 (M p)` in `f32` would lose digits).
-    info_p: [f32; 2],
-    p_ref: [f32; 2],
-    cost: f32,
-    dof: f32,
-    stretches: u32,
-    pooled_samples: u32,
+    /// The moments `(p1, p2)` pooled over closed stretches.
+    pooled: Pooled<2>,
     biased: bool,
     bias: [f32; 3],
     last: StretchOutcome,
@@ -327,7 +253,7 @@ const MAX_SUBSTEPS: u32 = 512;
 /// bias; P = 8: bias in `theta[5..8]`). `None` when the moments are not positive or anything
 /// is not finite.
 fn normal<const P: usize>(
-    blocks: &[Block],
+    blocks: &[Block<3>],
     limit: usize,
     theta: &[f32; P],
 ) -> Option<(f32, Sym<P>, [f32; P])> {
@@ -377,7 +303,7 @@ fn normal<const P: usize>(
         let fw = rhs(&a, &x.w);
         let j = jac(&a, &x.w);
         let half_v = 0.5 * b.time_var();
-        let y = b.mean();
+        let y = [b.mean(0), b.mean(1), b.mean(2)];
         for i in 0..3 {
             let w2 = j[i][0] * fw[0] + j[i][1] * fw[1] + j[i][2] * fw[2];
             let r = y[i] - x.w[i] - half_v * w2 - bias[i];
@@ -406,103 +332,8 @@ fn normal<const P: usize>(
     finite.then_some((cost, f, g))
 }
 
-/// `F^-1` via the Jacobi-scaled Cholesky factor (unscaled back).
-fn scaled_inverse<const P: usize>(f: &Sym<P>) -> Option<Sym<P>> {
-    let mut d = [0.0f32; P];
-    for i in 0..P {
-        if !(f[i][i] > 0.0) {
-            return None;
-        }
-        d[i] = 1.0 / sqrt(f[i][i]);
-    }
-    let mut m = *f;
-    for i in 0..P {
-        for j in 0..P {
-            m[i][j] *= d[i] * d[j];
-        }
-    }
-    let l = cholesky_rel(&m, 1e-6)?;
-    let mut inv = cholesky_inverse(&l);
-    for i in 0..P {
-        for j in 0..P {
-            inv[i][j] *= d[i] * d[j];
-        }
-    }
-    Some(inv)
-}
-
-/// Levenberg-Marquardt on the first `limit` blocks from `theta`, at most `iters` accepted or
-/// rejected steps. Returns the final parameters, cost and normal matrix.
-fn levenberg<const P: usize>(
-    blocks: &[Block],
-    limit: usize,
-    theta: [f32; P],
-    iters: u32,
-) -> Option<([f32; P], f32, Sym<P>)> {
-    let (mut cost, mut f, mut g) = normal(blocks, limit, &theta)?;
-    let mut theta = theta;
-    let mut mu = 1e-3f32;
-    for _ in 0..iters {
-        // Jacobi scaling: solve (D^-1 F D^-1 + mu I) z = D^-1 g, step = D^-1 z.
-        let mut d = [0.0f32; P];
-        for i in 0..P {
-            d[i] = if f[i][i] > 0.0 {
-                1.0 / sqrt(f[i][i])
-            } else {
-                0.0
-            };
-        }
-        let mut m = f;
-        let mut rhs_v = [0.0f32; P];
-        for i in 0..P {
-            for j in 0..P {
-                m[i][j] *= d[i] * d[j];
-            }
-            m[i][i] += mu;
-            rhs_v[i] = g[i] * d[i];
-        }
-        let Some(l) = cholesky_rel(&m, 1e-7) else {
-            mu *= 10.0;
-            if mu > 1e6 {
-                break;
-            }
-            continue;
-        };
-        let z = cholesky_solve(&l, &rhs_v);
-        let mut cand = theta;
-        let mut gain = 0.0f32;
-        for i in 0..P {
-            let step = z[i] * d[i];
-            cand[i] += step;
-            gain += step * g[i];
-        }
-        match normal(blocks, limit, &cand) {
-            Some((c2, f2, g2)) if c2 < cost => {
-                let dof = (3 * limit) as f32 - P as f32;
-                let noise = if dof > 0.0 { cost / dof } else { cost };
-                theta = cand;
-                cost = c2;
-                f = f2;
-                g = g2;
-                mu = if mu > 1e-6 { mu * 0.1 } else { 1e-7 };
-                // The step changed the log-likelihood by far less than one unit: done.
-                if gain < 1e-4 * noise {
-                    break;
-                }
-            }
-            _ => {
-                mu *= 10.0;
-                if mu > 1e6 {
-                    break;
-                }
-            }
-        }
-    }
-    Some((theta, cost, f))
-}
-
 /// Per-axis least squares of the integrated (1) on the block means: a start for the fit.
-fn initial_a(blocks: &[Block]) -> Option<[f32; 3]> {
+fn initial_a(blocks: &[Block<3>]) -> Option<[f32; 3]> {
     let nb = blocks.len() as f32;
     if nb < 3.0 {
         return None;
@@ -514,7 +345,7 @@ fn initial_a(blocks: &[Block]) -> Option<[f32; 3]> {
     let mut prev: Option<(f32, [f32; 3])> = None;
     let prod = |y: &[f32; 3]| [y[1] * y[2], y[2] * y[0], y[0] * y[1]];
     for b in blocks {
-        let (t, y) = (b.mean_time(), b.mean());
+        let (t, y) = (b.mean_time(), [b.mean(0), b.mean(1), b.mean(2)]);
         let p = prod(&y);
         if let Some((tp, pp)) = prev {
             for i in 0..3 {
@@ -535,7 +366,7 @@ fn initial_a(blocks: &[Block]) -> Option<[f32; 3]> {
     g = [0.0; 3];
     prev = None;
     for b in blocks {
-        let (t, y) = (b.mean_time(), b.mean());
+        let (t, y) = (b.mean_time(), [b.mean(0), b.mean(1), b.mean(2)]);
         let p = prod(&y);
         if let Some((tp, pp)) = prev {
             for i in 0..3 {
@@ -575,15 +406,21 @@ fn moments_of(a: [f32; 3]) -> [f32; 2] {
 
 /// Fits the stretch in `blocks`: the plain model on growing prefixes, then the bias model from
 /// its result. Returns the chosen fit (unit-noise covariance) and whether it has the bias.
-fn fit_stretch(blocks: &[Block], noise_floor: f32) -> Option<(Fit<P_MAX>, bool, usize)> {
+fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<(Fit<P_MAX>, bool, usize)> {
     let total = blocks.len();
-    let first = blocks.first()?.mean();
+    let first = blocks.first().map(|b| [b.mean(0), b.mean(1), b.mean(2)])?;
     let p0 = initial_a(blocks).map_or([1.0 / 3.0, 1.0 / 3.0], moments_of);
     let mut theta5 = [p0[0], p0[1], first[0], first[1], first[2]];
     let mut limit = if total < 16 { total } else { 16 };
     let (cost5, f5) = loop {
         let last = limit == total;
-        let (th, cost, f) = levenberg(blocks, limit, theta5, if last { 30 } else { 10 })?;
+        let dof = (3 * limit) as f32 - 5.0;
+        let (th, cost, f) = levenberg(
+            |th| normal(blocks, limit, th),
+            theta5,
+            if last { 30 } else { 10 },
+            dof,
+        )?;
         theta5 = th;
         if last {
             break (cost, f);
@@ -593,23 +430,11 @@ fn fit_stretch(blocks: &[Block], noise_floor: f32) -> Option<(Fit<P_MAX>, bool, 
     let cov5 = scaled_inverse(&f5)?;
     let mut theta8 = [0.0f32; P_MAX];
     theta8[..5].copy_from_slice(&theta5);
-    let with_bias = levenberg(blocks, total, theta8, 30)
-        .and_then(|(th, cost, f)| scaled_inverse(&f).map(|c| (th, cost, c)));
     let dof8 = (3 * total) as f32 - 8.0;
+    let with_bias = levenberg(|th| normal(blocks, total, th), theta8, 30, dof8)
+        .and_then(|(th, cost, f)| scaled_inverse(&f).map(|c| (th, cost, c)));
     if let Some((th8, cost8, cov8)) = with_bias {
-        // The test's noise is at least the configured gyro noise: on (nearly) noise-free data
-        // the rounding of the sums is not white, and no bias is worth a 3-parameter model.
-        let seen = cost8 / dof8;
-        let s2 = if seen > noise_floor * noise_floor {
-            seen
-        } else {
-            noise_floor * noise_floor
-        };
-        if dof8 > 0.0
-            && s2 > 0.0
-            && cost5 - cost8 > 16.27 * s2
-            && ratios_of(th8[0], th8[1]).is_some()
-        {
+        if bias_found(cost5, cost8, dof8, noise_floor) && ratios_of(th8[0], th8[1]).is_some() {
             return Some((
                 Fit {
                     theta: th8,
@@ -646,25 +471,11 @@ impl<const N: usize> RatioFit<N> {
     /// least 16 (fewer blocks are not enough to fit).
     pub const fn new(full_scale: f32, max_dt: f32, noise_std: f32) -> Self {
         RatioFit {
-            blocks: [Block::EMPTY; N],
-            len: 0,
-            span: 1.0,
-            cur: Block::EMPTY,
-            t: 0.0,
-            t_lo: 0.0,
-            started: false,
-            frozen: false,
-            samples: 0,
+            buf: BlockBuffer::EMPTY,
             full_scale,
             max_dt,
             noise_std,
-            info: [[0.0; 2]; 2],
-            info_p: [0.0; 2],
-            p_ref: [0.0; 2],
-            cost: 0.0,
-            dof: 0.0,
-            stretches: 0,
-            pooled_samples: 0,
+            pooled: Pooled::EMPTY,
             biased: false,
             bias: [0.0; 3],
             last: StretchOutcome::Empty,
@@ -674,138 +485,47 @@ impl<const N: usize> RatioFit<N> {
     /// Adds one sample of the open stretch: rate (rad/s) and the time since the previous
     /// sample (s; ignored for the stretch's first sample).
     pub fn step(&mut self, omega: [f32; 3], dt: f32) {
-        if self.frozen {
-            return;
-        }
-        if self.started {
-            if !(dt > 0.0 && dt <= self.max_dt) {
-                // NaN, zero, negative or a gap: the time of what follows is not known well
-                // enough for a trajectory.
-                self.frozen = true;
-                return;
-            }
-            // Compensated sum: 20 s of 1 kHz steps keep the time to a few ulp.
-            let y = dt - self.t_lo;
-            let s = self.t + y;
-            self.t_lo = (s - self.t) - y;
-            self.t = s;
-        }
-        self.started = true;
         let usable = omega
             .iter()
             .all(|w| w.is_finite() && w.abs() < self.full_scale);
-        if !usable {
-            return;
-        }
-        let c = &mut self.cur;
-        if c.n == 0.0 {
-            c.t0 = self.t;
-        }
-        let tb = self.t - c.t0;
-        c.n += 1.0;
-        c.st += tb;
-        c.stt += tb * tb;
-        for k in 0..3 {
-            c.w[k] += omega[k];
-        }
-        self.samples = self.samples.saturating_add(1);
-        if c.n >= self.span {
-            self.push();
-        }
-    }
-
-    /// Moves the current block into the buffer, merging neighbours when it is full.
-    fn push(&mut self) {
-        if self.cur.n == 0.0 {
-            return;
-        }
-        if self.len >= N {
-            let half = N / 2;
-            for i in 0..half {
-                let (a, b) = (
-                    self.blocks.get(2 * i).copied(),
-                    self.blocks.get(2 * i + 1).copied(),
-                );
-                if let (Some(a), Some(b), Some(dst)) = (a, b, self.blocks.get_mut(i)) {
-                    *dst = a.merge(&b);
-                }
-            }
-            self.len = half;
-            self.span *= 2.0;
-        }
-        if let Some(dst) = self.blocks.get_mut(self.len) {
-            *dst = self.cur;
-            self.len += 1;
-        }
-        self.cur = Block::EMPTY;
+        self.buf.add(&omega, usable, dt, self.max_dt);
     }
 
     /// Ends the open stretch: fits it (see the module docs), adds its information to the
     /// pooled estimate and starts a new stretch. What happened is returned and kept
     /// ([`RatioFit::last_outcome`]).
     pub fn close(&mut self) -> StretchOutcome {
-        self.push();
-        let outcome = self.fit_open();
-        self.len = 0;
-        self.span = 1.0;
-        self.cur = Block::EMPTY;
-        self.t = 0.0;
-        self.t_lo = 0.0;
-        self.started = false;
-        self.frozen = false;
-        self.samples = 0;
+        let samples = self.buf.samples();
+        let blocks = self.buf.finish();
+        let outcome = if blocks.is_empty() {
+            StretchOutcome::Empty
+        } else if blocks.len() < 8 {
+            StretchOutcome::TooShort
+        } else {
+            match fit_stretch(blocks, self.noise_std) {
+                Some((fit, biased, p)) => {
+                    let c = [
+                        [fit.cov[0][0], fit.cov[0][1]],
+                        [fit.cov[1][0], fit.cov[1][1]],
+                    ];
+                    let dof = (3 * blocks.len()) as f32 - p as f32;
+                    let th = [fit.theta[0], fit.theta[1]];
+                    if !self.pooled.add(&th, &c, fit.cost, dof, samples) {
+                        StretchOutcome::Failed
+                    } else if biased {
+                        self.biased = true;
+                        self.bias = [fit.theta[5], fit.theta[6], fit.theta[7]];
+                        StretchOutcome::FittedWithBias
+                    } else {
+                        StretchOutcome::Fitted
+                    }
+                }
+                None => StretchOutcome::Failed,
+            }
+        };
+        self.buf.clear();
         self.last = outcome;
         outcome
-    }
-
-    fn fit_open(&mut self) -> StretchOutcome {
-        let len = if self.len < N { self.len } else { N };
-        let Some(blocks) = self.blocks.get(..len) else {
-            return StretchOutcome::Failed;
-        };
-        if blocks.is_empty() {
-            return StretchOutcome::Empty;
-        }
-        if blocks.len() < 8 {
-            return StretchOutcome::TooShort;
-        }
-        let Some((fit, biased, p)) = fit_stretch(blocks, self.noise_std) else {
-            return StretchOutcome::Failed;
-        };
-        // Marginal information on (p1, p2): the inverse of the covariance's 2x2 block.
-        let c = [
-            [fit.cov[0][0], fit.cov[0][1]],
-            [fit.cov[1][0], fit.cov[1][1]],
-        ];
-        let det = c[0][0] * c[1][1] - c[0][1] * c[1][0];
-        if !(det > 0.0 && det.is_finite() && fit.cost.is_finite()) {
-            return StretchOutcome::Failed;
-        }
-        let m = [
-            [c[1][1] / det, -c[0][1] / det],
-            [-c[1][0] / det, c[0][0] / det],
-        ];
-        if self.stretches == 0 {
-            self.p_ref = [fit.theta[0], fit.theta[1]];
-        }
-        let th = [fit.theta[0] - self.p_ref[0], fit.theta[1] - self.p_ref[1]];
-        for i in 0..2 {
-            for j in 0..2 {
-                self.info[i][j] += m[i][j];
-            }
-            self.info_p[i] += m[i][0] * th[0] + m[i][1] * th[1];
-        }
-        self.cost += fit.cost;
-        self.dof += (3 * blocks.len()) as f32 - p as f32;
-        self.stretches = self.stretches.saturating_add(1);
-        self.pooled_samples = self.pooled_samples.saturating_add(self.samples);
-        if biased {
-            self.biased = true;
-            self.bias = [fit.theta[5], fit.theta[6], fit.theta[7]];
-            StretchOutcome::FittedWithBias
-        } else {
-            StretchOutcome::Fitted
-        }
     }
 
     /// What the last [`RatioFit::close`] did.
@@ -815,7 +535,7 @@ impl<const N: usize> RatioFit<N> {
 
     /// Samples in the open stretch (not yet fitted).
     pub fn open_samples(&self) -> u32 {
-        self.samples
+        self.buf.samples()
     }
 
     /// The pooled estimate of the closed stretches: `p = p_1 + (sum M_s)^-1 sum M_s (p_s - p_1)`
@@ -823,42 +543,26 @@ impl<const N: usize> RatioFit<N> {
     /// each stretch's marginal information, `cov(p) = sigma^2 (sum M_s)^-1`,
     /// `sigma^2 = sum cost_s / sum dof_s`. `None` before a stretch was fitted.
     pub fn estimate(&self) -> Option<RatioFitEstimate> {
-        if self.stretches == 0 || !(self.dof > 0.0) {
-            return None;
-        }
-        let m = &self.info;
-        let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
-        if !(det > 0.0 && det.is_finite()) {
-            return None;
-        }
-        let inv = [
-            [m[1][1] / det, -m[0][1] / det],
-            [-m[1][0] / det, m[0][0] / det],
-        ];
-        let p = [
-            self.p_ref[0] + (inv[0][0] * self.info_p[0] + inv[0][1] * self.info_p[1]),
-            self.p_ref[1] + (inv[1][0] * self.info_p[0] + inv[1][1] * self.info_p[1]),
-        ];
+        let (p, cov, noise) = self.pooled.mean()?;
         let (a, dadp) = ratios_of(p[0], p[1])?;
-        let s2 = self.cost / self.dof;
         let mut std_a = [0.0f32; 3];
         for i in 0..3 {
             let j = dadp[i];
-            let v = j[0] * (inv[0][0] * j[0] + inv[0][1] * j[1])
-                + j[1] * (inv[1][0] * j[0] + inv[1][1] * j[1]);
-            std_a[i] = sqrt(s2 * v);
+            let v = j[0] * (cov[0][0] * j[0] + cov[0][1] * j[1])
+                + j[1] * (cov[1][0] * j[0] + cov[1][1] * j[1]);
+            std_a[i] = sqrt(v);
         }
         // Moments: d(p1, p2, 1 - p1 - p2)/dp.
-        let v3 = inv[0][0] + inv[1][1] + inv[0][1] + inv[1][0];
-        let std_m = [sqrt(s2 * inv[0][0]), sqrt(s2 * inv[1][1]), sqrt(s2 * v3)];
+        let v3 = cov[0][0] + cov[1][1] + cov[0][1] + cov[1][0];
+        let std_m = [sqrt(cov[0][0]), sqrt(cov[1][1]), sqrt(v3)];
         Some(RatioFitEstimate {
             a,
             std_a,
             moments: [p[0], p[1], 1.0 - p[0] - p[1]],
             std_moments: std_m,
-            noise: sqrt(s2),
-            stretches: self.stretches,
-            samples: self.pooled_samples,
+            noise,
+            stretches: self.pooled.stretches,
+            samples: self.pooled.samples,
             biased: self.biased,
             bias: self.bias,
         })

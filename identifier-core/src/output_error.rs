@@ -1,0 +1,431 @@
+//! What the two output-error fits ([`crate::RatioFit`] and [`crate::TensorFit`]) share: the
+//! block buffer that turns a free flight of any length into at most `N` block means, and the
+//! Levenberg-Marquardt loop.
+//!
+//! # Block means
+//!
+//! Each block keeps its sample count `n`, the time of its first sample `t0`, the sums of the
+//! time since `t0` and of its square, and the sums of `K` channels (the rate, and the rotor
+//! momentum for the tensor). From them, the mean time `tbar = t0 + st/n`, the variance of the
+//! sample times `v = stt/n - (st/n)^2` and the channel means. A smooth signal's mean over a
+//! block's samples is, by Taylor expansion about the mean time,
+//!
+//! ```text
+//! mean_k x(t_k) = x(tbar) + v/2 x''(tbar) + O(dt^3 x''')                          (B1)
+//! ```
+//!
+//! When the `N` blocks are full, neighbours are merged (sums referred to the earlier block's
+//! `t0`) and the block length doubles, so any flight fits and blocks stay as short as the
+//! buffer allows.
+//!
+//! # Levenberg-Marquardt
+//!
+//! Given the weighted cost `C(theta) = sum_b n_b |r_b|^2` with its Gauss-Newton normal
+//! equations `F = sum_b n_b S_b^T S_b`, `g = sum_b n_b S_b^T r_b`, a step solves
+//! `(D^-1 F D^-1 + mu I) z = D^-1 g`, `delta = D^-1 z`, `D = sqrt(diag F)` (Jacobi scaling: the
+//! parameters differ by orders of magnitude), and is accepted when the cost falls (`mu / 10`),
+//! else refused (`mu * 10`). It stops when an accepted step gains less than `1e-4` of one unit
+//! of log-likelihood (`delta^T g < 1e-4 C / dof`).
+#![allow(
+    // Fixed-size loops over the parameters read as the equations; the crate's link-time
+    // no-panic check proves no bounds check survives.
+    clippy::indexing_slicing,
+    clippy::needless_range_loop,
+    // `!(x > 0.0)` is true for NaN too, which is the point.
+    clippy::neg_cmp_op_on_partial_ord
+)]
+
+use crate::symmetric::{cholesky_inverse, cholesky_rel, cholesky_solve, sqrt, Sym};
+
+/// One block of samples: count, start time, sums of time since the block's start, of its
+/// square, and of `K` channels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Block<const K: usize> {
+    pub(crate) n: f32,
+    pub(crate) t0: f32,
+    pub(crate) st: f32,
+    pub(crate) stt: f32,
+    pub(crate) y: [f32; K],
+}
+
+impl<const K: usize> Block<K> {
+    pub(crate) const EMPTY: Block<K> = Block {
+        n: 0.0,
+        t0: 0.0,
+        st: 0.0,
+        stt: 0.0,
+        y: [0.0; K],
+    };
+
+    /// Mean time of the block's samples.
+    pub(crate) fn mean_time(&self) -> f32 {
+        self.t0 + self.st / self.n
+    }
+
+    /// Variance of the block's sample times, `v` of (B1).
+    pub(crate) fn time_var(&self) -> f32 {
+        let m = self.st / self.n;
+        let v = self.stt / self.n - m * m;
+        if v > 0.0 {
+            v
+        } else {
+            0.0
+        }
+    }
+
+    /// Mean of channel `k`.
+    pub(crate) fn mean(&self, k: usize) -> f32 {
+        self.y[k] / self.n
+    }
+
+    /// This block and the later `o` as one, sums referred to this block's start.
+    fn merge(&self, o: &Block<K>) -> Block<K> {
+        let d = o.t0 - self.t0;
+        let mut y = self.y;
+        for k in 0..K {
+            y[k] += o.y[k];
+        }
+        Block {
+            n: self.n + o.n,
+            t0: self.t0,
+            st: self.st + o.st + o.n * d,
+            stt: self.stt + o.stt + 2.0 * d * o.st + o.n * d * d,
+            y,
+        }
+    }
+}
+
+/// At most `N` block means of `K` channels of one stretch (a free flight).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct BlockBuffer<const N: usize, const K: usize> {
+    blocks: [Block<K>; N],
+    len: usize,
+    /// Samples per block at the current merge level.
+    span: f32,
+    cur: Block<K>,
+    /// Time since the stretch's first sample, compensated sum (`t + t_lo`).
+    t: f32,
+    t_lo: f32,
+    started: bool,
+    /// A time step that could not be used: the stretch takes no more samples.
+    frozen: bool,
+    samples: u32,
+}
+
+impl<const N: usize, const K: usize> BlockBuffer<N, K> {
+    pub(crate) const EMPTY: Self = BlockBuffer {
+        blocks: [Block::EMPTY; N],
+        len: 0,
+        span: 1.0,
+        cur: Block::EMPTY,
+        t: 0.0,
+        t_lo: 0.0,
+        started: false,
+        frozen: false,
+        samples: 0,
+    };
+
+    /// Adds one sample: channels `y` (used only when `usable`) and the time since the previous
+    /// sample (ignored for the stretch's first). A time step that is not finite, not positive
+    /// or above `max_dt` freezes the stretch: the time of what follows is not known well
+    /// enough for a trajectory.
+    pub(crate) fn add(&mut self, y: &[f32; K], usable: bool, dt: f32, max_dt: f32) {
+        if self.frozen {
+            return;
+        }
+        if self.started {
+            if !(dt > 0.0 && dt <= max_dt) {
+                self.frozen = true;
+                return;
+            }
+            // Compensated sum: 20 s of 1 kHz steps keep the time to a few ulp.
+            let d = dt - self.t_lo;
+            let s = self.t + d;
+            self.t_lo = (s - self.t) - d;
+            self.t = s;
+        }
+        self.started = true;
+        if !usable {
+            return;
+        }
+        let c = &mut self.cur;
+        if c.n == 0.0 {
+            c.t0 = self.t;
+        }
+        let tb = self.t - c.t0;
+        c.n += 1.0;
+        c.st += tb;
+        c.stt += tb * tb;
+        for k in 0..K {
+            c.y[k] += y[k];
+        }
+        self.samples = self.samples.saturating_add(1);
+        if c.n >= self.span {
+            self.push();
+        }
+    }
+
+    /// Moves the current block into the buffer, merging neighbours when it is full.
+    fn push(&mut self) {
+        if self.cur.n == 0.0 {
+            return;
+        }
+        if self.len >= N {
+            let half = N / 2;
+            for i in 0..half {
+                let (a, b) = (
+                    self.blocks.get(2 * i).copied(),
+                    self.blocks.get(2 * i + 1).copied(),
+                );
+                if let (Some(a), Some(b), Some(dst)) = (a, b, self.blocks.get_mut(i)) {
+                    *dst = a.merge(&b);
+                }
+            }
+            self.len = half;
+            self.span *= 2.0;
+        }
+        if let Some(dst) = self.blocks.get_mut(self.len) {
+            *dst = self.cur;
+            self.len += 1;
+        }
+        self.cur = Block::EMPTY;
+    }
+
+    /// The stretch's blocks, the one being filled included.
+    pub(crate) fn finish(&mut self) -> &[Block<K>] {
+        self.push();
+        let len = if self.len < N { self.len } else { N };
+        self.blocks.get(..len).unwrap_or(&[])
+    }
+
+    /// Samples in the stretch.
+    pub(crate) fn samples(&self) -> u32 {
+        self.samples
+    }
+
+    /// Empties the buffer for the next stretch.
+    pub(crate) fn clear(&mut self) {
+        self.len = 0;
+        self.span = 1.0;
+        self.cur = Block::EMPTY;
+        self.t = 0.0;
+        self.t_lo = 0.0;
+        self.started = false;
+        self.frozen = false;
+        self.samples = 0;
+    }
+}
+
+/// `F^-1` via the Jacobi-scaled Cholesky factor (unscaled back); `None` when `F` is not
+/// numerically positive definite.
+pub(crate) fn scaled_inverse<const P: usize>(f: &Sym<P>) -> Option<Sym<P>> {
+    let mut d = [0.0f32; P];
+    for i in 0..P {
+        if !(f[i][i] > 0.0) {
+            return None;
+        }
+        d[i] = 1.0 / sqrt(f[i][i]);
+    }
+    let mut m = *f;
+    for i in 0..P {
+        for j in 0..P {
+            m[i][j] *= d[i] * d[j];
+        }
+    }
+    let l = cholesky_rel(&m, 1e-6)?;
+    let mut inv = cholesky_inverse(&l);
+    for i in 0..P {
+        for j in 0..P {
+            inv[i][j] *= d[i] * d[j];
+        }
+    }
+    Some(inv)
+}
+
+/// Cost and normal equations at a parameter vector (see the module docs).
+pub(crate) type Normal<const P: usize> = (f32, Sym<P>, [f32; P]);
+
+/// Levenberg-Marquardt from `theta` on the cost `normal` evaluates (`None` where the
+/// parameters are not admissible), at most `iters` steps; `dof` is the number of residuals
+/// minus `P`. Returns the final parameters, cost and normal matrix.
+pub(crate) fn levenberg<const P: usize>(
+    normal: impl Fn(&[f32; P]) -> Option<Normal<P>>,
+    theta: [f32; P],
+    iters: u32,
+    dof: f32,
+) -> Option<([f32; P], f32, Sym<P>)> {
+    let (mut cost, mut f, mut g) = normal(&theta)?;
+    let mut theta = theta;
+    let mut mu = 1e-3f32;
+    for _ in 0..iters {
+        let mut d = [0.0f32; P];
+        for i in 0..P {
+            d[i] = if f[i][i] > 0.0 {
+                1.0 / sqrt(f[i][i])
+            } else {
+                0.0
+            };
+        }
+        let mut m = f;
+        let mut rhs = [0.0f32; P];
+        for i in 0..P {
+            for j in 0..P {
+                m[i][j] *= d[i] * d[j];
+            }
+            m[i][i] += mu;
+            rhs[i] = g[i] * d[i];
+        }
+        let Some(l) = cholesky_rel(&m, 1e-7) else {
+            mu *= 10.0;
+            if mu > 1e6 {
+                break;
+            }
+            continue;
+        };
+        let z = cholesky_solve(&l, &rhs);
+        let mut step = [0.0f32; P];
+        for i in 0..P {
+            step[i] = z[i] * d[i];
+        }
+        // The Gauss-Newton model's predicted fall of the cost, `2 delta^T g - delta^T F delta`:
+        // below 1e-4 of one unit of log-likelihood there is nothing left to gain (and in `f32`
+        // the cost's own rounding would refuse the step anyway).
+        let mut pred = 0.0f32;
+        for i in 0..P {
+            let mut fs = 0.0f32;
+            for j in 0..P {
+                fs += f[i][j] * step[j];
+            }
+            pred += step[i] * (2.0 * g[i] - fs);
+        }
+        let per = if dof > 0.0 { cost / dof } else { cost };
+        if pred < 1e-4 * per {
+            break;
+        }
+        let mut cand = theta;
+        for i in 0..P {
+            cand[i] += step[i];
+        }
+        match normal(&cand) {
+            Some((c2, f2, g2)) if c2 < cost => {
+                theta = cand;
+                cost = c2;
+                f = f2;
+                g = g2;
+                mu = if mu > 1e-6 { mu * 0.1 } else { 1e-7 };
+            }
+            _ => {
+                mu *= 10.0;
+                if mu > 1e6 {
+                    break;
+                }
+            }
+        }
+    }
+    Some((theta, cost, f))
+}
+
+/// The likelihood-ratio test of a constant gyro bias (3 more parameters): true when
+/// `(cost_plain - cost_bias) / s2 > 16.27` (chi-square, 3 degrees of freedom, 0.1 %), with
+/// `s2` the bias model's residual variance per sample but never below `noise_floor^2` (on
+/// nearly noise-free data the rounding of the sums is not white, and no bias is worth a
+/// 3-parameter model).
+pub(crate) fn bias_found(cost_plain: f32, cost_bias: f32, dof_bias: f32, noise_floor: f32) -> bool {
+    if !(dof_bias > 0.0) {
+        return false;
+    }
+    let seen = cost_bias / dof_bias;
+    let floor = noise_floor * noise_floor;
+    let s2 = if seen > floor { seen } else { floor };
+    s2 > 0.0 && cost_plain - cost_bias > 16.27 * s2
+}
+
+/// Free flights pooled by information: each fitted stretch adds the information of its `M`
+/// parameters of interest with the others (initial rates, bias) marginalised,
+/// `M_s = ((F_s^-1)_mm)^-1`; the pooled mean is `p = p_1 + (sum M_s)^-1 sum M_s (p_s - p_1)`,
+/// referred to the first stretch's `p_1` (the information is large and nearly singular, and
+/// `M^-1 (M p)` in `f32` would lose digits), with `cov(p) = sigma^2 (sum M_s)^-1` and
+/// `sigma^2 = sum cost_s / sum dof_s`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Pooled<const M: usize> {
+    info: Sym<M>,
+    info_p: [f32; M],
+    p_ref: [f32; M],
+    cost: f32,
+    dof: f32,
+    pub(crate) stretches: u32,
+    pub(crate) samples: u32,
+}
+
+impl<const M: usize> Pooled<M> {
+    pub(crate) const EMPTY: Self = Pooled {
+        info: [[0.0; M]; M],
+        info_p: [0.0; M],
+        p_ref: [0.0; M],
+        cost: 0.0,
+        dof: 0.0,
+        stretches: 0,
+        samples: 0,
+    };
+
+    /// Adds one stretch: its parameters `p`, their unit-noise covariance block `cov_mm`, its
+    /// cost, degrees of freedom and samples. False (nothing added) when the block is not
+    /// invertible or anything is not finite.
+    pub(crate) fn add(
+        &mut self,
+        p: &[f32; M],
+        cov_mm: &Sym<M>,
+        cost: f32,
+        dof: f32,
+        samples: u32,
+    ) -> bool {
+        let Some(m) = scaled_inverse(cov_mm) else {
+            return false;
+        };
+        let finite = cost.is_finite() && dof > 0.0 && p.iter().all(|x| x.is_finite());
+        if !finite {
+            return false;
+        }
+        if self.stretches == 0 {
+            self.p_ref = *p;
+        }
+        let mut d = [0.0f32; M];
+        for i in 0..M {
+            d[i] = p[i] - self.p_ref[i];
+        }
+        for i in 0..M {
+            let mut s = 0.0;
+            for j in 0..M {
+                self.info[i][j] += m[i][j];
+                s += m[i][j] * d[j];
+            }
+            self.info_p[i] += s;
+        }
+        self.cost += cost;
+        self.dof += dof;
+        self.stretches = self.stretches.saturating_add(1);
+        self.samples = self.samples.saturating_add(samples);
+        true
+    }
+
+    /// The pooled mean, its covariance (actual units) and the residual noise `sigma`; `None`
+    /// before a stretch was added.
+    pub(crate) fn mean(&self) -> Option<([f32; M], Sym<M>, f32)> {
+        if self.stretches == 0 || !(self.dof > 0.0) {
+            return None;
+        }
+        let inv = scaled_inverse(&self.info)?;
+        let s2 = self.cost / self.dof;
+        let mut p = self.p_ref;
+        let mut cov = inv;
+        for i in 0..M {
+            let mut s = 0.0;
+            for j in 0..M {
+                s += inv[i][j] * self.info_p[j];
+                cov[i][j] = inv[i][j] * s2;
+            }
+            p[i] += s;
+        }
+        Some((p, cov, sqrt(s2)))
+    }
+}
