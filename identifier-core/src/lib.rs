@@ -92,6 +92,7 @@ pub mod settings;
 pub mod status;
 pub mod symmetric;
 pub mod tensor;
+pub mod tensor_fit;
 pub mod trajectory;
 
 pub use convergence::{Convergence, ConvergenceMonitor};
@@ -113,4 +114,5 @@ pub use status::{Exposure, Trust, Verdict};
 pub use tensor::{
     TensorCounters, TensorEstimate, TensorEstimator, TensorModel, TensorSettings, TensorStatus,
 };
+pub use tensor_fit::{FlightTensorFit, TensorFit, TensorFitEstimate};
 pub use trajectory::{FlightRatioFit, RatioFit, RatioFitEstimate, StretchOutcome};

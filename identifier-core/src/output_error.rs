@@ -299,7 +299,9 @@ pub(crate) fn levenberg<const P: usize>(
             pred += step[i] * (2.0 * g[i] - fs);
         }
         let per = if dof > 0.0 { cost / dof } else { cost };
-        if pred < 1e-4 * per {
+        // Only a (nearly) undamped step says the optimum is reached: a damped one is short
+        // because of the damping.
+        if pred < 1e-4 * per && mu <= 1e-2 {
             break;
         }
         let mut cand = theta;

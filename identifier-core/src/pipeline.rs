@@ -19,6 +19,7 @@ use crate::refined::{Refined, RefinedSettings};
 use crate::refined_bias::RefinedBias;
 use crate::status::{physically_possible, precise, SampleStatus, Trust};
 use crate::tensor::{TensorEstimate, TensorEstimator, TensorModel, TensorSettings, TensorStatus};
+use crate::tensor_fit::{FlightTensorFit, TensorFit};
 use crate::trajectory::{FlightRatioFit, RatioFit, RatioFitEstimate};
 
 /// Tuning of [`Pipeline`].
@@ -203,6 +204,8 @@ pub struct Pipeline<const N: usize> {
     refined_bias: RefinedBias,
     /// The output-error fit of (1), fed the same samples, fitted at each stretch's end.
     trajectory: FlightRatioFit,
+    /// The output-error fit of the tensor with the rotor momentum, likewise.
+    tensor_fit: FlightTensorFit,
     /// A non-zero rotor momentum reached the estimator.
     rotor_seen: bool,
     line: [Pending; N],
@@ -234,6 +237,8 @@ impl<const N: usize> Pipeline<N> {
         let rs = &settings.refined;
         let refined_bias = RefinedBias::new(rs.block, rs.max_dt, rs.full_scale, rs.noise_std)?;
         let trajectory = RatioFit::new(rs.full_scale, rs.max_dt, rs.noise_std);
+        let ts = &settings.tensor;
+        let tensor_fit = TensorFit::new(ts.full_scale, ts.max_dt, ts.noise_std);
         let rate = settings.rate_hz / settings.decimation as f32;
         let usable = rate.is_finite()
             && rate > 0.0
@@ -268,6 +273,7 @@ impl<const N: usize> Pipeline<N> {
             refined,
             refined_bias,
             trajectory,
+            tensor_fit,
             rotor_seen: false,
             line: [Pending {
                 index: 0,
@@ -297,8 +303,31 @@ impl<const N: usize> Pipeline<N> {
     }
 
     /// The estimate from every sample fed so far.
+    ///
+    /// With rotor momentum, once a free flight has ended and the output-error fit of the
+    /// tensor ([`TensorFit`]) fits to the noise (residual at most [`TRAJECTORY_FIT_RATIO`]
+    /// times the configured gyro noise), the tensor is that fit's (efficient for white gyro
+    /// noise), described and judged by the tensor estimator; otherwise the tensor
+    /// estimator's own.
     pub fn estimate(&self) -> TensorEstimate {
-        self.estimator.estimate()
+        let e = self.estimator.estimate();
+        if !self.rotor_seen {
+            return e;
+        }
+        let noise = self.settings.tensor.noise_std;
+        match self.tensor_fit.estimate() {
+            Some(f) if f.noise <= TRAJECTORY_FIT_RATIO * noise => {
+                let t = &f.tensor;
+                let j = [t[0][0], t[1][1], t[2][2], t[0][1], t[0][2], t[1][2]];
+                self.estimator.with_tensor(e, j, f.cov, f.noise / noise)
+            }
+            _ => e,
+        }
+    }
+
+    /// The tensor's output-error fit fed the same samples.
+    pub fn tensor_fit(&self) -> &FlightTensorFit {
+        &self.tensor_fit
     }
 
     /// The recommended ratios `a` with their standard deviations and status, from the samples
@@ -514,7 +543,20 @@ impl<const N: usize> Pipeline<N> {
             self.refined.restart();
             self.refined_bias.restart();
             self.trajectory.close();
+            self.close_tensor_fit();
             self.feeding = false;
+        }
+    }
+
+    /// Fits the stretch that ended with the tensor's output-error fit, from the tensor
+    /// estimator's estimate (with rotor momentum; without, the scale is not determined and the
+    /// stretch is dropped).
+    fn close_tensor_fit(&mut self) {
+        if self.rotor_seen {
+            let init = self.estimator.estimate().tensor;
+            self.tensor_fit.close(init);
+        } else {
+            self.tensor_fit.discard();
         }
     }
 
@@ -687,6 +729,7 @@ impl<const N: usize> Pipeline<N> {
                 self.refined_bias.restart();
                 // The free flight has ended: its trajectory is fitted now (once per flight).
                 self.trajectory.close();
+                self.close_tensor_fit();
                 self.feeding = false;
             }
             return Exit {
@@ -706,6 +749,7 @@ impl<const N: usize> Pipeline<N> {
         self.refined.step(p.omega, p.dt);
         self.refined_bias.step(p.omega, p.dt);
         self.trajectory.step(p.omega, p.dt);
+        self.tensor_fit.step(p.omega, p.h, p.dt);
         Exit {
             sample: p,
             fed: Some(status),

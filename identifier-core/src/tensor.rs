@@ -802,10 +802,11 @@ impl TensorEstimator {
         // the reported standard deviation up to 4x too small on simulated throws (measured with
         // `tensor-bench`); `sigma^2` brings it to 0.5-1.6x.
         let s2n = max(chosen.s2, sigma2);
-        let mut cov_n = scale(&chosen.cov, s2n);
+        let cov_n = scale(&chosen.cov, s2n);
 
         // Absolute, when the rotor momentum fixes the scale.
         let mut absolute: Option<([f32; 6], Sym<6>)> = None;
+        let mut s2 = chosen.s2;
         if let Some(abs) = solve_absolute(&lam, &nrm, model == TensorModel::Principal) {
             let tr = abs.j[0] + abs.j[1] + abs.j[2];
             let s2a = max(abs.s2, sigma2 * tr * tr);
@@ -814,31 +815,76 @@ impl TensorEstimator {
             let var_tr = quad(&cov, &t);
             if tr > 0.0 && var_tr < 0.01 * tr * tr {
                 absolute = Some((abs.j, cov));
-                // Normalised from the absolute: N = J / tr, dN = (I - N t^T) dJ / tr.
-                let nj = [
-                    abs.j[0] / tr,
-                    abs.j[1] / tr,
-                    abs.j[2] / tr,
-                    abs.j[3] / tr,
-                    abs.j[4] / tr,
-                    abs.j[5] / tr,
-                ];
-                let mut d = [[0.0f32; 6]; 6];
-                for (i, row) in d.iter_mut().enumerate() {
-                    for (k, e) in row.iter_mut().enumerate() {
-                        let id = if i == k { 1.0 } else { 0.0 };
-                        let tk = if k < 3 { 1.0 } else { 0.0 };
-                        *e = (id - nj.get(i).copied().unwrap_or(0.0) * tk) / tr;
-                    }
-                }
-                cov_n = congruence(&d, &cov);
-                chosen.j = nj;
-                chosen.s2 = abs.s2 / (tr * tr);
+                s2 = abs.s2 / (tr * tr);
             }
         }
         out.model = model;
-        out.residual_ratio = sqrt(chosen.s2 / floor);
-        let nmat = to_matrix(&chosen.j);
+        out.residual_ratio = sqrt(s2 / floor);
+        self.describe(out, chosen.j, cov_n, absolute)
+    }
+
+    /// `base` (this estimator's own estimate on the same samples) with the tensor replaced by
+    /// `j` (entries xx, yy, zz, xy, xz, yz in kg m^2) of covariance `cov`, from another fit of
+    /// the same samples (the output-error [`crate::TensorFit`]) whose residual is
+    /// `residual_ratio` times the gyro noise: the full model, described and judged as the
+    /// estimator's own. `base` is returned unchanged when it carries no information.
+    pub fn with_tensor(
+        &self,
+        base: TensorEstimate,
+        j: [f32; 6],
+        cov: Sym<6>,
+        residual_ratio: f32,
+    ) -> TensorEstimate {
+        if matches!(
+            base.status,
+            TensorStatus::TooFewSamples | TensorStatus::NoExcitation | TensorStatus::UnitsLookWrong
+        ) {
+            return base;
+        }
+        let mut out = base;
+        out.model = TensorModel::Full;
+        out.residual_ratio = residual_ratio;
+        out.tensor = None;
+        out.tensor_std = None;
+        self.describe(out, j, cov, Some((j, cov)))
+    }
+
+    /// The estimate's description from the normalised tensor `nj` (entries xx, yy, zz, xy,
+    /// xz, yz, trace 1) with its covariance, or from the absolute one when given (then the
+    /// normalised follows, `N = J / tr`, `dN = (I - N t^T) dJ / tr`): principal moments and
+    /// axes, `a` and their standard deviations, physical validity to three standard
+    /// deviations, and the status (`out` carries the model, residual ratio and excitation).
+    pub(crate) fn describe(
+        &self,
+        mut out: TensorEstimate,
+        nj: [f32; 6],
+        cov_n: Sym<6>,
+        absolute: Option<([f32; 6], Sym<6>)>,
+    ) -> TensorEstimate {
+        let mut chosen_j = nj;
+        let mut cov_n = cov_n;
+        if let Some((j, cov)) = absolute {
+            let tr = j[0] + j[1] + j[2];
+            let nj = [
+                j[0] / tr,
+                j[1] / tr,
+                j[2] / tr,
+                j[3] / tr,
+                j[4] / tr,
+                j[5] / tr,
+            ];
+            let mut d = [[0.0f32; 6]; 6];
+            for (i, row) in d.iter_mut().enumerate() {
+                for (k, e) in row.iter_mut().enumerate() {
+                    let id = if i == k { 1.0 } else { 0.0 };
+                    let tk = if k < 3 { 1.0 } else { 0.0 };
+                    *e = (id - nj.get(i).copied().unwrap_or(0.0) * tk) / tr;
+                }
+            }
+            cov_n = congruence(&d, &cov);
+            chosen_j = nj;
+        }
+        let nmat = to_matrix(&chosen_j);
         out.normalized = Some(nmat);
         out.normalized_std = Some(std_matrix(&cov_n));
         if let Some((j, cov)) = absolute {

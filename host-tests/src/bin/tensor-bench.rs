@@ -3,12 +3,16 @@
 //! `cargo run --release -p host-tests --bin tensor-bench -- [SEEDS] [off]` (`off`: the logged
 //! rotor speed and gyro not quantised).
 //!
-//! Two paths per seed: the estimator fed the true free flight (the estimator's own quality),
-//! and the whole log through the shared pipeline (gate, guards, bias) as the firmware runs it.
+//! Three paths per seed: the estimator fed the true free flight (the estimator's own quality),
+//! the whole log through the shared pipeline (gate, guards, bias) as the firmware runs it, and
+//! the output-error fit ([`TensorFit`]) of the true free flight started from the estimator's
+//! tensor.
 //! Prints per entry: RMS error / CRB, and RMS(error / reported std) (calibration).
 use host_tests::crb_tensor::{absolute_bound, FreeFlight};
 use host_tests::throw_sim::{board_throw_config, simulate};
-use identifier_core::{FlightPipeline, PipelineSettings, TensorEstimator, TensorSettings};
+use identifier_core::{
+    FlightPipeline, PipelineSettings, TensorEstimate, TensorEstimator, TensorFit, TensorSettings,
+};
 
 fn main() {
     let seeds: u64 = std::env::args()
@@ -20,10 +24,10 @@ fn main() {
     let quant = std::env::args().nth(2).unwrap_or_default();
     let names = ["Jxx", "Jyy", "Jzz", "Jxy", "Jxz", "Jyz"];
     let idx = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
-    let mut sq = [[0.0f64; 6]; 2];
+    let mut sq = [[0.0f64; 6]; 3];
     let mut crb = [0.0f64; 6];
-    let mut z2 = [[0.0f64; 6]; 2];
-    let mut n = [0usize; 2];
+    let mut z2 = [[0.0f64; 6]; 3];
+    let mut n = [0usize; 3];
     for seed in 1..=seeds {
         let mut cfg = board_throw_config(seed);
         if quant == "off" {
@@ -58,9 +62,47 @@ fn main() {
                 .unwrap_or(0)
         };
         let (t0, t1) = (trim("TRIM_START"), trim("TRIM_END"));
+        let mut fit = TensorFit::<256>::new(34.9, ts.max_dt, sigma as f32);
         for k in (range.start + t0)..(range.end.saturating_sub(t1)) {
             e.step(sim.gyro[k], h(k), sim.dt() as f32);
+            fit.step(sim.gyro[k], h(k), sim.dt() as f32);
         }
+        // The output-error fit of the same true flight, from the estimator's tensor.
+        let fitted = {
+            let base = e.estimate();
+            let outcome = fit.close(base.tensor);
+            if std::env::var_os("DEBUG_FIT").is_some() {
+                if let Some(f) = fit.estimate() {
+                    let z: Vec<String> = idx
+                        .iter()
+                        .enumerate()
+                        .map(|(q, &(r, c))| {
+                            let sd = f.cov[q][q].max(0.0).sqrt();
+                            format!(
+                                "{:+.1}",
+                                (f.tensor[r][c] as f64 - sim.config.inertia[r][c]) / sd as f64
+                            )
+                        })
+                        .collect();
+                    eprintln!(
+                        "seed {seed}: {outcome:?} noise/sigma {:.2} z {}",
+                        f.noise / sigma as f32,
+                        z.join(" ")
+                    );
+                }
+            }
+            match fit.estimate() {
+                Some(f) => {
+                    let t = &f.tensor;
+                    let j = [t[0][0], t[1][1], t[2][2], t[0][1], t[0][2], t[1][2]];
+                    e.with_tensor(base, j, f.cov, f.noise / sigma as f32)
+                }
+                None => TensorEstimate {
+                    tensor: None,
+                    ..base
+                },
+            }
+        };
         let mut ps = PipelineSettings::for_rate(rate, sigma as f32);
         if std::env::var_os("NO_BIAS").is_some() {
             // No still period is recognised: no gyro bias is subtracted.
@@ -80,7 +122,7 @@ fn main() {
         for k in 0..sim.t.len() {
             p.step(sim.gyro[k], sim.accel[k], h(k), sim.dt() as f32);
         }
-        for (path, est) in [e.estimate(), p.estimate()].iter().enumerate() {
+        for (path, est) in [e.estimate(), p.estimate(), fitted].iter().enumerate() {
             let (Some(t), Some(s)) = (est.tensor, est.tensor_std) else {
                 println!(
                     "seed {seed} path {path}: no absolute tensor ({:?})",
@@ -104,22 +146,37 @@ fn main() {
         seeds
     );
     println!(
-        "{:<5} {:>10} {:>12} {:>8} {:>8} {:>12} {:>8}",
-        "entry", "CRB", "true flight", "ratio", "calib", "pipeline", "calib"
+        "{:<5} {:>10} {:>12} {:>8} {:>8} {:>12} {:>8} {:>8} {:>12} {:>8} {:>8}",
+        "entry",
+        "CRB",
+        "true flight",
+        "ratio",
+        "calib",
+        "pipeline",
+        "ratio",
+        "calib",
+        "OE fit",
+        "ratio",
+        "calib"
     );
     for q in 0..6 {
         let c = (crb[q] / n[0].max(1) as f64).sqrt();
         let r0 = (sq[0][q] / n[0].max(1) as f64).sqrt();
         let r1 = (sq[1][q] / n[1].max(1) as f64).sqrt();
+        let r2 = (sq[2][q] / n[2].max(1) as f64).sqrt();
         println!(
-            "{:<5} {:>10.3e} {:>12.3e} {:>8.2} {:>8.2} {:>12.3e} {:>8.2}",
+            "{:<5} {:>10.3e} {:>12.3e} {:>8.2} {:>8.2} {:>12.3e} {:>8.2} {:>8.2} {:>12.3e} {:>8.2} {:>8.2}",
             names[q],
             c,
             r0,
             r0 / c,
             (z2[0][q] / n[0].max(1) as f64).sqrt(),
             r1,
-            (z2[1][q] / n[1].max(1) as f64).sqrt()
+            r1 / c,
+            (z2[1][q] / n[1].max(1) as f64).sqrt(),
+            r2,
+            r2 / c,
+            (z2[2][q] / n[2].max(1) as f64).sqrt()
         );
     }
 }

@@ -1,0 +1,746 @@
+//! Output-error maximum likelihood of the whole inertia tensor in kg m^2, with a known rotor
+//! momentum: the trajectory of Euler's equation fitted to block means of the gyro.
+//!
+//! # Why
+//!
+//! [`crate::TensorEstimator`] solves Euler's equation integrated per stretch by least squares:
+//! one pass, no iteration, cheap per sample, but the measured rates enter its regressors, so
+//! their noise is in both sides of the equations and the estimate is not efficient (1.5-2.2x
+//! the Cramer-Rao bound per entry on the simulated flywheel throw). The output-error fit is the
+//! efficient estimator for white gyro noise; like [`crate::RatioFit`] it only sums blocks per
+//! sample and fits once per free flight.
+//!
+//! # The model
+//!
+//! In the body (sensor) frame, with the rotor momentum `h(t)` known (rotor inertia times rotor
+//! speed along its axis) and `L = J w + h` the body's total angular momentum,
+//!
+//! ```text
+//! L' = L x w,   w = J^-1 (L - h(t))                                              (F1)
+//! y_k = w(t_k) + b + n_k,   n_k white, variance sigma^2 per axis                   (F2)
+//! ```
+//!
+//! which is `J w' + w x (J w + h) = -h'` (torque-free). `theta = (Jxx, Jyy, Jzz, Jxy, Jxz,
+//! Jyz, w(t_0), [b])`: with a rotor whose momentum changes or is not parallel to `w`, the scale
+//! of `J` is observable and `J` comes out in kg m^2.
+//!
+//! # Sensitivities
+//!
+//! With `E_c` the symmetric unit direction of entry `c` and `Sigma = dL/dtheta`,
+//!
+//! ```text
+//! dw/dtheta_c = J^-1 (Sigma_c - E_c w)      (E_c = 0 for the initial rates)
+//! Sigma_c'    = Sigma_c x w + L x dw/dtheta_c                                      (F3)
+//! Sigma_c(t_0) = E_c w(t_0) (entries of J),  J e_k (initial rate k)
+//! ```
+//!
+//! integrated with (F1) by RK4 between block means (steps of at most `0.05 / |w|` s), `h(t)`
+//! linear between block means. A block's mean rate is predicted by (B1) of the block buffer
+//! with `w'' = J^-1 ((L x w) x w + L x w')`, `w' = J^-1 (L x w - h')` (`h''` neglected). The
+//! bias model (`b`, three more parameters) replaces the plain one by the likelihood-ratio test;
+//! stretches are pooled by the information on the six entries (see `output_error`).
+//!
+//! The fit starts from an estimate of `J` the caller gives (the pipeline gives
+//! [`crate::TensorEstimator`]'s) and the first block's rate, on growing prefixes of the blocks.
+#![allow(
+    // Fixed-size loops over the 3 axes and the parameters read as the equations; the crate's
+    // link-time no-panic check proves no bounds check survives.
+    clippy::indexing_slicing,
+    clippy::needless_range_loop,
+    // `!(x > 0.0)` is true for NaN too, which is the point.
+    clippy::neg_cmp_op_on_partial_ord
+)]
+
+use crate::output_error::{
+    bias_found, levenberg, scaled_inverse, Block, BlockBuffer, Normal, Pooled,
+};
+use crate::symmetric::{sqrt, Sym};
+use crate::trajectory::StretchOutcome;
+
+type Mat3 = [[f32; 3]; 3];
+
+/// Parameters without the bias: six entries and the initial rate.
+const P0: usize = 9;
+/// With the bias.
+const P1: usize = 12;
+
+/// The pooled estimate of [`TensorFit`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TensorFitEstimate {
+    /// `J` in kg m^2, sensor frame.
+    pub tensor: [[f32; 3]; 3],
+    /// Covariance of the entries `(Jxx, Jyy, Jzz, Jxy, Jxz, Jyz)`, (kg m^2)^2.
+    pub cov: [[f32; 6]; 6],
+    /// Gyro noise per sample seen in the fits' residuals, rad/s.
+    pub noise: f32,
+    /// Stretches (free flights) that gave a fit.
+    pub stretches: u32,
+    /// Samples in them.
+    pub samples: u32,
+    /// True when a constant gyro bias was found on any stretch.
+    pub biased: bool,
+    /// The bias of the last stretch fitted with the bias model, rad/s.
+    pub bias: [f32; 3],
+}
+
+/// Output-error fit of (F1) over free flights, `N` blocks per flight (see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TensorFit<const N: usize> {
+    buf: BlockBuffer<N, 6>,
+    full_scale: f32,
+    max_dt: f32,
+    noise_std: f32,
+    pooled: Pooled<6>,
+    biased: bool,
+    bias: [f32; 3],
+    last: StretchOutcome,
+}
+
+/// The block buffer used by the pipeline: 256 blocks of rate and rotor momentum (9 KiB).
+pub type FlightTensorFit = TensorFit<256>;
+
+fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn mul(m: &Mat3, v: [f32; 3]) -> [f32; 3] {
+    [
+        m[0][0] * v[0] + m[0][1] * v[1] + m[0][2] * v[2],
+        m[1][0] * v[0] + m[1][1] * v[1] + m[1][2] * v[2],
+        m[2][0] * v[0] + m[2][1] * v[1] + m[2][2] * v[2],
+    ]
+}
+
+fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// `J` from its six entries.
+fn tensor_of(e: &[f32]) -> Mat3 {
+    let g = |i: usize| e.get(i).copied().unwrap_or(0.0);
+    [[g(0), g(3), g(4)], [g(3), g(1), g(5)], [g(4), g(5), g(2)]]
+}
+
+/// `J^-1` by the adjugate, `None` unless `J` is positive definite (leading minors).
+fn inverse_pd(j: &Mat3) -> Option<Mat3> {
+    let m1 = j[0][0];
+    let m2 = j[0][0] * j[1][1] - j[0][1] * j[1][0];
+    let c00 = j[1][1] * j[2][2] - j[1][2] * j[2][1];
+    let c01 = j[1][2] * j[2][0] - j[1][0] * j[2][2];
+    let c02 = j[1][0] * j[2][1] - j[1][1] * j[2][0];
+    let det = j[0][0] * c00 + j[0][1] * c01 + j[0][2] * c02;
+    if !(m1 > 0.0 && m2 > 0.0 && det > 0.0 && det.is_finite()) {
+        return None;
+    }
+    let k = 1.0 / det;
+    let inv = [
+        [
+            c00 * k,
+            (j[0][2] * j[2][1] - j[0][1] * j[2][2]) * k,
+            (j[0][1] * j[1][2] - j[0][2] * j[1][1]) * k,
+        ],
+        [
+            c01 * k,
+            (j[0][0] * j[2][2] - j[0][2] * j[2][0]) * k,
+            (j[0][2] * j[1][0] - j[0][0] * j[1][2]) * k,
+        ],
+        [
+            c02 * k,
+            (j[0][1] * j[2][0] - j[0][0] * j[2][1]) * k,
+            (j[0][0] * j[1][1] - j[0][1] * j[1][0]) * k,
+        ],
+    ];
+    inv.iter().flatten().all(|x| x.is_finite()).then_some(inv)
+}
+
+/// `E_c w` for the symmetric unit direction of entry `c` (xx, yy, zz, xy, xz, yz).
+fn e_times(c: usize, w: [f32; 3]) -> [f32; 3] {
+    match c {
+        0 => [w[0], 0.0, 0.0],
+        1 => [0.0, w[1], 0.0],
+        2 => [0.0, 0.0, w[2]],
+        3 => [w[1], w[0], 0.0],
+        4 => [w[2], 0.0, w[0]],
+        5 => [0.0, w[2], w[1]],
+        _ => [0.0; 3],
+    }
+}
+
+/// `L` and `Sigma = dL/dtheta` (columns: six entries, three initial rates).
+#[derive(Clone, Copy, Debug)]
+struct Aug {
+    l: [f32; 3],
+    s: [[f32; P0]; 3],
+}
+
+/// `dw/dtheta` (3 x 9) at `w`: `J^-1 (Sigma_c - E_c w)`.
+fn rate_sens(k: &Mat3, x: &Aug, w: [f32; 3]) -> [[f32; P0]; 3] {
+    let mut u = [[0.0f32; P0]; 3];
+    for c in 0..P0 {
+        let col = [x.s[0][c], x.s[1][c], x.s[2][c]];
+        let v = if c < 6 { sub(col, e_times(c, w)) } else { col };
+        let d = mul(k, v);
+        for i in 0..3 {
+            u[i][c] = d[i];
+        }
+    }
+    u
+}
+
+/// The right-hand side of (F1) and (F3) at rotor momentum `h`.
+fn deriv(k: &Mat3, h: [f32; 3], x: &Aug) -> Aug {
+    let w = mul(k, sub(x.l, h));
+    let u = rate_sens(k, x, w);
+    let mut s = [[0.0f32; P0]; 3];
+    for c in 0..P0 {
+        let col = [x.s[0][c], x.s[1][c], x.s[2][c]];
+        let uc = [u[0][c], u[1][c], u[2][c]];
+        let a = cross(col, w);
+        let b = cross(x.l, uc);
+        for i in 0..3 {
+            s[i][c] = a[i] + b[i];
+        }
+    }
+    Aug {
+        l: cross(x.l, w),
+        s,
+    }
+}
+
+fn axpy(x: &Aug, k: &Aug, h: f32) -> Aug {
+    let mut y = *x;
+    for i in 0..3 {
+        y.l[i] += h * k.l[i];
+        for c in 0..P0 {
+            y.s[i][c] += h * k.s[i][c];
+        }
+    }
+    y
+}
+
+/// The rotor momentum over one interval between block means, `tau` from its start:
+/// `h(tau) = h0 + tau s + tau (tau - span) c / 2` (through the two nodes, curvature `c`).
+#[derive(Clone, Copy, Debug)]
+struct RotorSegment {
+    h0: [f32; 3],
+    s: [f32; 3],
+    c: [f32; 3],
+    span: f32,
+}
+
+impl RotorSegment {
+    fn at(&self, tau: f32) -> [f32; 3] {
+        let q = 0.5 * tau * (tau - self.span);
+        [
+            self.h0[0] + tau * self.s[0] + q * self.c[0],
+            self.h0[1] + tau * self.s[1] + q * self.c[1],
+            self.h0[2] + tau * self.s[2] + q * self.c[2],
+        ]
+    }
+
+    /// `h'` at the segment's end.
+    fn rate_at_end(&self) -> [f32; 3] {
+        let m = 0.5 * self.span;
+        [
+            self.s[0] + m * self.c[0],
+            self.s[1] + m * self.c[1],
+            self.s[2] + m * self.c[2],
+        ]
+    }
+}
+
+/// One RK4 step of length `dt` from `tau` within the segment `seg`.
+fn rk4(k: &Mat3, seg: &RotorSegment, x: &Aug, tau: f32, dt: f32) -> Aug {
+    let k1 = deriv(k, seg.at(tau), x);
+    let k2 = deriv(k, seg.at(tau + 0.5 * dt), &axpy(x, &k1, 0.5 * dt));
+    let k3 = deriv(k, seg.at(tau + 0.5 * dt), &axpy(x, &k2, 0.5 * dt));
+    let k4 = deriv(k, seg.at(tau + dt), &axpy(x, &k3, dt));
+    let mut y = *x;
+    let d6 = dt / 6.0;
+    for i in 0..3 {
+        y.l[i] += d6 * (k1.l[i] + 2.0 * k2.l[i] + 2.0 * k3.l[i] + k4.l[i]);
+        for c in 0..P0 {
+            y.s[i][c] += d6 * (k1.s[i][c] + 2.0 * k2.s[i][c] + 2.0 * k3.s[i][c] + k4.s[i][c]);
+        }
+    }
+    y
+}
+
+/// `h''` at block `b` by the second difference of the block means with its neighbours (the
+/// nearest interior value at the ends; zero with fewer than three blocks).
+fn rotor_curvature(blocks: &[Block<6>], b: usize) -> [f32; 3] {
+    let n = blocks.len();
+    if n < 3 {
+        return [0.0; 3];
+    }
+    let m = if b == 0 {
+        1
+    } else if b + 1 >= n {
+        n - 2
+    } else {
+        b
+    };
+    let (Some(p), Some(c), Some(q)) = (blocks.get(m - 1), blocks.get(m), blocks.get(m + 1)) else {
+        return [0.0; 3];
+    };
+    let (tp, tc, tq) = (p.mean_time(), c.mean_time(), q.mean_time());
+    let (d1, d2) = (tc - tp, tq - tc);
+    if !(d1 > 0.0 && d2 > 0.0) {
+        return [0.0; 3];
+    }
+    let (hp, hc, hq) = (rotor_of(p), rotor_of(c), rotor_of(q));
+    let mut out = [0.0f32; 3];
+    for i in 0..3 {
+        out[i] = 2.0 * ((hq[i] - hc[i]) / d2 - (hc[i] - hp[i]) / d1) / (d1 + d2);
+    }
+    out
+}
+
+/// The rotor momentum at block `b`'s mean time: its block mean less `v/2 h''` by (B1).
+fn rotor_node(blocks: &[Block<6>], b: usize) -> ([f32; 3], [f32; 3]) {
+    let c = rotor_curvature(blocks, b);
+    let Some(blk) = blocks.get(b) else {
+        return ([0.0; 3], c);
+    };
+    let hv = 0.5 * blk.time_var();
+    let m = rotor_of(blk);
+    ([m[0] - hv * c[0], m[1] - hv * c[1], m[2] - hv * c[2]], c)
+}
+
+/// Most RK4 steps between two block means.
+const MAX_SUBSTEPS: u32 = 512;
+
+fn rate_of(b: &Block<6>) -> [f32; 3] {
+    [b.mean(0), b.mean(1), b.mean(2)]
+}
+
+fn rotor_of(b: &Block<6>) -> [f32; 3] {
+    [b.mean(3), b.mean(4), b.mean(5)]
+}
+
+/// Cost and normal equations of the first `limit` blocks at `theta` (P = 9, or 12 with the
+/// bias in `theta[9..12]`).
+fn normal<const P: usize>(
+    blocks: &[Block<6>],
+    limit: usize,
+    theta: &[f32; P],
+) -> Option<Normal<P>> {
+    let j = tensor_of(theta);
+    let k = inverse_pd(&j)?;
+    let first = blocks.first()?;
+    let w0 = [theta[6], theta[7], theta[8]];
+    let _ = first;
+    let (h_first, _) = rotor_node(blocks, 0);
+    let jw = mul(&j, w0);
+    let mut x = Aug {
+        l: [jw[0] + h_first[0], jw[1] + h_first[1], jw[2] + h_first[2]],
+        s: [[0.0; P0]; 3],
+    };
+    for c in 0..6 {
+        let e = e_times(c, w0);
+        for i in 0..3 {
+            x.s[i][c] = e[i];
+        }
+    }
+    for kk in 0..3 {
+        for i in 0..3 {
+            x.s[i][6 + kk] = j[i][kk];
+        }
+    }
+    let mut bias = [0.0f32; 3];
+    if P == P1 {
+        bias = [theta[9], theta[10], theta[11]];
+    }
+    let mut cost = 0.0f32;
+    let mut f = [[0.0f32; P]; P];
+    let mut g = [0.0f32; P];
+    // Node b-1: time, rotor momentum at the mean time, its curvature.
+    let mut prev: Option<(f32, [f32; 3], [f32; 3])> = None;
+    let mut hd = [0.0f32; 3];
+    for (idx, b) in blocks.iter().enumerate().take(limit) {
+        let t = b.mean_time();
+        let (h, c) = rotor_node(blocks, idx);
+        if let Some((tp, hp, cp)) = prev {
+            let span = t - tp;
+            if span > 0.0 {
+                let seg = RotorSegment {
+                    h0: hp,
+                    s: [
+                        (h[0] - hp[0]) / span,
+                        (h[1] - hp[1]) / span,
+                        (h[2] - hp[2]) / span,
+                    ],
+                    c: [
+                        0.5 * (c[0] + cp[0]),
+                        0.5 * (c[1] + cp[1]),
+                        0.5 * (c[2] + cp[2]),
+                    ],
+                    span,
+                };
+                hd = seg.rate_at_end();
+                let w = mul(&k, sub(x.l, hp));
+                let speed = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+                let want = span * speed * 20.0;
+                let steps = if !(want < MAX_SUBSTEPS as f32) {
+                    MAX_SUBSTEPS
+                } else if want < 1.0 {
+                    1
+                } else {
+                    want as u32 + 1
+                };
+                let dt = span / steps as f32;
+                let mut tau = 0.0f32;
+                for _ in 0..steps {
+                    x = rk4(&k, &seg, &x, tau, dt);
+                    tau += dt;
+                }
+            }
+        }
+        let hdd = c;
+        prev = Some((t, h, c));
+        let w = mul(&k, sub(x.l, h));
+        let u = rate_sens(&k, &x, w);
+        // (B1): the block mean of w is w(tbar) + v/2 w''(tbar), with
+        // w'' = J^-1 ((L x w) x w + L x w' - h'').
+        let lw = cross(x.l, w);
+        let w1 = mul(&k, sub(lw, hd));
+        let w2 = mul(&k, {
+            let a = cross(lw, w);
+            let c = cross(x.l, w1);
+            [
+                a[0] + c[0] - hdd[0],
+                a[1] + c[1] - hdd[1],
+                a[2] + c[2] - hdd[2],
+            ]
+        });
+        let half_v = 0.5 * b.time_var();
+        let y = rate_of(b);
+        for i in 0..3 {
+            let r = y[i] - w[i] - half_v * w2[i] - bias[i];
+            let mut row = [0.0f32; P];
+            row[..P0].copy_from_slice(&u[i]);
+            if P == P1 {
+                row[P0 + i] = 1.0;
+            }
+            let n = b.n;
+            cost += n * r * r;
+            for c in 0..P {
+                let nr = n * row[c];
+                g[c] += nr * r;
+                for d in c..P {
+                    f[c][d] += nr * row[d];
+                }
+            }
+        }
+    }
+    for c in 0..P {
+        for d in 0..c {
+            f[c][d] = f[d][c];
+        }
+    }
+    let finite = cost.is_finite() && f.iter().flatten().chain(g.iter()).all(|v| v.is_finite());
+    finite.then_some((cost, f, g))
+}
+
+/// One stretch's fit: entries, their unit-noise covariance block, cost, parameter count,
+/// and the bias if the bias model was chosen.
+struct StretchFit {
+    entries: [f32; 6],
+    cov: Sym<6>,
+    cost: f32,
+    params: usize,
+    bias: Option<[f32; 3]>,
+}
+
+fn fit_stretch(blocks: &[Block<6>], init: &Mat3, noise_floor: f32) -> Option<StretchFit> {
+    let total = blocks.len();
+    let w0 = rate_of(blocks.first()?);
+    let mut th = [
+        init[0][0], init[1][1], init[2][2], init[0][1], init[0][2], init[1][2], w0[0], w0[1], w0[2],
+    ];
+    let mut limit = if total < 16 { total } else { 16 };
+    let (cost0, f0) = loop {
+        let last = limit == total;
+        let dof = (3 * limit) as f32 - P0 as f32;
+        let (t, cost, f) = levenberg(
+            |p| normal(blocks, limit, p),
+            th,
+            if last { 30 } else { 10 },
+            dof,
+        )?;
+        th = t;
+        if last {
+            break (cost, f);
+        }
+        limit = if 2 * limit < total { 2 * limit } else { total };
+    };
+    let cov0 = scaled_inverse(&f0)?;
+    let block = |c: &[[f32; P1]; P1]| {
+        let mut m = [[0.0f32; 6]; 6];
+        for i in 0..6 {
+            m[i].copy_from_slice(&c[i][..6]);
+        }
+        m
+    };
+    let mut th1 = [0.0f32; P1];
+    th1[..P0].copy_from_slice(&th);
+    let dof1 = (3 * total) as f32 - P1 as f32;
+    if let Some((t1, cost1, f1)) = levenberg(|p| normal(blocks, total, p), th1, 30, dof1) {
+        if bias_found(cost0, cost1, dof1, noise_floor) {
+            if let Some(c1) = scaled_inverse(&f1) {
+                let mut e = [0.0f32; 6];
+                e.copy_from_slice(&t1[..6]);
+                return Some(StretchFit {
+                    entries: e,
+                    cov: block(&c1),
+                    cost: cost1,
+                    params: P1,
+                    bias: Some([t1[9], t1[10], t1[11]]),
+                });
+            }
+        }
+    }
+    let mut e = [0.0f32; 6];
+    e.copy_from_slice(&th[..6]);
+    let mut m = [[0.0f32; 6]; 6];
+    for i in 0..6 {
+        m[i].copy_from_slice(&cov0[i][..6]);
+    }
+    Some(StretchFit {
+        entries: e,
+        cov: m,
+        cost: cost0,
+        params: P0,
+        bias: None,
+    })
+}
+
+impl<const N: usize> TensorFit<N> {
+    /// An empty fit: samples at or beyond `full_scale` (rad/s) are skipped (their time kept);
+    /// a time step that is not finite, not positive or longer than `max_dt` ends what the
+    /// stretch takes; `noise_std` (rad/s per sample) is the least noise the bias test assumes.
+    /// `N` must be at least 16.
+    pub const fn new(full_scale: f32, max_dt: f32, noise_std: f32) -> Self {
+        TensorFit {
+            buf: BlockBuffer::EMPTY,
+            full_scale,
+            max_dt,
+            noise_std,
+            pooled: Pooled::EMPTY,
+            biased: false,
+            bias: [0.0; 3],
+            last: StretchOutcome::Empty,
+        }
+    }
+
+    /// Adds one sample of the open stretch: rate (rad/s), rotor momentum (kg m^2/s) and the
+    /// time since the previous sample (s).
+    pub fn step(&mut self, omega: [f32; 3], h: [f32; 3], dt: f32) {
+        let usable = omega
+            .iter()
+            .all(|w| w.is_finite() && w.abs() < self.full_scale)
+            && h.iter().all(|x| x.is_finite());
+        let y = [omega[0], omega[1], omega[2], h[0], h[1], h[2]];
+        self.buf.add(&y, usable, dt, self.max_dt);
+    }
+
+    /// Ends the open stretch: fits it from the tensor `init` (kg m^2; a positive definite
+    /// first guess, such as [`crate::TensorEstimator`]'s), pools it and starts a new stretch.
+    pub fn close(&mut self, init: Option<[[f32; 3]; 3]>) -> StretchOutcome {
+        let samples = self.buf.samples();
+        let blocks = self.buf.finish();
+        let outcome = if blocks.is_empty() {
+            StretchOutcome::Empty
+        } else if blocks.len() < 8 {
+            StretchOutcome::TooShort
+        } else {
+            match init.and_then(|j| fit_stretch(blocks, &j, self.noise_std)) {
+                Some(fit) => {
+                    let dof = (3 * blocks.len()) as f32 - fit.params as f32;
+                    if !self
+                        .pooled
+                        .add(&fit.entries, &fit.cov, fit.cost, dof, samples)
+                    {
+                        StretchOutcome::Failed
+                    } else if let Some(b) = fit.bias {
+                        self.biased = true;
+                        self.bias = b;
+                        StretchOutcome::FittedWithBias
+                    } else {
+                        StretchOutcome::Fitted
+                    }
+                }
+                None => StretchOutcome::Failed,
+            }
+        };
+        self.buf.clear();
+        self.last = outcome;
+        outcome
+    }
+
+    /// Drops the open stretch without fitting it (a flight without rotor momentum: the scale
+    /// of `J` is not determined).
+    pub fn discard(&mut self) {
+        self.buf.clear();
+    }
+
+    /// What the last [`TensorFit::close`] did.
+    pub fn last_outcome(&self) -> StretchOutcome {
+        self.last
+    }
+
+    /// Samples in the open stretch (not yet fitted).
+    pub fn open_samples(&self) -> u32 {
+        self.buf.samples()
+    }
+
+    /// The estimate pooled over the closed stretches (information-weighted, `output_error`),
+    /// `None` before one was fitted.
+    pub fn estimate(&self) -> Option<TensorFitEstimate> {
+        let (e, cov, noise) = self.pooled.mean()?;
+        Some(TensorFitEstimate {
+            tensor: tensor_of(&e),
+            cov,
+            noise,
+            stretches: self.pooled.stretches,
+            samples: self.pooled.samples,
+            biased: self.biased,
+            bias: self.bias,
+        })
+    }
+
+    /// Forgets everything: the open stretch and the pooled estimate.
+    pub fn reset(&mut self) {
+        *self = TensorFit::new(self.full_scale, self.max_dt, self.noise_std);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use std::vec::Vec;
+
+    /// A body with products of inertia and a flywheel on -z spinning up, f64 RK4 reference;
+    /// returns (rate, rotor momentum) per sample.
+    /// Rates, rotor momenta and the true tensor.
+    type Flight = (Vec<[f32; 3]>, Vec<[f32; 3]>, [[f64; 3]; 3]);
+
+    fn throw(rate: f64, secs: f64) -> Flight {
+        throw_with(
+            rate,
+            secs,
+            [
+                [2.1e-4, 1.2e-5, -0.8e-5],
+                [1.2e-5, 2.9e-4, 0.6e-5],
+                [-0.8e-5, 0.6e-5, 3.6e-4],
+            ],
+            [9.0, -6.0, 14.0],
+            |t| -1.7e-6 * (1500.0 + 1500.0 * t),
+        )
+    }
+
+    fn throw_with(
+        rate: f64,
+        secs: f64,
+        j: [[f64; 3]; 3],
+        w0: [f64; 3],
+        hz: impl Fn(f64) -> f64,
+    ) -> Flight {
+        let inv = {
+            // f64 adjugate for the reference.
+            let m = j;
+            let c00 = m[1][1] * m[2][2] - m[1][2] * m[2][1];
+            let c01 = m[1][2] * m[2][0] - m[1][0] * m[2][2];
+            let c02 = m[1][0] * m[2][1] - m[1][1] * m[2][0];
+            let det = m[0][0] * c00 + m[0][1] * c01 + m[0][2] * c02;
+            [
+                [
+                    c00 / det,
+                    (m[0][2] * m[2][1] - m[0][1] * m[2][2]) / det,
+                    (m[0][1] * m[1][2] - m[0][2] * m[1][1]) / det,
+                ],
+                [
+                    c01 / det,
+                    (m[0][0] * m[2][2] - m[0][2] * m[2][0]) / det,
+                    (m[0][2] * m[1][0] - m[0][0] * m[1][2]) / det,
+                ],
+                [
+                    c02 / det,
+                    (m[0][1] * m[2][0] - m[0][0] * m[2][1]) / det,
+                    (m[0][0] * m[1][1] - m[0][1] * m[1][0]) / det,
+                ],
+            ]
+        };
+        let mv = |m: &[[f64; 3]; 3], v: [f64; 3]| -> [f64; 3] {
+            core::array::from_fn(|i| m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2])
+        };
+        let cr = |a: [f64; 3], b: [f64; 3]| {
+            [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ]
+        };
+        let jw = mv(&j, w0);
+        let mut l = [jw[0], jw[1], jw[2] + hz(0.0)];
+        let f = |t: f64, l: [f64; 3]| {
+            let w = mv(&inv, [l[0], l[1], l[2] - hz(t)]);
+            cr(l, w)
+        };
+        let sub = 40;
+        let h = 1.0 / rate / sub as f64;
+        let (mut ws, mut hs) = (Vec::new(), Vec::new());
+        let mut t = 0.0;
+        for _ in 0..(rate * secs) as usize {
+            let w = mv(&inv, [l[0], l[1], l[2] - hz(t)]);
+            ws.push(w.map(|x| x as f32));
+            hs.push([0.0, 0.0, hz(t) as f32]);
+            for _ in 0..sub {
+                let k1 = f(t, l);
+                let k2 = f(
+                    t + h / 2.0,
+                    core::array::from_fn(|i| l[i] + h / 2.0 * k1[i]),
+                );
+                let k3 = f(
+                    t + h / 2.0,
+                    core::array::from_fn(|i| l[i] + h / 2.0 * k2[i]),
+                );
+                let k4 = f(t + h, core::array::from_fn(|i| l[i] + h * k3[i]));
+                for i in 0..3 {
+                    l[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+                }
+                t += h;
+            }
+        }
+        (ws, hs, j)
+    }
+
+    #[test]
+    fn noise_free_flywheel_throw_gives_the_tensor_in_kg_m2() {
+        for rate in [500.0, 2000.0, 4000.0] {
+            let (ws, hs, j) = throw(rate, 0.8);
+            let mut fit = TensorFit::<256>::new(f32::INFINITY, 0.1, 1e-3);
+            for (w, h) in ws.iter().zip(&hs) {
+                fit.step(*w, *h, (1.0 / rate) as f32);
+            }
+            // A first guess 10 % off, products zero.
+            let init = [[2.3e-4, 0.0, 0.0], [0.0, 2.6e-4, 0.0], [0.0, 0.0, 3.9e-4]];
+            let o = fit.close(Some(init));
+            let e = fit.estimate().unwrap();
+            std::println!("{rate} Hz: {o:?} noise {}", e.noise);
+            assert_eq!(o, StretchOutcome::Fitted, "{rate} Hz");
+            for r in 0..3 {
+                for c in 0..3 {
+                    let err = (e.tensor[r][c] as f64 - j[r][c]).abs();
+                    assert!(err < 2e-4 * 3.6e-4, "{rate} Hz: {:?} vs {j:?}", e.tensor);
+                }
+            }
+        }
+    }
+}
