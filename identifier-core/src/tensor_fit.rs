@@ -34,8 +34,10 @@
 //! Sigma_c(t_0) = E_c w(t_0) (entries of J),  J e_k (initial rate k)
 //! ```
 //!
-//! integrated with (F1) by RK4 between block means (steps of at most `0.05 / |w|` s), `h(t)`
-//! linear between block means. A block's mean rate is predicted by (B1) of the block buffer
+//! integrated with (F1) by RK4 between block means (steps of at most `0.05 / (|J^-1|_F |L|)`
+//! s: the rates turn at up to `|J^-1| |L|`, several times `|w|` when the moments differ), `h(t)`
+//! quadratic between block means (through the block means corrected by (B1), with their second
+//! differences as curvature). A block's mean rate is predicted by (B1) of the block buffer
 //! with `w'' = J^-1 ((L x w) x w + L x w')`, `w' = J^-1 (L x w - h')` (`h''` neglected). The
 //! bias model (`b`, three more parameters) replaces the plain one by the likelihood-ratio test;
 //! stretches are pooled by the information on the six entries (see `output_error`).
@@ -175,6 +177,9 @@ fn e_times(c: usize, w: [f32; 3]) -> [f32; 3] {
 #[derive(Clone, Copy, Debug)]
 struct Aug {
     l: [f32; 3],
+    /// Compensation of `l`'s running sum (Kahan): the increments are a few percent of `L`,
+    /// and `f32` rounding of `L` is amplified by `J^-1` in `w`.
+    lc: [f32; 3],
     s: [[f32; P0]; 3],
 }
 
@@ -208,6 +213,7 @@ fn deriv(k: &Mat3, h: [f32; 3], x: &Aug) -> Aug {
     }
     Aug {
         l: cross(x.l, w),
+        lc: [0.0; 3],
         s,
     }
 }
@@ -263,7 +269,10 @@ fn rk4(k: &Mat3, seg: &RotorSegment, x: &Aug, tau: f32, dt: f32) -> Aug {
     let mut y = *x;
     let d6 = dt / 6.0;
     for i in 0..3 {
-        y.l[i] += d6 * (k1.l[i] + 2.0 * k2.l[i] + 2.0 * k3.l[i] + k4.l[i]);
+        let inc = d6 * (k1.l[i] + 2.0 * k2.l[i] + 2.0 * k3.l[i] + k4.l[i]) - x.lc[i];
+        let sum = x.l[i] + inc;
+        y.lc[i] = (sum - x.l[i]) - inc;
+        y.l[i] = sum;
         for c in 0..P0 {
             y.s[i][c] += d6 * (k1.s[i][c] + 2.0 * k2.s[i][c] + 2.0 * k3.s[i][c] + k4.s[i][c]);
         }
@@ -339,6 +348,7 @@ fn normal<const P: usize>(
     let jw = mul(&j, w0);
     let mut x = Aug {
         l: [jw[0] + h_first[0], jw[1] + h_first[1], jw[2] + h_first[2]],
+        lc: [0.0; 3],
         s: [[0.0; P0]; 3],
     };
     for c in 0..6 {
@@ -352,6 +362,13 @@ fn normal<const P: usize>(
             x.s[i][6 + kk] = j[i][kk];
         }
     }
+    let mut k_norm = 0.0f32;
+    for row in &k {
+        for v in row {
+            k_norm += v * v;
+        }
+    }
+    let k_norm = sqrt(k_norm);
     let mut bias = [0.0f32; 3];
     if P == P1 {
         bias = [theta[9], theta[10], theta[11]];
@@ -383,8 +400,9 @@ fn normal<const P: usize>(
                     span,
                 };
                 hd = seg.rate_at_end();
-                let w = mul(&k, sub(x.l, hp));
-                let speed = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+                // The motion's fastest rate: |w'| <= |J^-1| |L| |w|, and the rates turn at
+                // up to |J^-1| |L| (faster than |w| when the moments differ several-fold).
+                let speed = k_norm * sqrt(x.l[0] * x.l[0] + x.l[1] * x.l[1] + x.l[2] * x.l[2]);
                 let want = span * speed * 20.0;
                 let steps = if !(want < MAX_SUBSTEPS as f32) {
                     MAX_SUBSTEPS
