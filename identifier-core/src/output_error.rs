@@ -131,11 +131,12 @@ impl<const N: usize, const K: usize> BlockBuffer<N, K> {
         samples: 0,
     };
 
-    /// Adds one sample: channels `y` (used only when `usable`) and the time since the previous
-    /// sample (ignored for the stretch's first). A time step that is not finite, not positive
-    /// or above `max_dt` freezes the stretch: the time of what follows is not known well
-    /// enough for a trajectory.
-    pub(crate) fn add(&mut self, y: &[f32; K], usable: bool, dt: f32, max_dt: f32) {
+    /// Adds one sample: channels `y` (used only when `usable`), the time since the previous
+    /// sample (ignored for the stretch's first) and `spread`, the variance of the times of the
+    /// readings averaged into it (0 for a single reading; it adds to the block's `v` of (B1)).
+    /// A time step that is not finite, not positive or above `max_dt` freezes the stretch: the
+    /// time of what follows is not known well enough for a trajectory.
+    pub(crate) fn add(&mut self, y: &[f32; K], usable: bool, dt: f32, max_dt: f32, spread: f32) {
         if self.frozen {
             return;
         }
@@ -162,7 +163,7 @@ impl<const N: usize, const K: usize> BlockBuffer<N, K> {
         let tb = self.t - c.t0;
         c.n += 1.0;
         c.st += tb;
-        c.stt += tb * tb;
+        c.stt += tb * tb + spread;
         for k in 0..K {
             c.dy[k] += y[k] - c.y0[k];
         }
@@ -247,6 +248,18 @@ pub(crate) fn scaled_inverse<const P: usize>(f: &Sym<P>) -> Option<Sym<P>> {
         }
     }
     Some(inv)
+}
+
+/// The variance of the times of `inputs` equally spaced readings spanning a step `dt` (their
+/// mean is one sample): `(m^2 - 1) / 12 (dt / m)^2`.
+pub(crate) fn mean_spread(dt: f32, inputs: u8) -> f32 {
+    let m = f32::from(inputs);
+    if m > 1.0 && dt.is_finite() {
+        let d = dt / m;
+        (m * m - 1.0) / 12.0 * d * d
+    } else {
+        0.0
+    }
 }
 
 /// Cost and normal equations at a parameter vector (see the module docs).

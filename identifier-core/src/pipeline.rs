@@ -748,8 +748,10 @@ impl<const N: usize> Pipeline<N> {
         self.rotor_seen |= p.h.iter().any(|x| *x != 0.0);
         self.refined.step(p.omega, p.dt);
         self.refined_bias.step(p.omega, p.dt);
-        self.trajectory.step(p.omega, p.dt);
-        self.tensor_fit.step(p.omega, p.h, p.dt);
+        // A decimated sample is the mean of `inputs` readings: their time spread is part of
+        // the block means' time variance in the output-error fits.
+        self.trajectory.step_mean(p.omega, p.dt, p.inputs);
+        self.tensor_fit.step_mean(p.omega, p.h, p.dt, p.inputs);
         Exit {
             sample: p,
             fed: Some(status),

@@ -54,7 +54,7 @@
 )]
 
 use crate::output_error::{
-    bias_found, levenberg, scaled_inverse, Block, BlockBuffer, Normal, Pooled,
+    bias_found, levenberg, mean_spread, scaled_inverse, Block, BlockBuffer, Normal, Pooled,
 };
 use crate::symmetric::{sqrt, Sym};
 use crate::trajectory::StretchOutcome;
@@ -559,12 +559,19 @@ impl<const N: usize> TensorFit<N> {
     /// Adds one sample of the open stretch: rate (rad/s), rotor momentum (kg m^2/s) and the
     /// time since the previous sample (s).
     pub fn step(&mut self, omega: [f32; 3], h: [f32; 3], dt: f32) {
+        self.step_mean(omega, h, dt, 1);
+    }
+
+    /// [`TensorFit::step`] for a sample that is the mean of `inputs` equally spaced readings
+    /// spanning `dt` (see [`crate::RatioFit::step_mean`]).
+    pub fn step_mean(&mut self, omega: [f32; 3], h: [f32; 3], dt: f32, inputs: u8) {
         let usable = omega
             .iter()
             .all(|w| w.is_finite() && w.abs() < self.full_scale)
             && h.iter().all(|x| x.is_finite());
         let y = [omega[0], omega[1], omega[2], h[0], h[1], h[2]];
-        self.buf.add(&y, usable, dt, self.max_dt);
+        self.buf
+            .add(&y, usable, dt, self.max_dt, mean_spread(dt, inputs));
     }
 
     /// Ends the open stretch: fits it from the tensor `init` (kg m^2; a positive definite

@@ -81,7 +81,9 @@
     clippy::neg_cmp_op_on_partial_ord
 )]
 
-use crate::output_error::{bias_found, levenberg, scaled_inverse, Block, BlockBuffer, Pooled};
+use crate::output_error::{
+    bias_found, levenberg, mean_spread, scaled_inverse, Block, BlockBuffer, Pooled,
+};
 use crate::symmetric::{sqrt, Sym};
 
 /// The pooled estimate of [`RatioFit`]: ratios, moments and their uncertainty.
@@ -485,10 +487,18 @@ impl<const N: usize> RatioFit<N> {
     /// Adds one sample of the open stretch: rate (rad/s) and the time since the previous
     /// sample (s; ignored for the stretch's first sample).
     pub fn step(&mut self, omega: [f32; 3], dt: f32) {
+        self.step_mean(omega, dt, 1);
+    }
+
+    /// [`RatioFit::step`] for a sample that is the mean of `inputs` equally spaced readings
+    /// spanning `dt` (a decimated gyro): their time spread, `(m^2 - 1)/12 (dt/m)^2`, enters
+    /// the block's time variance of (B1).
+    pub fn step_mean(&mut self, omega: [f32; 3], dt: f32, inputs: u8) {
         let usable = omega
             .iter()
             .all(|w| w.is_finite() && w.abs() < self.full_scale);
-        self.buf.add(&omega, usable, dt, self.max_dt);
+        self.buf
+            .add(&omega, usable, dt, self.max_dt, mean_spread(dt, inputs));
     }
 
     /// Ends the open stretch: fits it (see the module docs), adds its information to the

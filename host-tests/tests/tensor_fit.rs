@@ -1,0 +1,69 @@
+//! The pipeline's tensor with the flywheel, from the output-error fit (`TensorFit`), on
+//! simulated board throws fed without an accelerometer (no still stretch to learn a gyro bias
+//! from): with a constant gyro bias the fit's likelihood-ratio test takes the bias model and the
+//! tensor stays within its reported uncertainty; without one the plain model is kept.
+use host_tests::throw_sim::{board_throw_config, simulate};
+use identifier_core::{FlightPipeline, PipelineSettings, StretchOutcome, TensorStatus};
+
+const IDX: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
+
+/// RMS over seeds of (error / reported std) per entry, and how often the bias model was taken.
+fn run(bias: [f64; 3], seeds: u64) -> ([f64; 6], u32) {
+    let mut z2 = [0.0f64; 6];
+    let mut biased = 0;
+    for seed in 1..=seeds {
+        let mut cfg = board_throw_config(seed);
+        cfg.quantize_rotor_speed = false;
+        cfg.gyro.quantize = false;
+        cfg.gyro.bias = bias;
+        let sim = simulate(&cfg);
+        let range = sim.free_flight().expect("a free flight");
+        let rate = cfg.rate_hz as f32;
+        let sigma = cfg.gyro.noise_std as f32;
+        let settings = PipelineSettings::for_rate(rate, sigma).with_full_scale(34.9);
+        let mut p = FlightPipeline::new(settings, false).expect("valid settings");
+        let j_r = cfg.rotor.inertia as f32;
+        let axis = cfg.rotor.unit_axis().map(|x| x as f32);
+        for k in range {
+            let h = axis.map(|a| a * j_r * sim.rotor_rad_s[k]);
+            p.step(sim.gyro[k], [0.0; 3], h, sim.dt() as f32);
+        }
+        p.end_stretch();
+        let outcome = p.tensor_fit().last_outcome();
+        assert!(
+            matches!(
+                outcome,
+                StretchOutcome::Fitted | StretchOutcome::FittedWithBias
+            ),
+            "seed {seed}: {outcome:?}"
+        );
+        if outcome == StretchOutcome::FittedWithBias {
+            biased += 1;
+        }
+        let e = p.estimate();
+        assert_ne!(e.status, TensorStatus::ModelMismatch, "seed {seed}");
+        let (t, s) = (e.tensor.expect("absolute"), e.tensor_std.expect("std"));
+        for (q, &(r, c)) in IDX.iter().enumerate() {
+            let z = (t[r][c] as f64 - cfg.inertia[r][c]) / s[r][c] as f64;
+            z2[q] += z * z;
+        }
+    }
+    (z2.map(|x| (x / seeds as f64).sqrt()), biased)
+}
+
+#[test]
+fn a_gyro_bias_is_estimated_with_the_tensor_and_the_std_stays_honest() {
+    let seeds = std::env::var("SEEDS").ok().and_then(|s| s.parse().ok()).unwrap_or(12);
+    for bias in [[0.0; 3], [0.02, -0.015, 0.01]] {
+        let (cal, biased) = run(bias, seeds);
+        println!("bias {bias:?}: bias model taken {biased}/{seeds}, RMS(error/std) {cal:.2?}");
+        for c in cal {
+            assert!(c < 2.0, "bias {bias:?}: calibration {cal:?}");
+        }
+        if bias == [0.0; 3] {
+            assert!(biased <= 1, "no bias, yet the bias model {biased} times");
+        } else {
+            assert_eq!(biased, seeds as u32);
+        }
+    }
+}
