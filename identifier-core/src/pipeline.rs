@@ -339,10 +339,10 @@ impl<const N: usize> Pipeline<N> {
     ///   gyro noise): the output-error fit of the whole trajectory ([`RatioFit`], all three
     ///   axes jointly, the rigid-body constraint built in, a constant bias when its
     ///   likelihood-ratio test finds one), the efficient estimator for white gyro noise;
-    /// * once a free flight has ended and neither that fit nor the tensor (when it wants
-    ///   products of inertia) fits to the noise: the refined identifier's, `ModelMismatch`
-    ///   (the torque-free model does not hold; of the estimators here it is the least
-    ///   affected on real tosses through air);
+    /// * once a free flight has ended, that fit not fitting to the noise and the tensor not
+    ///   `Converged` with products of inertia: the refined identifier's, `ModelMismatch` (the
+    ///   torque-free model does not hold; of the estimators here it is the least affected on
+    ///   real tosses through air);
     /// * a constant gyro bias detected (the refined identifier and its bias-augmented twin
     ///   [`RefinedBias`] disagree beyond their noise): the bias model's, never `Converged` when
     ///   the tensor also wants products of inertia (the two cannot be told apart);
@@ -393,11 +393,13 @@ impl<const N: usize> Pipeline<N> {
             if fits && (principal || fe.biased) {
                 return self.trajectory_ratios(&fe, status, principal);
             }
-            // Neither the principal-axis model nor (when it wanted products) the tensor fits to
-            // the noise: the torque-free model does not hold on these data. The refined
-            // identifier's estimate is the least affected (measured on the racquet tosses),
-            // and it is marked as such.
-            let tensor_fits = !principal && t.residual_ratio <= TRAJECTORY_FIT_RATIO;
+            // The principal-axis model does not fit to the noise. If the tensor wants products
+            // of inertia and is itself `Converged` (its residual within its threshold, precise,
+            // physically valid), the sensor axes are simply not principal axes: its `a` below.
+            // Otherwise the torque-free model does not hold on these data (on the racquet
+            // tosses through air the tensor's `a` spreads 10-36 % from toss to toss): the
+            // refined identifier's estimate is the least affected, and marked as such.
+            let tensor_fits = !principal && t.status == TensorStatus::Converged;
             let informed = trust.has_information() && self.refined.noise_estimate().is_some();
             if !fits && !tensor_fits && informed {
                 let status = match status {
