@@ -100,8 +100,10 @@ echo
 echo "== Stack (painted under QEMU, flight image)"
 echo "   ${stack_line#INFO  }"
 
-# The tensor estimator, the flight pipeline and the ratio fit (bench-mcu, the same SysTick/-icount
-# method as scripts/bench-estimators.sh; flight profile: opt-level s, fat LTO).
+# The tensor estimator, the flight pipeline, the ratio fit and the tensor fit (bench-mcu, the same
+# SysTick/-icount method as scripts/bench-estimators.sh; flight profile: opt-level s, fat LTO).
+# The rows starting "tensor" include tensor-fit-step and tensor-fit-close-throw; the "# check"
+# and "# ratio-fit"/"# tensor-fit" lines are the fits' on-target checks and times at 168 MHz.
 log "bench-mcu (flight profile): TensorEstimator::step, FlightPipeline::step, estimate(), FlightRatioFit step and close, sizes"
 TD="${CARGO_TARGET_DIR:-target}"
 cargo build -q -p bench-mcu --profile firmware --target thumbv7em-none-eabihf --features mcu
@@ -113,7 +115,7 @@ echo "== Tensor estimator, flight pipeline, ratio fit (instructions per call, me
 printf '%s\n' "$mcu" | grep -E '^(tensor|pipeline|profile|ratio-fit)' | awk -F, -v mhz="$CLOCK_MHZ" '{
     printf "   %-28s %8s  %s\n", $1, $2, $3
 }'
-printf '%s\n' "$mcu" | grep -E '^# (sizes|check|ratio-fit)' | sed 's/^# /   /'
+printf '%s\n' "$mcu" | grep -E '^# (sizes|check|ratio-fit|tensor-fit)' | sed 's/^# /   /'
 mean8="$(printf '%s\n' "$mcu" | sed -n 's/^pipeline-8khz,\([0-9]*\),.*/\1/p')"
 [ -n "$mean8" ] && awk -v m="$mean8" -v mhz="$CLOCK_MHZ" 'BEGIN {
     printf "   pipeline at 8 kHz: %d instructions/sample = %.1f to %.1f %% of a %d MHz core (x1 to x1.4 cycles per instruction); issue 9 target: 400 (2 %%)\n", m, m * 8000 / (mhz * 1e4), 1.4 * m * 8000 / (mhz * 1e4), mhz

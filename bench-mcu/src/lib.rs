@@ -1,7 +1,8 @@
 //! Pieces of the Cortex-M4F instruction-count benchmark that are plain `no_std` code: an `f32`
 //! joint state and parameter EKF written the way the host peer is (dense 6x6 covariance), and
-//! deterministic test signals (the paper's body from `omega0 = (1, 1, 1)` at 1 kHz, and a fast
-//! racquet-like toss at 100 Hz, both with pseudo-random noise).
+//! deterministic test signals (the paper's body from `omega0 = (1, 1, 1)` at 1 kHz, a fast
+//! racquet-like toss at 100 Hz, and a board throw with a flywheel spinning up at 2 kHz, all
+//! with pseudo-random noise).
 #![no_std]
 #![allow(clippy::needless_range_loop)]
 
@@ -195,6 +196,13 @@ pub fn ratios(m: [f32; 3]) -> [f32; 3] {
     ]
 }
 
+/// Uniform pseudo-random number on `[-0.5, 0.5)` (standard deviation `1/sqrt(12)`) from a
+/// linear congruential generator with state `seed`.
+fn uniform(seed: &mut u32) -> f32 {
+    *seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+    (*seed >> 8) as f32 / 16_777_216.0 - 0.5
+}
+
 /// Deterministic test signal: a body with ratios `a` from `omega0`, integrated in `f32` with
 /// classical RK4 (`substeps` steps per sample period `dt`), plus uniform pseudo-random noise of
 /// standard deviation `sigma` (a linear congruential generator).
@@ -253,11 +261,7 @@ impl Signal {
     }
 
     fn uniform(&mut self) -> f32 {
-        self.seed = self
-            .seed
-            .wrapping_mul(1_664_525)
-            .wrapping_add(1_013_904_223);
-        (self.seed >> 8) as f32 / 16_777_216.0 - 0.5
+        uniform(&mut self.seed)
     }
 
     /// The next noisy sample.
@@ -289,6 +293,200 @@ impl Signal {
         let s = self.sigma * 3.464_101_6;
         let n = [self.uniform(), self.uniform(), self.uniform()];
         [w[0] + s * n[0], w[1] + s * n[1], w[2] + s * n[2]]
+    }
+}
+
+/// The anchor board's inertia tensor about its centre of mass, IMU frame, kg m^2 (the host
+/// simulator's `host_tests::throw_sim::BOARD_INERTIA`): products of inertia, no principal axes
+/// along the sensor's.
+pub const BOARD_INERTIA: [[f32; 3]; 3] = [
+    [7.5e-5, -1.7e-6, 1.1e-6],
+    [-1.7e-6, 2.2e-5, 6.8e-6],
+    [1.1e-6, 6.8e-6, 8.8e-5],
+];
+
+/// The board's flywheel inertia about its axis (`-z`), kg m^2.
+pub const BOARD_ROTOR_INERTIA: f32 = 1.689e-6;
+
+/// `cos(pi x)` for `x` in `[0, 1]`, as `-sin(pi (x - 1/2))` by its Taylor series to the 11th
+/// power (`no_std` has no `cos`): the series' error is below `6e-8` on `|y| <= pi/2`, under
+/// the `f32` rounding of the result, so this is the cosine as `f32` can hold it.
+fn cos_pi(x: f32) -> f32 {
+    let y = core::f32::consts::PI * (x - 0.5);
+    let y2 = y * y;
+    let sin = y
+        * (1.0
+            - y2 / 6.0
+                * (1.0 - y2 / 20.0 * (1.0 - y2 / 42.0 * (1.0 - y2 / 72.0 * (1.0 - y2 / 110.0)))));
+    -sin
+}
+
+/// `J^-1` by the adjugate (`J` positive definite, so `det > 0`).
+fn inverse3(j: &[[f32; 3]; 3]) -> [[f32; 3]; 3] {
+    let c =
+        |r0: usize, r1: usize, c0: usize, c1: usize| j[r0][c0] * j[r1][c1] - j[r0][c1] * j[r1][c0];
+    let adj = [
+        [c(1, 2, 1, 2), -c(0, 2, 1, 2), c(0, 1, 1, 2)],
+        [-c(1, 2, 0, 2), c(0, 2, 0, 2), -c(0, 1, 0, 2)],
+        [c(1, 2, 0, 1), -c(0, 2, 0, 1), c(0, 1, 0, 1)],
+    ];
+    let det = j[0][0] * adj[0][0] + j[0][1] * adj[1][0] + j[0][2] * adj[2][0];
+    adj.map(|row| row.map(|x| x / det))
+}
+
+fn mat_vec(m: &[[f32; 3]; 3], v: [f32; 3]) -> [f32; 3] {
+    m.map(|r| r[0] * v[0] + r[1] * v[1] + r[2] * v[2])
+}
+
+fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// Deterministic free flight of a thrown board ([`BOARD_INERTIA`]) with a flywheel on `-z`
+/// ([`BOARD_ROTOR_INERTIA`]) spinning up from 175 to 1250 rad/s by a raised-cosine ramp over
+/// 0.15 s that starts 0.08 s after the release, from `omega0 = (9, -8, -13)` rad/s; 0.6 s at
+/// 2 kHz, the rate the flight pipeline decimates a 4 kHz log to, with the averaged noise of
+/// that log (`2e-3 / sqrt(2)` rad/s, uniform pseudo-random as [`Signal`]'s). What the
+/// pipeline hands [`identifier_core::TensorFit`] for one free flight.
+///
+/// The body's total angular momentum `L = J w + h` (body frame) obeys `L' = L x w` with
+/// `w = J^-1 (L - h(t))`, integrated in `f32` by RK4, [`Throw::SUBSTEPS`] steps per sample.
+/// The sum of `L` is compensated (Kahan): `|L|` is about `2e-3` kg m^2/s and `J^-1` up to
+/// `5e4` per kg m^2, so the rounding of a plain `f32` sum of `L`, amplified into the rates,
+/// drifts them by `1.3e-4` rad/s from an `f64` reference over the flight; compensated they
+/// stay within `4e-5` rad/s (the test below), far under the `1.4e-3` rad/s of noise, so the
+/// fit checked on the target sees the model it fits.
+pub struct Throw {
+    j_inv: [[f32; 3]; 3],
+    l: [f32; 3],
+    /// Compensation of `l`'s running sum.
+    lc: [f32; 3],
+    /// Samples emitted.
+    n: u32,
+    sigma: f32,
+    seed: u32,
+}
+
+impl Throw {
+    /// Sample rate, Hz.
+    pub const RATE_HZ: f32 = 2000.0;
+    /// Samples in the free flight (0.6 s).
+    pub const SAMPLES: u32 = 1200;
+    /// RK4 steps per sample period.
+    pub const SUBSTEPS: u32 = 8;
+
+    /// The board's throw (see the type's docs).
+    pub fn board() -> Self {
+        let j = BOARD_INERTIA;
+        let w0 = [9.0, -8.0, -13.0];
+        let jw = mat_vec(&j, w0);
+        let h0 = Self::rotor_momentum(0.0);
+        Throw {
+            j_inv: inverse3(&j),
+            l: [jw[0] + h0[0], jw[1] + h0[1], jw[2] + h0[2]],
+            lc: [0.0; 3],
+            n: 0,
+            sigma: 2e-3 * core::f32::consts::FRAC_1_SQRT_2,
+            seed: 20_240_611,
+        }
+    }
+
+    /// The true tensor, kg m^2.
+    pub fn tensor(&self) -> [[f32; 3]; 3] {
+        BOARD_INERTIA
+    }
+
+    /// Sample period, s.
+    pub fn dt(&self) -> f32 {
+        1.0 / Self::RATE_HZ
+    }
+
+    /// White noise per sample and axis, rad/s.
+    pub fn sigma(&self) -> f32 {
+        self.sigma
+    }
+
+    /// Flywheel speed `t` seconds after the release, rad/s: idle, a raised-cosine ramp (speed
+    /// and acceleration continuous), then the peak.
+    pub fn rotor_speed(t: f32) -> f32 {
+        const IDLE: f32 = 175.0;
+        const PEAK: f32 = 1250.0;
+        const START: f32 = 0.08;
+        const RAMP: f32 = 0.15;
+        let u = t - START;
+        if u <= 0.0 {
+            IDLE
+        } else if u < RAMP {
+            IDLE + (PEAK - IDLE) * 0.5 * (1.0 - cos_pi(u / RAMP))
+        } else {
+            PEAK
+        }
+    }
+
+    /// Rotor momentum in the body frame `t` seconds after the release, kg m^2/s.
+    pub fn rotor_momentum(t: f32) -> [f32; 3] {
+        [0.0, 0.0, -BOARD_ROTOR_INERTIA * Self::rotor_speed(t)]
+    }
+
+    /// `L' = L x w`, `w = J^-1 (L - h(t))`.
+    fn rhs(&self, l: [f32; 3], t: f32) -> [f32; 3] {
+        let h = Self::rotor_momentum(t);
+        let w = mat_vec(&self.j_inv, [l[0] - h[0], l[1] - h[1], l[2] - h[2]]);
+        cross(l, w)
+    }
+
+    /// The next sample: the noisy rate (rad/s) and the exact rotor momentum (kg m^2/s), the
+    /// first at the release.
+    pub fn next_sample(&mut self) -> ([f32; 3], [f32; 3]) {
+        let hs = self.dt() / Self::SUBSTEPS as f32;
+        // Times from integer step counts, so that they do not drift over the flight.
+        let first = self.n * Self::SUBSTEPS;
+        let h = Self::rotor_momentum(first as f32 * hs);
+        let l = self.l;
+        let w = mat_vec(&self.j_inv, [l[0] - h[0], l[1] - h[1], l[2] - h[2]]);
+        for i in 0..Self::SUBSTEPS {
+            let t = (first + i) as f32 * hs;
+            let x = self.l;
+            let k1 = self.rhs(x, t);
+            let k2 = self.rhs(
+                [
+                    x[0] + 0.5 * hs * k1[0],
+                    x[1] + 0.5 * hs * k1[1],
+                    x[2] + 0.5 * hs * k1[2],
+                ],
+                t + 0.5 * hs,
+            );
+            let k3 = self.rhs(
+                [
+                    x[0] + 0.5 * hs * k2[0],
+                    x[1] + 0.5 * hs * k2[1],
+                    x[2] + 0.5 * hs * k2[2],
+                ],
+                t + 0.5 * hs,
+            );
+            let k4 = self.rhs(
+                [x[0] + hs * k3[0], x[1] + hs * k3[1], x[2] + hs * k3[2]],
+                (first + i + 1) as f32 * hs,
+            );
+            for k in 0..3 {
+                let d = hs / 6.0 * (k1[k] + 2.0 * k2[k] + 2.0 * k3[k] + k4[k]) - self.lc[k];
+                let s = self.l[k] + d;
+                self.lc[k] = (s - self.l[k]) - d;
+                self.l[k] = s;
+            }
+        }
+        self.n += 1;
+        let s = self.sigma * 3.464_101_6;
+        let n = [
+            uniform(&mut self.seed),
+            uniform(&mut self.seed),
+            uniform(&mut self.seed),
+        ];
+        ([w[0] + s * n[0], w[1] + s * n[1], w[2] + s * n[2]], h)
     }
 }
 
@@ -485,5 +683,80 @@ impl RowSums3 {
             self.y[r] += dy;
             self.yy[r] += dy * dy;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+
+    /// The `f32` throw against an `f64` RK4 reference of the same equations (40 steps per
+    /// sample, `std`'s cosine): the rates the benchmark feeds the fit are the motion to well
+    /// under the noise, so the fit's check on the target tests the fit, not the signal.
+    #[test]
+    fn throw_follows_an_f64_reference() {
+        let mut sig = Throw::board();
+        sig.sigma = 0.0;
+        let j = BOARD_INERTIA.map(|r| r.map(f64::from));
+        let inv = inverse3(&BOARD_INERTIA).map(|r| r.map(f64::from));
+        // The f32 inverse as the reference's: the comparison is of the integration.
+        let speed = |t: f64| {
+            let u = t - 0.08;
+            if u <= 0.0 {
+                175.0
+            } else if u < 0.15 {
+                175.0 + 1075.0 * 0.5 * (1.0 - (core::f64::consts::PI * u / 0.15).cos())
+            } else {
+                1250.0
+            }
+        };
+        let jr = f64::from(BOARD_ROTOR_INERTIA);
+        let w_of = |l: [f64; 3], t: f64| {
+            let x = [l[0], l[1], l[2] + jr * speed(t)];
+            inv.map(|r| r[0] * x[0] + r[1] * x[1] + r[2] * x[2])
+        };
+        let f = |l: [f64; 3], t: f64| {
+            let w = w_of(l, t);
+            [
+                l[1] * w[2] - l[2] * w[1],
+                l[2] * w[0] - l[0] * w[2],
+                l[0] * w[1] - l[1] * w[0],
+            ]
+        };
+        let w0 = [9.0, -8.0, -13.0];
+        let jw = j.map(|r| r[0] * w0[0] + r[1] * w0[1] + r[2] * w0[2]);
+        let mut l = [jw[0], jw[1], jw[2] - jr * 175.0];
+        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        let l0 = norm(l);
+        let (sub, dt) = (40, 1.0 / 2000.0);
+        let hs = dt / sub as f64;
+        let mut worst = 0.0f64;
+        for k in 0..Throw::SAMPLES {
+            let t = f64::from(k) * dt;
+            let (w, h) = sig.next_sample();
+            let wr = w_of(l, t);
+            for i in 0..3 {
+                worst = worst.max((f64::from(w[i]) - wr[i]).abs());
+            }
+            assert!((f64::from(h[2]) + jr * speed(t)).abs() < 1e-6 * jr * 1250.0);
+            for i in 0..sub {
+                let t = t + f64::from(i) * hs;
+                let add = |a: [f64; 3], k: [f64; 3], s: f64| {
+                    [a[0] + s * k[0], a[1] + s * k[1], a[2] + s * k[2]]
+                };
+                let k1 = f(l, t);
+                let k2 = f(add(l, k1, hs / 2.0), t + hs / 2.0);
+                let k3 = f(add(l, k2, hs / 2.0), t + hs / 2.0);
+                let k4 = f(add(l, k3, hs), t + hs);
+                for c in 0..3 {
+                    l[c] += hs / 6.0 * (k1[c] + 2.0 * k2[c] + 2.0 * k3[c] + k4[c]);
+                }
+            }
+        }
+        // |L| is conserved (L' = L x w is normal to L).
+        assert!((norm(l) / l0 - 1.0).abs() < 1e-9, "{} vs {l0}", norm(l));
+        std::println!("largest rate difference {worst:.2e} rad/s");
+        assert!(worst < 1e-4, "{worst:e} rad/s");
     }
 }

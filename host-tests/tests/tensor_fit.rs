@@ -53,7 +53,10 @@ fn run(bias: [f64; 3], seeds: u64) -> ([f64; 6], u32) {
 
 #[test]
 fn a_gyro_bias_is_estimated_with_the_tensor_and_the_std_stays_honest() {
-    let seeds = std::env::var("SEEDS").ok().and_then(|s| s.parse().ok()).unwrap_or(12);
+    let seeds = std::env::var("SEEDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(12);
     for bias in [[0.0; 3], [0.02, -0.015, 0.01]] {
         let (cal, biased) = run(bias, seeds);
         println!("bias {bias:?}: bias model taken {biased}/{seeds}, RMS(error/std) {cal:.2?}");
