@@ -347,6 +347,41 @@ pub(crate) fn levenberg<const P: usize>(
     Some((theta, cost, f))
 }
 
+/// The score statistic `g^T F^-1 g` of the normal equations at a point (the cost the
+/// Gauss-Newton step would remove): at the plain model's optimum, evaluated for the model with
+/// a bias, it approximates the likelihood-ratio statistic of the bias with one evaluation
+/// instead of a fit (divided by the noise variance).
+pub(crate) fn score<const P: usize>(f: &Sym<P>, g: &[f32; P]) -> Option<f32> {
+    let inv = scaled_inverse(f)?;
+    let mut s = 0.0f32;
+    for i in 0..P {
+        let mut r = 0.0f32;
+        for j in 0..P {
+            r += inv[i][j] * g[j];
+        }
+        s += g[i] * r;
+    }
+    s.is_finite().then_some(s)
+}
+
+/// True when the bias model is worth fitting: the score statistic at the plain optimum,
+/// `score / s2` with `s2` the plain model's residual variance (at least `noise_floor^2`), above
+/// half the likelihood-ratio test's threshold (so no bias the test would take is skipped).
+pub(crate) fn bias_worth_fitting(
+    score: f32,
+    cost_plain: f32,
+    dof_plain: f32,
+    noise_floor: f32,
+) -> bool {
+    if !(dof_plain > 0.0) {
+        return true;
+    }
+    let seen = cost_plain / dof_plain;
+    let floor = noise_floor * noise_floor;
+    let s2 = if seen > floor { seen } else { floor };
+    !(s2 > 0.0) || score > 0.5 * 16.27 * s2
+}
+
 /// The likelihood-ratio test of a constant gyro bias (3 more parameters): true when
 /// `(cost_plain - cost_bias) / s2 > 16.27` (chi-square, 3 degrees of freedom, 0.1 %), with
 /// `s2` the bias model's residual variance per sample but never below `noise_floor^2` (on

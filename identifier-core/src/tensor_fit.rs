@@ -54,7 +54,8 @@
 )]
 
 use crate::output_error::{
-    bias_found, levenberg, mean_spread, scaled_inverse, Block, BlockBuffer, Normal, Pooled,
+    bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, Block,
+    BlockBuffer, Normal, Pooled,
 };
 use crate::symmetric::{sqrt, Sym};
 use crate::trajectory::StretchOutcome;
@@ -99,7 +100,8 @@ pub struct TensorFit<const N: usize> {
     last: StretchOutcome,
 }
 
-/// The block buffer used by the pipeline: 256 blocks of rate and rotor momentum (9 KiB).
+/// The block buffer used by the pipeline: 256 blocks of rate and rotor momentum (16.7 KB in
+/// all).
 pub type FlightTensorFit = TensorFit<256>;
 
 fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
@@ -334,11 +336,18 @@ fn rotor_of(b: &Block<6>) -> [f32; 3] {
 
 /// Cost and normal equations of the first `limit` blocks at `theta` (P = 9, or 12 with the
 /// bias in `theta[9..12]`).
+#[cfg(test)]
+pub(crate) static EVALS: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
+#[cfg(test)]
+pub(crate) static STEPS: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
+
 fn normal<const P: usize>(
     blocks: &[Block<6>],
     limit: usize,
     theta: &[f32; P],
 ) -> Option<Normal<P>> {
+    #[cfg(test)]
+    EVALS.fetch_add(limit as u32, core::sync::atomic::Ordering::Relaxed);
     let j = tensor_of(theta);
     let k = inverse_pd(&j)?;
     let first = blocks.first()?;
@@ -413,6 +422,8 @@ fn normal<const P: usize>(
                 };
                 let dt = span / steps as f32;
                 let mut tau = 0.0f32;
+                #[cfg(test)]
+                STEPS.fetch_add(steps, core::sync::atomic::Ordering::Relaxed);
                 for _ in 0..steps {
                     x = rk4(&k, &seg, &x, tau, dt);
                     tau += dt;
@@ -508,7 +519,17 @@ fn fit_stretch(blocks: &[Block<6>], init: &Mat3, noise_floor: f32) -> Option<Str
     let mut th1 = [0.0f32; P1];
     th1[..P0].copy_from_slice(&th);
     let dof1 = (3 * total) as f32 - P1 as f32;
-    if let Some((t1, cost1, f1)) = levenberg(|p| normal(blocks, total, p), th1, 30, dof1) {
+    let dof0 = (3 * total) as f32 - P0 as f32;
+    // One evaluation decides whether the bias model is worth its fit.
+    let worth = normal(blocks, total, &th1)
+        .and_then(|(_, f, g)| score(&f, &g))
+        .is_none_or(|sc| bias_worth_fitting(sc, cost0, dof0, noise_floor));
+    let with_bias = if worth {
+        levenberg(|p| normal(blocks, total, p), th1, 30, dof1)
+    } else {
+        None
+    };
+    if let Some((t1, cost1, f1)) = with_bias {
         if bias_found(cost0, cost1, dof1, noise_floor) {
             if let Some(c1) = scaled_inverse(&f1) {
                 let mut e = [0.0f32; 6];
@@ -756,7 +777,14 @@ mod tests {
             }
             // A first guess 10 % off, products zero.
             let init = [[2.3e-4, 0.0, 0.0], [0.0, 2.6e-4, 0.0], [0.0, 0.0, 3.9e-4]];
+            super::EVALS.store(0, core::sync::atomic::Ordering::Relaxed);
+            super::STEPS.store(0, core::sync::atomic::Ordering::Relaxed);
             let o = fit.close(Some(init));
+            std::println!(
+                "{rate} Hz: block-evaluations {} rk4 steps {}",
+                super::EVALS.load(core::sync::atomic::Ordering::Relaxed),
+                super::STEPS.load(core::sync::atomic::Ordering::Relaxed)
+            );
             let e = fit.estimate().unwrap();
             std::println!("{rate} Hz: {o:?} noise {}", e.noise);
             assert_eq!(o, StretchOutcome::Fitted, "{rate} Hz");

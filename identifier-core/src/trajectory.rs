@@ -82,7 +82,8 @@
 )]
 
 use crate::output_error::{
-    bias_found, levenberg, mean_spread, scaled_inverse, Block, BlockBuffer, Pooled,
+    bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, Block,
+    BlockBuffer, Pooled,
 };
 use crate::symmetric::{sqrt, Sym};
 
@@ -141,7 +142,7 @@ pub struct RatioFit<const N: usize> {
     last: StretchOutcome,
 }
 
-/// The block buffer used by the pipeline: 256 blocks (6 KiB).
+/// The block buffer used by the pipeline: 256 blocks (10 KB in all).
 pub type FlightRatioFit = RatioFit<256>;
 
 /// Largest parameter count (moments 2, initial rates 3, bias 3).
@@ -433,8 +434,17 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<(Fit<P_MAX>, boo
     let mut theta8 = [0.0f32; P_MAX];
     theta8[..5].copy_from_slice(&theta5);
     let dof8 = (3 * total) as f32 - 8.0;
-    let with_bias = levenberg(|th| normal(blocks, total, th), theta8, 30, dof8)
-        .and_then(|(th, cost, f)| scaled_inverse(&f).map(|c| (th, cost, c)));
+    let dof5 = (3 * total) as f32 - 5.0;
+    // One evaluation decides whether the bias model is worth its fit.
+    let worth = normal(blocks, total, &theta8)
+        .and_then(|(_, f, g)| score(&f, &g))
+        .is_none_or(|sc| bias_worth_fitting(sc, cost5, dof5, noise_floor));
+    let with_bias = if worth {
+        levenberg(|th| normal(blocks, total, th), theta8, 30, dof8)
+            .and_then(|(th, cost, f)| scaled_inverse(&f).map(|c| (th, cost, c)))
+    } else {
+        None
+    };
     if let Some((th8, cost8, cov8)) = with_bias {
         if bias_found(cost5, cost8, dof8, noise_floor) && ratios_of(th8[0], th8[1]).is_some() {
             return Some((
