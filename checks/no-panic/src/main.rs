@@ -24,7 +24,7 @@ use identifier_core::{
 };
 use identifier_core::{
     FlightPipeline, FreeFlightGate, GateSettings, PipelineSettings, RatioFit, TensorEstimator,
-    TensorSettings,
+    TensorFit, TensorSettings,
 };
 
 extern "C" {
@@ -232,6 +232,32 @@ fn exercise_tensor() {
         rf.reset();
     }
     black_box(&rf);
+    let mut tf = black_box(TensorFit::<32>::new(
+        black_box(34.9),
+        black_box(0.1),
+        black_box(2e-3),
+    ));
+    for _ in 0..black_box(500usize) {
+        tf.step_mean(
+            black_box([1.0, -0.5, 0.25]),
+            black_box([0.0, 0.0, -2e-3]),
+            black_box(5e-4),
+            black_box(2),
+        );
+    }
+    black_box(tf.close(black_box(Some([
+        [1e-4, 0.0, 0.0],
+        [0.0, 2e-4, 0.0],
+        [0.0, 0.0, 3e-4],
+    ]))));
+    black_box(tf.estimate());
+    black_box(tf.last_outcome());
+    black_box(tf.open_samples());
+    if black_box(false) {
+        tf.discard();
+        tf.reset();
+    }
+    black_box(&tf);
     if let Some(mut e) = TensorEstimator::new(black_box(TensorSettings::new())) {
         for _ in 0..black_box(1000usize) {
             black_box(e.step(
