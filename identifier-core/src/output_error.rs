@@ -265,6 +265,91 @@ pub(crate) fn mean_spread(dt: f32, inputs: u8) -> f32 {
 /// Cost and normal equations at a parameter vector (see the module docs).
 pub(crate) type Normal<const P: usize> = (f32, Sym<P>, [f32; P]);
 
+/// The weighted normal equations being summed: `C += n r^2`, `F += n s s^T`, `g += n s r`
+/// for each residual `r` with sensitivity row `s` and weight `n` (the block's sample count).
+pub(crate) struct NormalSums<const P: usize> {
+    cost: f32,
+    f: Sym<P>,
+    g: [f32; P],
+}
+
+impl<const P: usize> NormalSums<P> {
+    pub(crate) const EMPTY: Self = NormalSums {
+        cost: 0.0,
+        f: [[0.0; P]; P],
+        g: [0.0; P],
+    };
+
+    /// Adds one residual `r` with its row `s` and weight `n`.
+    pub(crate) fn add(&mut self, n: f32, r: f32, s: &[f32; P]) {
+        self.cost += n * r * r;
+        for c in 0..P {
+            let ns = n * s[c];
+            self.g[c] += ns * r;
+            for d in c..P {
+                self.f[c][d] += ns * s[d];
+            }
+        }
+    }
+
+    /// The sums with `F` made symmetric; `None` when anything is not finite.
+    pub(crate) fn finish(mut self) -> Option<Normal<P>> {
+        for c in 0..P {
+            for d in 0..c {
+                self.f[c][d] = self.f[d][c];
+            }
+        }
+        let finite = self.cost.is_finite()
+            && self
+                .f
+                .iter()
+                .flatten()
+                .chain(self.g.iter())
+                .all(|v| v.is_finite());
+        finite.then_some((self.cost, self.f, self.g))
+    }
+}
+
+/// Most RK4 steps between two block means.
+const MAX_SUBSTEPS: u32 = 512;
+
+/// RK4 steps over `span` seconds for a motion whose fastest rate is `rate` (rad/s): steps no
+/// longer than `0.05 / rate` (local error about `0.05^5 / 120`, 3e-9 of the state), at least
+/// one, at most 512.
+pub(crate) fn substeps(span: f32, rate: f32) -> u32 {
+    let want = span * rate * 20.0;
+    if !(want < MAX_SUBSTEPS as f32) {
+        MAX_SUBSTEPS
+    } else if want < 1.0 {
+        1
+    } else {
+        want as u32 + 1
+    }
+}
+
+/// Levenberg-Marquardt on growing prefixes of `total` blocks: 16 blocks, then doubling, up to
+/// 10 steps each and 30 on the whole record, so the trajectory's phase is never far from the
+/// data. `normal(theta, limit)` evaluates the first `limit` blocks. Returns the parameters,
+/// cost and normal matrix on all blocks.
+pub(crate) fn staged_fit<const P: usize>(
+    normal: impl Fn(&[f32; P], usize) -> Option<Normal<P>>,
+    theta: [f32; P],
+    total: usize,
+) -> Option<([f32; P], f32, Sym<P>)> {
+    let mut theta = theta;
+    let mut limit = if total < 16 { total } else { 16 };
+    loop {
+        let last = limit == total;
+        let dof = (3 * limit) as f32 - P as f32;
+        let (t, cost, f) = levenberg(|p| normal(p, limit), theta, if last { 30 } else { 10 }, dof)?;
+        theta = t;
+        if last {
+            return Some((theta, cost, f));
+        }
+        limit = if 2 * limit < total { 2 * limit } else { total };
+    }
+}
+
 /// Levenberg-Marquardt from `theta` on the cost `normal` evaluates (`None` where the
 /// parameters are not admissible), at most `iters` steps; `dof` is the number of residuals
 /// minus `P`. Returns the final parameters, cost and normal matrix.

@@ -54,8 +54,8 @@
 )]
 
 use crate::output_error::{
-    bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, Block,
-    BlockBuffer, Normal, Pooled,
+    bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, staged_fit,
+    substeps, Block, BlockBuffer, Normal, NormalSums, Pooled,
 };
 use crate::symmetric::{sqrt, Sym};
 use crate::trajectory::StretchOutcome;
@@ -323,9 +323,6 @@ fn rotor_node(blocks: &[Block<6>], b: usize) -> ([f32; 3], [f32; 3]) {
     ([m[0] - hv * c[0], m[1] - hv * c[1], m[2] - hv * c[2]], c)
 }
 
-/// Most RK4 steps between two block means.
-const MAX_SUBSTEPS: u32 = 512;
-
 fn rate_of(b: &Block<6>) -> [f32; 3] {
     [b.mean(0), b.mean(1), b.mean(2)]
 }
@@ -382,9 +379,7 @@ fn normal<const P: usize>(
     if P == P1 {
         bias = [theta[9], theta[10], theta[11]];
     }
-    let mut cost = 0.0f32;
-    let mut f = [[0.0f32; P]; P];
-    let mut g = [0.0f32; P];
+    let mut sums = NormalSums::<P>::EMPTY;
     // Node b-1: time, rotor momentum at the mean time, its curvature.
     let mut prev: Option<(f32, [f32; 3], [f32; 3])> = None;
     let mut hd = [0.0f32; 3];
@@ -412,14 +407,7 @@ fn normal<const P: usize>(
                 // The motion's fastest rate: |w'| <= |J^-1| |L| |w|, and the rates turn at
                 // up to |J^-1| |L| (faster than |w| when the moments differ several-fold).
                 let speed = k_norm * sqrt(x.l[0] * x.l[0] + x.l[1] * x.l[1] + x.l[2] * x.l[2]);
-                let want = span * speed * 20.0;
-                let steps = if !(want < MAX_SUBSTEPS as f32) {
-                    MAX_SUBSTEPS
-                } else if want < 1.0 {
-                    1
-                } else {
-                    want as u32 + 1
-                };
+                let steps = substeps(span, speed);
                 let dt = span / steps as f32;
                 let mut tau = 0.0f32;
                 #[cfg(test)]
@@ -456,24 +444,10 @@ fn normal<const P: usize>(
             if P == P1 {
                 row[P0 + i] = 1.0;
             }
-            let n = b.n;
-            cost += n * r * r;
-            for c in 0..P {
-                let nr = n * row[c];
-                g[c] += nr * r;
-                for d in c..P {
-                    f[c][d] += nr * row[d];
-                }
-            }
+            sums.add(b.n, r, &row);
         }
     }
-    for c in 0..P {
-        for d in 0..c {
-            f[c][d] = f[d][c];
-        }
-    }
-    let finite = cost.is_finite() && f.iter().flatten().chain(g.iter()).all(|v| v.is_finite());
-    finite.then_some((cost, f, g))
+    sums.finish()
 }
 
 /// One stretch's fit: entries, their unit-noise covariance block, cost, parameter count,
@@ -489,25 +463,10 @@ struct StretchFit {
 fn fit_stretch(blocks: &[Block<6>], init: &Mat3, noise_floor: f32) -> Option<StretchFit> {
     let total = blocks.len();
     let w0 = rate_of(blocks.first()?);
-    let mut th = [
+    let th = [
         init[0][0], init[1][1], init[2][2], init[0][1], init[0][2], init[1][2], w0[0], w0[1], w0[2],
     ];
-    let mut limit = if total < 16 { total } else { 16 };
-    let (cost0, f0) = loop {
-        let last = limit == total;
-        let dof = (3 * limit) as f32 - P0 as f32;
-        let (t, cost, f) = levenberg(
-            |p| normal(blocks, limit, p),
-            th,
-            if last { 30 } else { 10 },
-            dof,
-        )?;
-        th = t;
-        if last {
-            break (cost, f);
-        }
-        limit = if 2 * limit < total { 2 * limit } else { total };
-    };
+    let (th, cost0, f0) = staged_fit(|p, limit| normal(blocks, limit, p), th, total)?;
     let cov0 = scaled_inverse(&f0)?;
     let block = |c: &[[f32; P1]; P1]| {
         let mut m = [[0.0f32; 6]; 6];

@@ -82,8 +82,8 @@
 )]
 
 use crate::output_error::{
-    bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, Block,
-    BlockBuffer, Pooled,
+    bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, staged_fit,
+    substeps, Block, BlockBuffer, Normal, NormalSums, Pooled,
 };
 use crate::symmetric::{sqrt, Sym};
 
@@ -249,9 +249,6 @@ fn rk4(a: &[f32; 3], dadp: &[[f32; 2]; 3], x: &Aug, h: f32) -> Aug {
     y
 }
 
-/// Most RK4 steps between two block means (a longer gap is refused at [`RatioFit::step`]).
-const MAX_SUBSTEPS: u32 = 512;
-
 /// The weighted cost and normal equations of the first `limit` blocks at `theta` (P = 5: no
 /// bias; P = 8: bias in `theta[5..8]`). `None` when the moments are not positive or anything
 /// is not finite.
@@ -259,7 +256,7 @@ fn normal<const P: usize>(
     blocks: &[Block<3>],
     limit: usize,
     theta: &[f32; P],
-) -> Option<(f32, Sym<P>, [f32; P])> {
+) -> Option<Normal<P>> {
     let (a, dadp) = ratios_of(theta[0], theta[1])?;
     let amax = a
         .iter()
@@ -276,9 +273,7 @@ fn normal<const P: usize>(
     if P == P_MAX {
         bias = [theta[5], theta[6], theta[7]];
     }
-    let mut cost = 0.0f32;
-    let mut f = [[0.0f32; P]; P];
-    let mut g = [0.0f32; P];
+    let mut sums = NormalSums::<P>::EMPTY;
     let mut prev: Option<f32> = None;
     for b in blocks.iter().take(limit) {
         let t = b.mean_time();
@@ -287,14 +282,7 @@ fn normal<const P: usize>(
             if span > 0.0 {
                 let w = &x.w;
                 let speed = amax * sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
-                let want = span * speed * 20.0;
-                let steps = if !(want < MAX_SUBSTEPS as f32) {
-                    MAX_SUBSTEPS
-                } else if want < 1.0 {
-                    1
-                } else {
-                    want as u32 + 1
-                };
+                let steps = substeps(span, speed);
                 let h = span / steps as f32;
                 for _ in 0..steps {
                     x = rk4(&a, &dadp, &x, h);
@@ -315,74 +303,53 @@ fn normal<const P: usize>(
             if P == P_MAX {
                 row[5 + i] = 1.0;
             }
-            let n = b.n;
-            cost += n * r * r;
-            for c in 0..P {
-                let nr = n * row[c];
-                g[c] += nr * r;
-                for d in c..P {
-                    f[c][d] += nr * row[d];
-                }
-            }
+            sums.add(b.n, r, &row);
         }
     }
-    for c in 0..P {
-        for d in 0..c {
-            f[c][d] = f[d][c];
-        }
-    }
-    let finite = cost.is_finite() && f.iter().flatten().chain(g.iter()).all(|v| v.is_finite());
-    finite.then_some((cost, f, g))
+    sums.finish()
 }
 
-/// Per-axis least squares of the integrated (1) on the block means: a start for the fit.
+/// Calls `visit(ybar, G)` for each block in order, `G_i` the trapezoid integral of
+/// `ybar_j ybar_k` over the block mean times up to that block.
+fn for_each_integral(blocks: &[Block<3>], mut visit: impl FnMut(&[f32; 3], &[f32; 3])) {
+    let mut g = [0.0f32; 3];
+    let mut prev: Option<(f32, [f32; 3])> = None;
+    for b in blocks {
+        let (t, y) = (b.mean_time(), [b.mean(0), b.mean(1), b.mean(2)]);
+        let p = [y[1] * y[2], y[2] * y[0], y[0] * y[1]];
+        if let Some((tp, pp)) = prev {
+            for i in 0..3 {
+                g[i] += 0.5 * (pp[i] + p[i]) * (t - tp);
+            }
+        }
+        prev = Some((t, p));
+        visit(&y, &g);
+    }
+}
+
+/// Per-axis least squares of the integrated (1), `ybar_i = c_i + a_i G_i`, on the block means
+/// (two passes: means, then centred sums): a start for the fit.
 fn initial_a(blocks: &[Block<3>]) -> Option<[f32; 3]> {
     let nb = blocks.len() as f32;
     if nb < 3.0 {
         return None;
     }
-    // Pass 1: means of G_i (trapezoid of ybar_j ybar_k over the block times) and of ybar_i.
-    let mut g = [0.0f32; 3];
-    let mut sg = [0.0f32; 3];
-    let mut sy = [0.0f32; 3];
-    let mut prev: Option<(f32, [f32; 3])> = None;
-    let prod = |y: &[f32; 3]| [y[1] * y[2], y[2] * y[0], y[0] * y[1]];
-    for b in blocks {
-        let (t, y) = (b.mean_time(), [b.mean(0), b.mean(1), b.mean(2)]);
-        let p = prod(&y);
-        if let Some((tp, pp)) = prev {
-            for i in 0..3 {
-                g[i] += 0.5 * (pp[i] + p[i]) * (t - tp);
-            }
-        }
-        prev = Some((t, p));
+    let (mut sg, mut sy) = ([0.0f32; 3], [0.0f32; 3]);
+    for_each_integral(blocks, |y, g| {
         for i in 0..3 {
             sg[i] += g[i];
             sy[i] += y[i];
         }
-    }
-    let mg = sg.map(|x| x / nb);
-    let my = sy.map(|x| x / nb);
-    // Pass 2: centred sums.
-    let mut sxx = [0.0f32; 3];
-    let mut sxy = [0.0f32; 3];
-    g = [0.0; 3];
-    prev = None;
-    for b in blocks {
-        let (t, y) = (b.mean_time(), [b.mean(0), b.mean(1), b.mean(2)]);
-        let p = prod(&y);
-        if let Some((tp, pp)) = prev {
-            for i in 0..3 {
-                g[i] += 0.5 * (pp[i] + p[i]) * (t - tp);
-            }
-        }
-        prev = Some((t, p));
+    });
+    let (mg, my) = (sg.map(|x| x / nb), sy.map(|x| x / nb));
+    let (mut sxx, mut sxy) = ([0.0f32; 3], [0.0f32; 3]);
+    for_each_integral(blocks, |y, g| {
         for i in 0..3 {
             let (dx, dy) = (g[i] - mg[i], y[i] - my[i]);
             sxx[i] += dx * dx;
             sxy[i] += dx * dy;
         }
-    }
+    });
     let mut a = [0.0f32; 3];
     for i in 0..3 {
         if !(sxx[i] > 0.0) {
@@ -413,23 +380,8 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<(Fit<P_MAX>, boo
     let total = blocks.len();
     let first = blocks.first().map(|b| [b.mean(0), b.mean(1), b.mean(2)])?;
     let p0 = initial_a(blocks).map_or([1.0 / 3.0, 1.0 / 3.0], moments_of);
-    let mut theta5 = [p0[0], p0[1], first[0], first[1], first[2]];
-    let mut limit = if total < 16 { total } else { 16 };
-    let (cost5, f5) = loop {
-        let last = limit == total;
-        let dof = (3 * limit) as f32 - 5.0;
-        let (th, cost, f) = levenberg(
-            |th| normal(blocks, limit, th),
-            theta5,
-            if last { 30 } else { 10 },
-            dof,
-        )?;
-        theta5 = th;
-        if last {
-            break (cost, f);
-        }
-        limit = if 2 * limit < total { 2 * limit } else { total };
-    };
+    let theta5 = [p0[0], p0[1], first[0], first[1], first[2]];
+    let (theta5, cost5, f5) = staged_fit(|th, limit| normal(blocks, limit, th), theta5, total)?;
     let cov5 = scaled_inverse(&f5)?;
     let mut theta8 = [0.0f32; P_MAX];
     theta8[..5].copy_from_slice(&theta5);
