@@ -129,6 +129,32 @@ pub enum StretchOutcome {
 }
 
 /// Output-error fit of (1) over free flights, `N` blocks per flight (see the module docs).
+///
+/// ```
+/// use identifier_core::{RatioFit, StretchOutcome};
+///
+/// // The paper's body (0.6, 1.54, 1.0) tumbling for 10 s, sampled at 1 kHz.
+/// let m = [0.6f64, 1.54, 1.0];
+/// let a = [(m[1] - m[2]) / m[0], (m[2] - m[0]) / m[1], (m[0] - m[1]) / m[2]];
+/// let mut w = [1.0f64, 1.0, 1.0];
+/// let mut fit = RatioFit::<256>::new(f32::INFINITY, 0.1, 1e-3);
+/// for _ in 0..10_000 {
+///     fit.step([w[0] as f32, w[1] as f32, w[2] as f32], 1e-3);
+///     for _ in 0..100 {
+///         // Euler's equations (1), small explicit steps (an example, not a reference).
+///         let d = [a[0] * w[1] * w[2], a[1] * w[2] * w[0], a[2] * w[0] * w[1]];
+///         for k in 0..3 {
+///             w[k] += 1e-5 * d[k];
+///         }
+///     }
+/// }
+/// // The flight ends: one fit.
+/// assert_eq!(fit.close(), StretchOutcome::Fitted);
+/// let e = fit.estimate().unwrap();
+/// for k in 0..3 {
+///     assert!((e.a[k] as f64 - a[k]).abs() < 1e-3, "{:?}", e.a);
+/// }
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RatioFit<const N: usize> {
     buf: BlockBuffer<N, 3>,
