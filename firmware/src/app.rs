@@ -712,6 +712,18 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
         self.pipeline.end_stretch();
     }
 
+    /// True when a free flight has ended and its output-error fits wait
+    /// ([`SampleLoop::fit_ended_flight`]).
+    pub fn fits_pending(&self) -> bool {
+        self.pipeline.fits_pending()
+    }
+
+    /// Runs the output-error fits of the flight that ended (up to about a second at 168 MHz
+    /// with a rotor: call it between samples, with the watchdog stretched). True when they ran.
+    pub fn fit_ended_flight(&mut self) -> bool {
+        self.pipeline.fit_ended_flight()
+    }
+
     fn feed_pipeline(&mut self, omega: [f32; 3], accel: [f32; 3], dt: f32) {
         let h = match (self.rotor_config, self.last_inputs.rotor_rad_s) {
             (Some(r), Some(speed)) => r.momentum(speed),

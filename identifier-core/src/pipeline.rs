@@ -206,6 +206,8 @@ pub struct Pipeline<const N: usize> {
     trajectory: FlightRatioFit,
     /// The output-error fit of the tensor with the rotor momentum, likewise.
     tensor_fit: FlightTensorFit,
+    /// A free flight has ended (the gate closed) and its output-error fits have not run yet.
+    fits_pending: bool,
     /// A non-zero rotor momentum reached the estimator.
     rotor_seen: bool,
     line: [Pending; N],
@@ -274,6 +276,7 @@ impl<const N: usize> Pipeline<N> {
             refined_bias,
             trajectory,
             tensor_fit,
+            fits_pending: false,
             rotor_seen: false,
             line: [Pending {
                 index: 0,
@@ -544,10 +547,32 @@ impl<const N: usize> Pipeline<N> {
             self.estimator.end_stretch();
             self.refined.restart();
             self.refined_bias.restart();
-            self.trajectory.close();
-            self.close_tensor_fit();
+            self.fits_pending = true;
             self.feeding = false;
         }
+        self.fit_ended_flight();
+    }
+
+    /// Runs the output-error fits of the free flight that ended, if they have not run yet;
+    /// true when they ran. They cost up to about 10^8 instructions on a Cortex-M4F (a fraction
+    /// of a second to a second at 168 MHz, see `README.md`), so [`Pipeline::step`] does not run
+    /// them when the gate ends a flight: the firmware calls this outside its time-critical
+    /// path (with its watchdog stretched), [`Pipeline::end_stretch`] calls it, and the first
+    /// sample of the next free flight runs them before it is fed if nobody did. The result
+    /// does not depend on when they run.
+    pub fn fit_ended_flight(&mut self) -> bool {
+        if !self.fits_pending {
+            return false;
+        }
+        self.fits_pending = false;
+        self.trajectory.close();
+        self.close_tensor_fit();
+        true
+    }
+
+    /// True when a free flight has ended and its fits wait for [`Pipeline::fit_ended_flight`].
+    pub fn fits_pending(&self) -> bool {
+        self.fits_pending
     }
 
     /// Fits the stretch that ended with the tensor's output-error fit, from the tensor
@@ -729,9 +754,9 @@ impl<const N: usize> Pipeline<N> {
                 self.estimator.end_stretch();
                 self.refined.restart();
                 self.refined_bias.restart();
-                // The free flight has ended: its trajectory is fitted now (once per flight).
-                self.trajectory.close();
-                self.close_tensor_fit();
+                // The free flight has ended: its fits wait for `fit_ended_flight` (too long
+                // for one step).
+                self.fits_pending = true;
                 self.feeding = false;
             }
             return Exit {
@@ -740,6 +765,8 @@ impl<const N: usize> Pipeline<N> {
             };
         }
         if !self.feeding {
+            // The previous flight's fits must run before this one fills the blocks.
+            self.fit_ended_flight();
             self.feeding = true;
             self.throws = self.throws.saturating_add(1);
         }

@@ -255,6 +255,10 @@ fn main() -> ! {
             firmware::app::log_tensor(&r, false);
             send_report(&mut uart, &r, None);
         }
+        // A free flight ended: its output-error fits run here, between samples.
+        if app.fits_pending() {
+            app.fit_ended_flight();
+        }
     }
 
     // The log has ended: a flight still being fed ends with it.

@@ -122,6 +122,8 @@ fn main() {
         for k in 0..sim.t.len() {
             p.step(sim.gyro[k], sim.accel[k], h(k), sim.dt() as f32);
         }
+        // The log ends: the ended flight's fits run (as `inertia identify` does).
+        p.end_stretch();
         for (path, est) in [e.estimate(), p.estimate(), fitted].iter().enumerate() {
             let (Some(t), Some(s)) = (est.tensor, est.tensor_std) else {
                 println!(
