@@ -401,11 +401,39 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
     /// identity is not), a fresh paper's identifier with [`identifier_settings`] and a fresh
     /// refined one with [`refined_settings`]; `clock` is the loop's time base.
     pub fn new(
+        gyro: Icm42688<IF>,
+        delay: &mut impl DelayNs,
+        config: Config,
+        clock: C,
+    ) -> Result<Self, InitError<IF::Error>> {
+        Self::new_with(
+            gyro,
+            delay,
+            config,
+            clock,
+            NoRotor,
+            pipeline_settings(&config),
+            true,
+            None,
+        )
+    }
+
+    /// [`SampleLoop::new`] with a rotor-speed input (read once per sample), the free-flight
+    /// pipeline's settings (`with_accel = false` takes every sample as free flight; its
+    /// `rate_hz` becomes the reports' time base) and the rotor whose momentum goes with each
+    /// sample, all at once: the loop holds tens of kilobytes (the pipeline's block buffers),
+    /// and building it in one go keeps its copies on the stack few.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new_with<R: RotorSpeedSource>(
         mut gyro: Icm42688<IF>,
         delay: &mut impl DelayNs,
         config: Config,
         mut clock: C,
-    ) -> Result<Self, InitError<IF::Error>> {
+        rotor: R,
+        pipeline: PipelineSettings,
+        with_accel: bool,
+        rotor_config: Option<RotorConfig>,
+    ) -> Result<SampleLoop<IF, C, R>, InitError<IF::Error>> {
         let mut attempt = 1;
         loop {
             match gyro.init(delay, config) {
@@ -418,16 +446,17 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
         let identifier =
             Identifier::new(identifier_settings(&config)).map_err(InitError::Settings)?;
         let refined = Refined::new(refined_settings(&config)).ok_or(InitError::RefinedSettings)?;
-        let pipeline = FlightPipeline::new(pipeline_settings(&config), true)
-            .ok_or(InitError::PipelineSettings)?;
-        let odr_hz = config.odr.hz() as u32;
+        let odr_hz = pipeline.rate_hz;
+        let pipeline =
+            FlightPipeline::new(pipeline, with_accel).ok_or(InitError::PipelineSettings)?;
+        let odr = config.odr.hz() as u32;
         let last_us = clock.now_us(gyro.interface());
-        let report_every = (odr_hz / REPORT_HZ).max(1);
+        let report_every = (odr / REPORT_HZ).max(1);
         let report_us = report_every.saturating_mul(config.odr.period_us().max(1));
         Ok(SampleLoop {
             gyro,
             clock,
-            rotor: NoRotor,
+            rotor,
             last_inputs: SampleInputs::default(),
             last_report_us: last_us,
             failed_report_us: (report_us as f32 * FAILED_REPORT_AFTER) as u32,
@@ -437,12 +466,12 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
             identifier,
             refined,
             pipeline,
-            rotor_config: None,
+            rotor_config,
             not_fed: 0,
             counters: LoopCounters::default(),
             period: config.odr.period_s(),
             period_us: config.odr.period_us().max(1),
-            odr_hz: config.odr.hz(),
+            odr_hz,
             last_us,
             tick: 0,
             since_report: 0,
@@ -684,22 +713,6 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
     /// call after every [`SampleLoop::poll`] and send it like a periodic one.
     pub fn take_failed_report(&mut self) -> Option<Report> {
         self.pending.take()
-    }
-
-    /// Replaces the free-flight pipeline (fresh, with `settings`; `with_accel = false` takes
-    /// every sample as free flight) and sets the rotor whose momentum goes with each sample.
-    /// `None` when the settings are not usable.
-    pub fn with_pipeline(
-        mut self,
-        settings: PipelineSettings,
-        with_accel: bool,
-        rotor: Option<RotorConfig>,
-    ) -> Option<Self> {
-        self.pipeline = FlightPipeline::new(settings, with_accel)?;
-        self.rotor_config = rotor;
-        // Reports give time as samples over this rate.
-        self.odr_hz = settings.rate_hz;
-        Some(self)
     }
 
     /// One sample into the free-flight pipeline: the rotor's momentum from the

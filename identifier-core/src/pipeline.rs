@@ -225,9 +225,12 @@ pub struct Pipeline<const N: usize> {
     fed_inputs: u32,
 }
 
-/// The capacity used by the firmware and the host tool (so both give the same bits): 256
-/// samples, 32 ms at 8 kHz.
-pub type FlightPipeline = Pipeline<256>;
+/// The capacity used by the firmware and the host tool (so both give the same bits): a delay
+/// line of 128 samples, 64 ms at the at most 3 kHz the estimators run at after decimation
+/// (the catch guard needs 30 ms plus one gate block). The whole pipeline, with the two
+/// output-error fits' block buffers, is about 31 KB: the firmware keeps its copies on the
+/// stack few.
+pub type FlightPipeline = Pipeline<128>;
 
 impl<const N: usize> Pipeline<N> {
     /// A pipeline, or `None` when the settings are not usable. `with_accel = false` (a log or

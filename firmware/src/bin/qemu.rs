@@ -23,7 +23,7 @@ use defmt_semihosting as _;
 use firmware::log_format::{decode_sample, Header, HEADER_LEN, SAMPLE_LEN};
 use firmware::replay_format::{self, ReplayHeader};
 use firmware::uplink::{send_report, ByteSink};
-use firmware::{stack, NoDelay, Poll, RotorConfig, SampleLoop};
+use firmware::{stack, InitError, NoDelay, Poll, RotorConfig, SampleLoop};
 use icm42688::sim::{SampleSource, SimIcm42688};
 use icm42688::{Config, GyroOdr, Icm42688, SpiInterface};
 use semihosting::fs::File;
@@ -183,6 +183,12 @@ fn main() -> ! {
         },
         _ => 0,
     };
+    run_log(path, fail_every, &mut uart)
+}
+
+/// A gyro log through the simulated part and the whole sample loop (see the module docs).
+#[inline(never)]
+fn run_log(path: &str, fail_every: u32, uart: &mut Usart1) -> ! {
     let Some((source, header)) = open_log(path) else {
         defmt::error!("cannot read gyro log {=str}", path);
         exit(2)
@@ -248,12 +254,12 @@ fn main() -> ! {
         {
             firmware::app::log_report(&r);
             firmware::app::log_tensor(&r, false);
-            send_report(&mut uart, &r, None);
+            send_report(uart, &r, None);
         }
         if let Some(r) = app.take_failed_report() {
             firmware::app::log_report(&r);
             firmware::app::log_tensor(&r, false);
-            send_report(&mut uart, &r, None);
+            send_report(uart, &r, None);
         }
         // A free flight ended: its output-error fits run here, between samples.
         if app.fits_pending() {
@@ -266,7 +272,7 @@ fn main() -> ! {
     let r = app.report();
     firmware::app::log_report(&r);
     firmware::app::log_tensor(&r, true);
-    send_report(&mut uart, &r, None);
+    send_report(uart, &r, None);
     let (p, f) = (r.a_paper, r.a_refined);
     let c = app.counters();
     let ic = app.identifier_counters();
@@ -361,6 +367,9 @@ fn no_samples() -> Option<[f32; 3]> {
 type ReplayBus = SpiInterface<SimIcm42688<fn() -> Option<[f32; 3]>>>;
 
 /// `--replay`: the log's samples into the sample loop at the log's own rate.
+// Not inlined into `main`: the loop is tens of kilobytes, and the two modes' loops in one
+// frame would need stack for both.
+#[inline(never)]
 fn replay(path: &str, uart: &mut Usart1) -> ! {
     let mut name = [0u8; 256];
     let bytes = path.as_bytes();
@@ -409,24 +418,27 @@ fn replay(path: &str, uart: &mut Usart1) -> ! {
     let mut delay = NoDelay;
     let sim = SimIcm42688::new(no_samples as fn() -> Option<[f32; 3]>);
     let clock = |_: &ReplayBus| 0u32;
-    let app = match SampleLoop::new(
+    // Built in one go (rotor input, the log's pipeline settings): the loop is tens of
+    // kilobytes, and each move of it by value is a copy on the stack.
+    let mut app = match SampleLoop::new_with(
         Icm42688::new_spi(sim),
         &mut delay,
         Config::identifier(),
         clock,
+        || speed.get(),
+        settings,
+        header.with_accel,
+        rotor,
     ) {
         Ok(app) => app,
+        Err(InitError::PipelineSettings) => {
+            defmt::error!("pipeline settings refused");
+            exit(3)
+        }
         Err(e) => {
             defmt::error!("init failed: {}", e);
             exit(1)
         }
-    };
-    let Some(mut app) =
-        app.with_rotor(|| speed.get())
-            .with_pipeline(settings, header.with_accel, rotor)
-    else {
-        defmt::error!("pipeline settings refused");
-        exit(3)
     };
     let loop_depth = stack::depth();
     stack::paint();
