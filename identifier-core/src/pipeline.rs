@@ -228,7 +228,7 @@ pub struct Pipeline<const N: usize> {
 /// The capacity used by the firmware and the host tool (so both give the same bits): a delay
 /// line of 128 samples, 64 ms at the at most 3 kHz the estimators run at after decimation
 /// (the catch guard needs 30 ms plus one gate block). The whole pipeline, with the two
-/// output-error fits' block buffers, is about 31 KB: the firmware keeps its copies on the
+/// output-error fits' block buffers, is about 36 KB: the firmware keeps its copies on the
 /// stack few.
 pub type FlightPipeline = Pipeline<128>;
 
