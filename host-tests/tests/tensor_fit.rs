@@ -70,3 +70,48 @@ fn a_gyro_bias_is_estimated_with_the_tensor_and_the_std_stays_honest() {
         }
     }
 }
+
+/// A whole simulated log through the gated pipeline: the catch leaves the flight's fits due
+/// (not run inside the step), `fit_ended_flight` runs them once, and the estimate then comes
+/// from the output-error fit; running them later gives the same bits.
+#[test]
+fn the_fits_of_an_ended_flight_run_outside_the_step_and_when_does_not_matter() {
+    let mut cfg = board_throw_config(3);
+    cfg.quantize_rotor_speed = false;
+    cfg.gyro.quantize = false;
+    let sim = simulate(&cfg);
+    let settings = PipelineSettings::for_rate(cfg.rate_hz as f32, cfg.gyro.noise_std as f32)
+        .with_full_scale(34.9);
+    let mut p = FlightPipeline::new(settings, true).expect("valid settings");
+    let j_r = cfg.rotor.inertia as f32;
+    let axis = cfg.rotor.unit_axis().map(|x| x as f32);
+    for k in 0..sim.t.len() {
+        let h = axis.map(|a| a * j_r * sim.rotor_rad_s[k]);
+        p.step(sim.gyro[k], sim.accel[k], h, sim.dt() as f32);
+    }
+    assert!(p.fits_pending(), "the catch should leave the fits due");
+    assert_eq!(p.tensor_fit().last_outcome(), StretchOutcome::Empty);
+    let mut later = p;
+    assert!(p.fit_ended_flight());
+    assert!(!p.fits_pending() && !p.fit_ended_flight());
+    assert!(matches!(
+        p.tensor_fit().last_outcome(),
+        StretchOutcome::Fitted | StretchOutcome::FittedWithBias
+    ));
+    // The same fits run by `end_stretch` (what the host tool does at the log's end).
+    later.end_stretch();
+    let (a, b) = (p.estimate(), later.estimate());
+    assert_eq!(a.tensor, b.tensor);
+    assert_eq!(p.ratios(), later.ratios());
+    let (t, s) = (a.tensor.expect("absolute"), a.tensor_std.expect("std"));
+    for &(r, c) in &IDX {
+        let z = (t[r][c] as f64 - cfg.inertia[r][c]) / s[r][c] as f64;
+        assert!(
+            z.abs() < 5.0,
+            "J[{r}][{c}] {} vs {} (std {})",
+            t[r][c],
+            cfg.inertia[r][c],
+            s[r][c]
+        );
+    }
+}
