@@ -568,7 +568,13 @@ impl<const N: usize> Pipeline<N> {
             return false;
         }
         self.fits_pending = false;
-        self.trajectory.close();
+        if self.rotor_seen {
+            // With a rotor the ratios are the tensor's (`ratios_with`): the ratio fit's result
+            // would never be used, and it is most of the cost of a flight's end.
+            self.trajectory.discard();
+        } else {
+            self.trajectory.close();
+        }
         self.close_tensor_fit();
         true
     }

@@ -531,6 +531,11 @@ impl<const N: usize> RatioFit<N> {
         outcome
     }
 
+    /// Drops the open stretch without fitting it.
+    pub fn discard(&mut self) {
+        self.buf.clear();
+    }
+
     /// What the last [`RatioFit::close`] did.
     pub fn last_outcome(&self) -> StretchOutcome {
         self.last
