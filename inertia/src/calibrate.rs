@@ -70,14 +70,20 @@ pub fn unit_throw(
         segments: None,
         noise_std: None,
         rotor_raw: std::env::var_os("INERTIA_ROTOR_RAW").is_some(),
+        trace: false,
     };
-    let rep = identify(rec, &opts, |_| {}).map_err(|e| format!("{}: {e}", rec.source))?;
+    let rep = identify(rec, &opts).map_err(|e| format!("{}: {e}", rec.source))?;
     let t = rep
         .pooled
         .tensor_kg_m2
         .ok_or_else(|| format!("{}: the rotor momentum did not fix the scale", rec.source))?;
     let j1 = t.map(|r| r.map(|x| x as f64 / UNIT_J as f64));
-    let (imu_from_com, rms) = fit_offset(rec, &rep.fed_runs, rep.gyro_bias)
+    let runs: Vec<Vec<usize>> = rep
+        .fed_runs
+        .iter()
+        .map(|r| r.iter().flat_map(Clone::clone).collect())
+        .collect();
+    let (imu_from_com, rms) = fit_offset(rec, &runs, rep.gyro_bias)
         .ok_or_else(|| format!("{}: no accelerometer, no centre of mass", rec.source))?;
     Ok(UnitThrow {
         source: rec.source.clone(),

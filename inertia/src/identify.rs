@@ -1,16 +1,46 @@
-//! `inertia identify`: a [`Recording`] through the shared on-board pipeline
+//! `inertia identify`: a log through the shared on-board pipeline
 //! ([`identifier_core::FlightPipeline`]: free-flight gate, guard delay, gyro bias, tensor
 //! estimator), per throw and pooled.
 //!
 //! The pooled result is the pipeline's own estimate after the whole log, which is what the
 //! firmware computes on board from the same samples (same `f32` code, same order of
-//! operations). Per-throw results re-run a fresh [`TensorEstimator`] over exactly the samples
-//! the pipeline fed during that throw.
+//! operations). Per-throw results run a fresh pipeline over exactly the samples the pooled
+//! pipeline fed during that throw.
+//!
+//! The log is read as a [`Source`], sample by sample, never held whole (a 10-minute 8 kHz log
+//! took 950 MiB as a [`Recording`]):
+//!
+//! 1. a first reading ([`crate::survey`]) finds what used to be computed from the whole
+//!    recording before the pipeline ran: sample count, median time step (the rate), gyro
+//!    noise, unit warnings, the rotor channel's changes; the medians exactly, reading the log
+//!    again when the first reading cannot fix them;
+//! 2. the pooled pipeline's reading, per-throw pipelines on worker threads beside it
+//!    (module `passes`);
+//! 3. only when needed, a reading that feeds again the throws begun with another bias than
+//!    the final one.
+//!
+//! Every number in the report is the same bits as when the whole recording was held.
 
-use identifier_core::{FlightPipeline, PipelineSettings, Ratios, TensorEstimate, TensorStatus};
+mod inputs;
+mod passes;
+#[cfg(test)]
+mod reference;
+#[cfg(test)]
+mod tests;
+mod throws;
+
+use std::ops::Range;
+
+use identifier_core::{PipelineSettings, Ratios, TensorEstimate, TensorStatus};
 use serde::Serialize;
 
+use crate::readers::ReadError;
 use crate::recording::Recording;
+use crate::source::{RecordingSource, Source};
+use crate::survey::{survey, Wanted};
+pub use crate::unhold::unhold;
+
+use inputs::{Inputs, RotorInput};
 
 /// A rotor (flywheel, motor) whose momentum is a known input.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -124,10 +154,38 @@ pub struct Report {
     pub pooled: EstimateJson,
     /// Warnings for the user.
     pub warnings: Vec<String>,
-    /// Indices of the samples fed to the estimator, one list per throw (for follow-up
-    /// analyses such as `inertia calibrate`; not written to JSON).
+    /// Indices of the samples fed to the estimator, as ranges, one list per throw (for
+    /// follow-up analyses such as `inertia calibrate`; not written to JSON).
     #[serde(skip)]
-    pub fed_runs: Vec<Vec<usize>>,
+    pub fed_runs: Vec<Vec<Range<usize>>>,
+    /// The rates to plot, when asked for ([`IdentifyOptions::trace`]; not written to JSON).
+    #[serde(skip)]
+    pub trace: Option<Trace>,
+}
+
+/// The rates of every `step`-th sample (`step = max(n / 20000, 1)`), the whole log's time
+/// span and largest rate: what `inertia identify --plots` draws, 20000 to 40000 points
+/// whatever the log's length.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Trace {
+    /// Keep every `step`-th sample.
+    pub step: usize,
+    /// Time and rate of the samples kept.
+    pub points: Vec<(f64, [f32; 3])>,
+    /// First and last time of the log, s.
+    pub span: (f64, f64),
+    /// Largest absolute rate, at least 1 rad/s.
+    pub rate_max: f32,
+    /// A whole reading was traced.
+    done: bool,
+}
+
+impl Trace {
+    fn push(&mut self, x: &inputs::Input) {
+        if !self.done && x.i.is_multiple_of(self.step) {
+            self.points.push((x.t, x.gyro));
+        }
+    }
 }
 
 /// Why no estimate could be given at all.
@@ -141,6 +199,10 @@ pub enum IdentifyError {
     Rotor(String),
     /// Settings could not be built (rate or noise not finite).
     Settings(String),
+    /// The log could not be read.
+    Read(ReadError),
+    /// Something that should not happen (a worker thread stopped).
+    Internal(String),
 }
 
 impl std::fmt::Display for IdentifyError {
@@ -154,11 +216,19 @@ impl std::fmt::Display for IdentifyError {
             ),
             IdentifyError::Rotor(m) => write!(f, "{m}"),
             IdentifyError::Settings(m) => write!(f, "{m}"),
+            IdentifyError::Read(e) => write!(f, "{e}"),
+            IdentifyError::Internal(m) => write!(f, "internal error: {m}"),
         }
     }
 }
 
 impl std::error::Error for IdentifyError {}
+
+impl From<ReadError> for IdentifyError {
+    fn from(e: ReadError) -> Self {
+        IdentifyError::Read(e)
+    }
+}
 
 /// Median time step of the recording, s.
 pub fn median_dt(t: &[f64]) -> f64 {
@@ -210,242 +280,171 @@ pub struct IdentifyOptions {
     pub noise_std: Option<f32>,
     /// Use the rotor speed exactly as logged (sample and hold) instead of [`unhold`].
     pub rotor_raw: bool,
+    /// Keep the rates to plot ([`Report::trace`]).
+    pub trace: bool,
 }
 
-/// Rotor speed reconstructed from a sample-and-hold telemetry channel.
-///
-/// ESC telemetry (eRPM) arrives every one to a few milliseconds and the log holds each value
-/// until the next: a staircase that lags the true speed by about half an update interval. On
-/// the thrown-FC logs this lag was the largest effect the model lacked (the residual of the
-/// rotor axis correlated -0.79 with the rotor's speed changes). Each new value is taken as the
-/// speed at the middle of the interval it replaced and the speed is interpolated linearly
-/// between those points; before the first change the log is kept as it is (a rotor at rest).
-pub fn unhold(t: &[f64], speed: &[f32]) -> Vec<f32> {
-    let n = speed.len().min(t.len());
-    let mut knots: Vec<(f64, f32)> = Vec::new();
-    let mut prev_change = 0usize;
-    for i in 1..n {
-        if speed[i] != speed[i - 1] {
-            knots.push((0.5 * (t[i] + t[prev_change]), speed[i]));
-            prev_change = i;
-        }
-    }
-    if knots.len() < 2 {
-        return speed.to_vec();
-    }
-    let first_change = {
-        let mut k = 1;
-        while k < n && speed[k] == speed[k - 1] {
-            k += 1;
-        }
-        k
-    };
-    let mut out = speed[..n].to_vec();
-    let mut j = 0usize;
-    for (i, o) in out.iter_mut().enumerate().skip(first_change) {
-        let ti = t[i];
-        while j + 1 < knots.len() && knots[j + 1].0 <= ti {
-            j += 1;
-        }
-        let (t0, v0) = knots[j];
-        *o = if j + 1 < knots.len() && ti >= t0 {
-            let (t1, v1) = knots[j + 1];
-            let f = ((ti - t0) / (t1 - t0)) as f32;
-            v0 + (v1 - v0) * f
-        } else if ti < t0 {
-            // Between the first change and the first knot's time: interpolate from the held
-            // value before it.
-            let (tp, vp) = (t[first_change - 1], speed[first_change - 1]);
-            let f = ((ti - tp) / (t0 - tp)) as f32;
-            vp + (v0 - vp) * f
-        } else {
-            v0
-        };
-    }
-    out
+/// Where `identify` is, for a progress bar.
+pub trait Progress {
+    /// A stage begins: `"checking"` (the first readings), `"identifying"`, `"re-running"`.
+    fn stage(&mut self, _name: &str) {}
+    /// The fraction of the stage done.
+    fn update(&mut self, _fraction: f32) {}
 }
 
-/// Runs the identification.
-pub fn identify(
-    rec: &Recording,
+/// No progress shown.
+pub struct Quiet;
+
+impl Progress for Quiet {}
+
+/// Runs the identification on a recording held in memory.
+pub fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report, IdentifyError> {
+    identify_source(&RecordingSource::new(rec), opts, &mut Quiet)
+}
+
+fn bits(v: [f32; 3]) -> [u32; 3] {
+    v.map(f32::to_bits)
+}
+
+/// Runs the identification on a log read sample by sample (see the module documentation).
+pub fn identify_source(
+    src: &dyn Source,
     opts: &IdentifyOptions,
-    mut progress: impl FnMut(usize),
+    progress: &mut dyn Progress,
 ) -> Result<Report, IdentifyError> {
-    let n = rec.len();
+    let ch = src.channels();
+    // The rotor channel's factor to rad/s; `None` when the rotor cannot be used, which is an
+    // error reported after the checks that come first.
+    let factor = match (&opts.rotor, ch.rotor) {
+        (Some(r), Some(unit)) => unit.factor(r.poles),
+        _ => None,
+    };
+    let wanted = Wanted {
+        noise: opts.noise_std.is_none(),
+        unhold: if opts.rotor_raw { None } else { factor },
+    };
+    progress.stage("checking");
+    let sv = survey(src, wanted, &mut |f| progress.update(f))?;
+    let n = sv.samples;
     if n < 10 {
         return Err(IdentifyError::TooShort);
     }
-    let mut warnings = rec.warnings.clone();
-    let dt_med = median_dt(&rec.t);
+    let mut warnings = src.warnings(sv.warnings.clone());
+    let dt_med = sv.median_dt.unwrap_or(f64::NAN);
     let rate = (1.0 / dt_med) as f32;
     if !(rate.is_finite() && rate > 0.0) {
         return Err(IdentifyError::Settings(
             "the time steps are not positive".into(),
         ));
     }
-    let noise = opts.noise_std.unwrap_or_else(|| estimate_noise(&rec.gyro));
-    // Rotor momentum per sample.
-    let h: Vec<[f32; 3]> = match &opts.rotor {
-        None => vec![[0.0; 3]; n],
+    let noise = opts.noise_std.or(sv.noise).unwrap_or(2e-3);
+    let rotor = match &opts.rotor {
+        None => None,
         Some(r) => {
-            let Some(ch) = &rec.rotor else {
+            if ch.rotor.is_none() {
                 return Err(IdentifyError::Rotor(
                     "--rotor-inertia was given but the log has no rotor-speed channel".into(),
                 ));
-            };
-            let Some(speed) = ch.rad_per_sec(r.poles) else {
+            }
+            let Some(factor) = factor else {
                 return Err(IdentifyError::Rotor(
                     "the log gives rotor speed as eRPM: --rotor-poles is needed".into(),
                 ));
             };
-            let speed = if opts.rotor_raw {
-                speed
-            } else {
-                unhold(&rec.t, &speed)
-            };
-            speed
-                .iter()
-                .map(|s| r.axis.map(|a| a * r.inertia * s))
-                .collect()
+            Some(RotorInput {
+                rotor: *r,
+                factor,
+                plan: sv.unhold.as_ref(),
+            })
         }
     };
-    if opts.rotor.is_none() && rec.rotor.is_some() {
+    if opts.rotor.is_none() && ch.rotor.is_some() {
         warnings.push(
             "the log has a rotor-speed channel but no --rotor-inertia was given: rotor \
              momentum is ignored and the tensor is determined up to scale only"
                 .into(),
         );
     }
-    let settings = PipelineSettings::for_rate(rate, noise).with_full_scale(rec.gyro_full_scale);
-    let dt_of = |i: usize| -> f32 {
-        if i == 0 {
-            dt_med as f32
-        } else {
-            (rec.t[i] - rec.t[i - 1]) as f32
-        }
+    let settings = PipelineSettings::for_rate(rate, noise).with_full_scale(src.full_scale());
+    let inputs = Inputs {
+        src,
+        samples: n,
+        dt_med,
+        rotor,
     };
+    let mut trace = opts.trace.then(|| Trace {
+        step: (n / 20000).max(1),
+        points: Vec::new(),
+        span: sv.span,
+        rate_max: sv.rate_max,
+        done: false,
+    });
 
     // Which samples count as free flight, and the pooled on-board estimate.
-    let mut fed_runs: Vec<Vec<usize>> = Vec::new();
-    let pooled_est;
-    let pooled_ratios;
-    let pooled_inputs;
-    let bias;
+    progress.stage("identifying");
     let detection;
-    if let Some(segs) = &opts.segments {
-        detection = false;
-        bias = [0.0; 3];
-        let mut pooled = FlightPipeline::new(settings, false)
-            .ok_or_else(|| IdentifyError::Settings("invalid estimator settings".into()))?;
-        for &(s, e) in segs {
-            let idx: Vec<usize> = (0..n).filter(|&i| rec.t[i] >= s && rec.t[i] <= e).collect();
-            if idx.is_empty() {
-                warnings.push(format!("segment {s}..{e} s holds no sample of the log"));
-                continue;
-            }
-            for &i in &idx {
-                pooled.step(rec.gyro[i], [0.0; 3], h[i], dt_of(i));
-            }
-            pooled.end_stretch();
-            fed_runs.push(idx);
-        }
-        progress(n);
-        pooled_est = pooled.estimate();
-        pooled_ratios = pooled.ratios_with(&pooled_est);
-        pooled_inputs = pooled.fed_inputs();
-    } else {
-        let accel = rec.accel.as_ref();
-        detection = accel.is_some();
-        let mut p = FlightPipeline::new(settings, accel.is_some())
-            .ok_or_else(|| IdentifyError::Settings("invalid pipeline settings".into()))?;
-        let mut last_fed: Option<usize> = None;
-        let max_gap = (0.1 * rate as f64).max(2.0) as usize;
-        for i in 0..n {
-            let f = accel.map(|a| a[i]).unwrap_or([0.0; 3]);
-            if let Some(exit) = p.step(rec.gyro[i], f, h[i], dt_of(i)) {
-                if exit.fed.is_some() {
-                    // The estimator sample averages `inputs` log samples from `first_input`.
-                    let k = exit.sample.first_input as usize;
-                    let new_run = last_fed.is_none_or(|l| k > l + max_gap);
-                    if new_run {
-                        fed_runs.push(Vec::new());
-                    }
-                    let end = (k + exit.sample.inputs as usize).min(n);
-                    if let Some(run) = fed_runs.last_mut() {
-                        run.extend(k..end);
-                    }
-                    last_fed = Some(end.saturating_sub(1));
+    let (pooled, runs, mut throws) = match &opts.segments {
+        Some(segs) => {
+            detection = false;
+            let (p, runs, throws, held) =
+                passes::segments(&inputs, settings, segs, &mut trace, progress)?;
+            for (&(s, e), held) in segs.iter().zip(held) {
+                if !held {
+                    warnings.push(format!("segment {s}..{e} s holds no sample of the log"));
                 }
             }
-            if i % 65536 == 0 {
-                progress(i);
-            }
+            (p, runs, throws)
         }
-        progress(n);
-        // The log ends: a free flight still open is fitted now (the trajectory fit runs at
-        // each stretch's end, as the firmware's does at the catch).
-        p.end_stretch();
-        pooled_est = p.estimate();
-        pooled_ratios = p.ratios_with(&pooled_est);
-        pooled_inputs = p.fed_inputs();
-        bias = p.bias();
+        None => {
+            detection = ch.accel;
+            passes::gate(&inputs, settings, ch.accel, rate, &mut trace, progress)?
+        }
+    };
+    if let Some(t) = &mut trace {
+        t.done = true;
     }
-    if fed_runs.iter().all(|r| r.is_empty()) {
+    if runs.is_empty() {
         return Err(IdentifyError::NoFreeFlight);
     }
-    let throws: Vec<EstimateJson> = fed_runs
+    // Throws begun with another bias than the final one are fed again with the final one.
+    let again: Vec<&passes::Run> = runs
         .iter()
-        .filter(|r| !r.is_empty())
-        .map(|run| {
-            let mut e = FlightPipeline::new(settings, false).expect("settings validated above");
-            let mut prev: Option<usize> = None;
-            for &i in run {
-                // Stretches of a throw separated by held-back samples: no integral across.
-                if prev.is_some_and(|p| i != p + 1) {
-                    e.end_stretch();
-                }
-                prev = Some(i);
-                let w = rec.gyro[i];
-                let w = [w[0] - bias[0], w[1] - bias[1], w[2] - bias[2]];
-                e.step(w, [0.0; 3], h[i], dt_of(i));
-            }
-            e.end_stretch();
-            let (a, b) = (run[0], run[run.len() - 1]);
-            let est = e.estimate();
-            let mut j = EstimateJson::from(&est, &e.ratios_with(&est), rec.t[a], rec.t[b]);
-            j.samples = e.fed_inputs();
-            j
-        })
+        .filter(|r| bits(r.bias) != bits(pooled.bias))
         .collect();
-    let first = fed_runs
-        .iter()
-        .find(|r| !r.is_empty())
-        .map(|r| r[0])
-        .unwrap_or(0);
-    let last = fed_runs
-        .iter()
-        .rev()
-        .find(|r| !r.is_empty())
-        .map(|r| r[r.len() - 1])
-        .unwrap_or(0);
-    let mut pooled = EstimateJson::from(&pooled_est, &pooled_ratios, rec.t[first], rec.t[last]);
-    pooled.samples = pooled_inputs;
-    if pooled_ratios.status != TensorStatus::Converged {
+    if !again.is_empty() {
+        progress.stage("re-running");
+        for (k, j) in passes::rerun(&inputs, settings, &again, pooled.bias, progress)? {
+            if let Some(slot) = throws.get_mut(k) {
+                *slot = (k, j);
+            }
+        }
+    }
+    let ordered = throws.len() == runs.len() && throws.iter().enumerate().all(|(k, t)| t.0 == k);
+    if !ordered {
+        return Err(IdentifyError::Internal(
+            "a throw's estimate is missing".into(),
+        ));
+    }
+    let (first, last) = (runs[0].span.0, runs[runs.len() - 1].span.1);
+    let mut pooled_json = EstimateJson::from(&pooled.estimate, &pooled.ratios, first, last);
+    pooled_json.samples = pooled.fed_inputs;
+    if pooled.ratios.status != TensorStatus::Converged {
         warnings.push(format!(
             "pooled estimate is not to be trusted: {:?}",
-            pooled_ratios.status
+            pooled.ratios.status
         ));
     }
     Ok(Report {
-        input: rec.source.clone(),
+        input: src.name(),
         log_samples: n,
         rate_hz: rate,
         noise_std: noise,
-        gyro_bias: bias,
+        gyro_bias: pooled.bias,
         free_flight_detection: detection,
-        throws,
-        pooled,
+        throws: throws.into_iter().map(|(_, j)| j).collect(),
+        pooled: pooled_json,
         warnings,
-        fed_runs: fed_runs.into_iter().filter(|r| !r.is_empty()).collect(),
+        fed_runs: runs.into_iter().map(|r| r.ranges).collect(),
+        trace,
     })
 }

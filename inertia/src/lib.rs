@@ -8,6 +8,10 @@ pub mod identify;
 pub mod plots;
 pub mod readers;
 pub mod recording;
+pub mod select;
+pub mod source;
+pub mod survey;
+pub mod unhold;
 
 pub use readers::{read, Format, GyroUnit, ReadError, ReadOptions, TimeUnit};
 pub use recording::{Recording, RotorSpeed};

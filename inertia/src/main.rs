@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use inertia::close_loop::{analysis, report};
-use inertia::identify::{identify, parse_axis, IdentifyOptions, Rotor};
+use inertia::identify::{identify_source, parse_axis, IdentifyOptions, Progress, Rotor};
 use inertia::{read, Format, GyroUnit, ReadOptions, TimeUnit};
 
 mod replay;
@@ -215,6 +215,50 @@ fn rotor_and_noise(
     Ok(rotor)
 }
 
+/// The progress bar of `identify`: on a terminal only (stderr), and only for a log large
+/// enough to take a while.
+struct Bar(Option<indicatif::ProgressBar>);
+
+impl Bar {
+    /// Files below this size are done before a bar would tell anything.
+    const MIN_BYTES: u64 = 8 << 20;
+
+    fn new(input: &std::path::Path) -> Self {
+        let big = std::fs::metadata(input).is_ok_and(|m| m.len() >= Self::MIN_BYTES);
+        if !(big && std::io::stderr().is_terminal()) {
+            return Bar(None);
+        }
+        let b = indicatif::ProgressBar::new(1000);
+        b.set_style(
+            indicatif::ProgressStyle::with_template("{msg:>11} [{bar:40}] {percent:>3}% {eta}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        Bar(Some(b))
+    }
+
+    fn clear(&self) {
+        if let Some(b) = &self.0 {
+            b.finish_and_clear();
+        }
+    }
+}
+
+impl Progress for Bar {
+    fn stage(&mut self, name: &str) {
+        if let Some(b) = &self.0 {
+            b.set_message(name.to_string());
+            b.set_position(0);
+            b.reset_eta();
+        }
+    }
+
+    fn update(&mut self, fraction: f32) {
+        if let Some(b) = &self.0 {
+            b.set_position((fraction.clamp(0.0, 1.0) * 1000.0) as u64);
+        }
+    }
+}
+
 fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
     let rotor = rotor_and_noise(
         args.rotor_inertia,
@@ -227,40 +271,25 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
         gyro_unit: args.gyro_unit,
         time_unit: args.time_unit,
     };
-    let rec = read(&args.input, &opts).map_err(|e| e.to_string())?;
-    let bar = if std::io::stderr().is_terminal() && rec.len() > 200_000 {
-        let b = indicatif::ProgressBar::new(rec.len() as u64);
-        b.set_style(
-            indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} samples {eta}")
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-        );
-        Some(b)
-    } else {
-        None
-    };
+    let src = inertia::source::open(&args.input, &opts).map_err(|e| e.to_string())?;
     let iopts = IdentifyOptions {
         rotor,
         segments,
         noise_std: args.noise_std,
         rotor_raw: args.rotor_raw,
+        trace: args.plots.is_some(),
     };
-    let report = identify(&rec, &iopts, |i| {
-        if let Some(b) = &bar {
-            b.set_position(i as u64);
-        }
-    })
-    .map_err(|e| e.to_string());
-    if let Some(b) = &bar {
-        b.finish_and_clear();
-    }
+    let mut bar = Bar::new(&args.input);
+    let report = identify_source(&*src, &iopts, &mut bar).map_err(|e| e.to_string());
+    bar.clear();
     let report = report?;
     for w in &report.warnings {
         eprintln!("warning: {w}");
     }
     let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
     std::fs::write(&args.json, text).map_err(|e| format!("{}: {e}", args.json.display()))?;
-    if let Some(dir) = &args.plots {
-        inertia::plots::identify_plots(&rec, &report, dir).map_err(|e| e.to_string())?;
+    if let (Some(dir), Some(trace)) = (&args.plots, &report.trace) {
+        inertia::plots::identify_plots(trace, &report, dir).map_err(|e| e.to_string())?;
     }
     let p = &report.pooled;
     eprintln!(

@@ -1,24 +1,20 @@
 //! Plots written by `inertia identify --plots DIR`: the gyro rates over the log with the free
-//! flights that reached the estimator shaded.
+//! flights that reached the estimator shaded. The rates come from [`Trace`]: every `step`-th
+//! sample, kept while the log was read (the log is never held whole).
 use std::path::Path;
 
 use plotters::prelude::*;
 
-use crate::identify::Report;
-use crate::recording::Recording;
+use crate::identify::{Report, Trace};
 
 /// Writes `DIR/rates.svg`.
-pub fn identify_plots(rec: &Recording, report: &Report, dir: &Path) -> anyhow::Result<()> {
+pub fn identify_plots(trace: &Trace, report: &Report, dir: &Path) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir)?;
     let path = dir.join("rates.svg");
     let root = SVGBackend::new(&path, (1100, 450)).into_drawing_area();
     root.fill(&WHITE)?;
-    let (t0, t1) = (rec.t[0], rec.t[rec.len() - 1]);
-    let wmax =
-        rec.gyro
-            .iter()
-            .flat_map(|w| w.iter())
-            .fold(1.0f32, |m, x| if x.abs() > m { x.abs() } else { m });
+    let (t0, t1) = trace.span;
+    let wmax = trace.rate_max;
     let mut chart = ChartBuilder::on(&root)
         .caption(
             "gyro rates; shaded: samples fed to the estimator",
@@ -39,13 +35,10 @@ pub fn identify_plots(rec: &Recording, report: &Report, dir: &Path) -> anyhow::R
             RGBColor(200, 230, 200).filled(),
         )))?;
     }
-    let step = (rec.len() / 20000).max(1);
     for (k, color) in [(0usize, RED), (1, GREEN), (2, BLUE)] {
         chart
             .draw_series(LineSeries::new(
-                (0..rec.len())
-                    .step_by(step)
-                    .map(|i| (rec.t[i], rec.gyro[i][k] as f64)),
+                trace.points.iter().map(|&(t, w)| (t, w[k] as f64)),
                 color,
             ))?
             .label(["wx", "wy", "wz"][k])

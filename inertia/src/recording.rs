@@ -31,11 +31,17 @@ impl RotorSpeed {
         match self {
             RotorSpeed::RadPerSec(v) => Some(v.clone()),
             RotorSpeed::Erpm(v) => {
-                let pairs = poles.filter(|&p| p >= 2)? as f32 / 2.0;
-                let k = 2.0 * core::f32::consts::PI / 60.0 / pairs;
+                let k = Self::erpm_factor(poles)?;
                 Some(v.iter().map(|e| e * k).collect())
             }
         }
+    }
+
+    /// The factor from eRPM to mechanical rad/s, `2 pi / 60 / (poles / 2)` (`None` when
+    /// `poles` is missing or below 2).
+    pub fn erpm_factor(poles: Option<u32>) -> Option<f32> {
+        let pairs = poles.filter(|&p| p >= 2)? as f32 / 2.0;
+        Some(2.0 * core::f32::consts::PI / 60.0 / pairs)
     }
 }
 

@@ -14,13 +14,17 @@
 //! counts of the +-2000 deg/s range; trusting the header gives rates 16.4x too large. The
 //! header is therefore ignored for the gyro.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use blackbox_log::frame::{Frame, FrameDef};
 use blackbox_log::{File, Headers, ParserEvent};
 
-use super::{guard, Location, ReadError, RotorWrap, Samples, BLACKBOX_MARKER};
-use crate::recording::{Recording, RotorSpeed};
+use super::check::Checker;
+use super::{collect, guard, Location, ReadError, BLACKBOX_MARKER};
+use crate::recording::Recording;
+#[cfg(doc)]
+use crate::recording::RotorSpeed;
+use crate::source::{Channels, Flow, Reading, RotorUnit, Source, Visit};
 
 /// Raw gyro counts per deg/s (16-bit over +-2000 deg/s).
 pub const GYRO_LSB_PER_DEG_S: f64 = 16.384;
@@ -270,25 +274,106 @@ fn value(raw: u32, signed: bool) -> f64 {
 /// Reads a blackbox log file. A file holding several logs (several arming periods) gives its
 /// longest one, with a warning.
 pub fn read_blackbox(path: &Path) -> Result<Recording, ReadError> {
-    let data =
-        std::fs::read(path).map_err(|e| ReadError::new(path, format!("cannot read: {e}")))?;
-    guard(path, "blackbox", || read_bytes(path, &data))?
+    collect(&BlackboxSource::open(path)?)
 }
 
 /// Reads blackbox bytes (`path` only names them in messages).
 pub fn read_bytes(path: &Path, data: &[u8]) -> Result<Recording, ReadError> {
-    if !data.starts_with(BLACKBOX_MARKER) {
-        return Err(ReadError::at(
-            path,
-            Location::Line(1),
-            "not a blackbox log: it does not start with \"H Product:Blackbox flight data recorder\"",
-        ));
+    collect(&BlackboxSource::from_bytes(path, data)?)
+}
+
+/// A blackbox log read frame by frame (see [`crate::source`]). The file's bytes stay in
+/// memory: `blackbox-log` decodes from a byte slice.
+pub struct BlackboxSource {
+    path: PathBuf,
+    /// The file, its unknown firmware revisions rewritten.
+    data: Vec<u8>,
+    /// The log read (the one with the most main frames).
+    index: usize,
+    /// Its `H name:value` lines.
+    block: Vec<(String, String)>,
+    name: String,
+    channels: Channels,
+    /// Warnings about the file as a whole (firmware, units, several logs).
+    notes: Vec<String>,
+}
+
+impl BlackboxSource {
+    /// Reads the file and chooses its log.
+    pub fn open(path: &Path) -> Result<Self, ReadError> {
+        let data =
+            std::fs::read(path).map_err(|e| ReadError::new(path, format!("cannot read: {e}")))?;
+        Self::from_bytes(path, &data)
     }
-    let (data, replaced) = rewrite_unknown_firmware(data);
-    let file = File::new(&data);
+
+    /// Chooses the log of `data` (`path` only names it in messages).
+    pub fn from_bytes(path: &Path, data: &[u8]) -> Result<Self, ReadError> {
+        if !data.starts_with(BLACKBOX_MARKER) {
+            return Err(ReadError::at(
+                path,
+                Location::Line(1),
+                "not a blackbox log: it does not start with \"H Product:Blackbox flight data recorder\"",
+            ));
+        }
+        let (data, replaced) = rewrite_unknown_firmware(data);
+        let chosen = guard(path, "blackbox", || choose_log(path, &data))??;
+        let Chosen {
+            index,
+            count,
+            name,
+            channels,
+        } = chosen;
+        let mut notes = Vec::new();
+        for r in replaced {
+            notes.push(format!(
+                "firmware revision {r:?} read as a Betaflight 4 log (same frame format); gyroADC \
+                 taken as raw counts, {GYRO_LSB_PER_DEG_S} per deg/s"
+            ));
+        }
+        if notes.is_empty() {
+            // Only INDIflight's units are verified (see the module documentation); Betaflight 4
+            // itself may log gyroADC already in deg/s, which this scale would make 16.4x too
+            // small.
+            notes.push(format!(
+                "gyroADC taken as raw counts, {GYRO_LSB_PER_DEG_S} per deg/s, as INDIflight logs \
+                 it; check the rates if this log's firmware ({name}) logs deg/s"
+            ));
+        }
+        if count > 1 {
+            notes.push(format!(
+                "the file holds {count} logs; the one with the most main frames was read"
+            ));
+        }
+        let block = header_blocks(&data)
+            .into_iter()
+            .nth(index)
+            .unwrap_or_default();
+        Ok(BlackboxSource {
+            path: path.to_path_buf(),
+            data,
+            index,
+            block,
+            name,
+            channels,
+            notes,
+        })
+    }
+}
+
+/// The log chosen in a file.
+struct Chosen {
+    index: usize,
+    count: usize,
+    name: String,
+    channels: Channels,
+}
+
+/// The log with the most main frames (the first of equals); with several logs, every log is
+/// decoded once to count its frames. A log without the gyro fields counts none.
+fn choose_log(path: &Path, data: &[u8]) -> Result<Chosen, ReadError> {
+    let file = File::new(data);
     let count = file.log_count();
-    let blocks = header_blocks(&data);
-    let mut best: Option<(usize, Result<Recording, ReadError>)> = None;
+    let mut best: Option<(usize, usize)> = None;
     let mut header_errors = Vec::new();
     for index in 0..count {
         let headers = match file.parse(index) {
@@ -299,14 +384,23 @@ pub fn read_bytes(path: &Path, data: &[u8]) -> Result<Recording, ReadError> {
             }
             None => continue,
         };
-        let empty = Vec::new();
-        let block = blocks.get(index).unwrap_or(&empty);
-        let (frames, rec) = read_log(path, &headers, block);
-        if best.as_ref().is_none_or(|(n, _)| frames > *n) {
-            best = Some((frames, rec));
+        let frames = if count == 1 || fields(&headers).is_err() {
+            0
+        } else {
+            let mut parser = headers.data_parser();
+            let mut n = 0usize;
+            while let Some(event) = parser.next() {
+                if let ParserEvent::Main(_) = event {
+                    n += 1;
+                }
+            }
+            n
+        };
+        if best.is_none_or(|(_, n)| frames > n) {
+            best = Some((index, frames));
         }
     }
-    let Some((_, rec)) = best else {
+    let Some((index, _)) = best else {
         let why = if header_errors.is_empty() {
             "no log in the file".to_string()
         } else {
@@ -314,43 +408,76 @@ pub fn read_bytes(path: &Path, data: &[u8]) -> Result<Recording, ReadError> {
         };
         return Err(ReadError::new(path, why));
     };
-    let mut rec = rec?;
-    let mut notes = Vec::new();
-    for r in replaced {
-        notes.push(format!(
-            "firmware revision {r:?} read as a Betaflight 4 log (same frame format); gyroADC \
-             taken as raw counts, {GYRO_LSB_PER_DEG_S} per deg/s"
-        ));
-    }
-    if notes.is_empty() {
-        // Only INDIflight's units are verified (see the module documentation); Betaflight 4
-        // itself may log gyroADC already in deg/s, which this scale would make 16.4x too small.
-        notes.push(format!(
-            "gyroADC taken as raw counts, {GYRO_LSB_PER_DEG_S} per deg/s, as INDIflight logs \
-             it; check the rates if this log's firmware ({}) logs deg/s",
-            rec.source
-        ));
-    }
-    if count > 1 {
-        notes.push(format!(
-            "the file holds {count} logs; the one with the most main frames was read"
-        ));
-    }
-    notes.append(&mut rec.warnings);
-    rec.warnings = notes;
-    Ok(rec)
+    let headers = match file.parse(index) {
+        Some(Ok(h)) => h,
+        _ => {
+            return Err(ReadError::new(
+                path,
+                "the log's headers did not parse twice alike",
+            ))
+        }
+    };
+    let f = fields(&headers).map_err(|e| ReadError::new(path, e))?;
+    Ok(Chosen {
+        index,
+        count,
+        name: format!(
+            "{} (blackbox, {})",
+            path.display(),
+            headers.firmware_revision()
+        ),
+        channels: Channels {
+            accel: f.acc.is_some(),
+            rotor: f.erpm.map(|_| RotorUnit::Erpm),
+        },
+    })
 }
 
-/// Decodes one log: the number of main frames seen and the recording (or the error).
+impl Source for BlackboxSource {
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+
+    fn channels(&self) -> Channels {
+        self.channels
+    }
+
+    fn full_scale(&self) -> f32 {
+        GYRO_FULL_SCALE_RAD_S
+    }
+
+    fn read_all(
+        &self,
+        visit: &mut Visit<'_>,
+        progress: &mut dyn FnMut(f32),
+    ) -> Result<Reading, ReadError> {
+        let path = self.path.as_path();
+        guard(path, "blackbox", || {
+            let file = File::new(&self.data);
+            let headers = match file.parse(self.index) {
+                Some(Ok(h)) => h,
+                _ => return Err(ReadError::new(path, "the log's headers no longer parse")),
+            };
+            read_log(path, &headers, &self.block, visit, progress)
+        })?
+    }
+
+    fn warnings(&self, found: Vec<String>) -> Vec<String> {
+        let mut w = self.notes.clone();
+        w.extend(found);
+        w
+    }
+}
+
+/// Decodes one log, giving each checked sample to `visit`.
 fn read_log(
     path: &Path,
     headers: &Headers,
     block: &[(String, String)],
-) -> (usize, Result<Recording, ReadError>) {
-    let f = match fields(headers) {
-        Ok(f) => f,
-        Err(e) => return (0, Err(ReadError::new(path, e))),
-    };
+    visit: &mut Visit<'_>,
+    progress: &mut dyn FnMut(f32),
+) -> Result<Reading, ReadError> {
+    let f = fields(headers).map_err(|e| ReadError::new(path, e))?;
     let header = |k: &str| {
         block
             .iter()
@@ -398,19 +525,21 @@ fn read_log(
         .unwrap_or(DEFAULT_ACC_1G);
     let kw = (1.0 / GYRO_LSB_PER_DEG_S).to_radians();
     let ka = G / acc_1g;
-    let mut samples = Samples::new(path);
+    let mut check = Checker::new(path);
     let mut parser = headers.data_parser();
     let mut n = 0usize;
-    let mut failed = None;
-    while let Some(event) = parser.next() {
+    loop {
+        if n % 65536 == 65535 {
+            progress(parser.stats().progress);
+        }
+        let Some(event) = parser.next() else {
+            break;
+        };
         let ParserEvent::Main(frame) = event else {
             continue;
         };
         let at = Location::Frame(n);
         n += 1;
-        if failed.is_some() {
-            continue;
-        }
         // I-frames are the frames whose iteration is a multiple of the I interval (Betaflight
         // writes them so; checked on every frame of the ten thrown-fc logs).
         let intra = frame.get_raw(0).is_some_and(|it| it % i_interval == 0);
@@ -431,10 +560,9 @@ fn read_log(
             Some(out)
         };
         let Some(w) = read3(f.gyro, f.gyro_signed, &mut gyro_fix, kw) else {
-            failed = Some(ReadError::at(path, at, "frame lacks a gyro field"));
-            continue;
+            return Err(ReadError::at(path, at, "frame lacks a gyro field"));
         };
-        // A missing value becomes NaN, which `Samples::push` refuses naming the frame.
+        // A missing value becomes NaN, which the check refuses naming the frame.
         let a = f
             .acc
             .map(|cols| read3(cols, f.acc_signed, &mut acc_fix, ka).unwrap_or([f64::NAN; 3]));
@@ -445,23 +573,19 @@ fn read_log(
             })
         });
         let t = frame.time_raw() as f64 * 1e-6;
-        if let Err(e) = samples.push(at, t, w, a, r) {
-            failed = Some(e);
+        if let Some(s) = check.check(at, t, w, a, r)? {
+            if visit(&s)? == Flow::Stop {
+                return Ok(Reading {
+                    samples: check.samples(),
+                    duplicates: None,
+                });
+            }
         }
     }
-    if let Some(e) = failed {
-        return (n, Err(e));
-    }
-    let rotor = f.erpm.map(|_| RotorSpeed::Erpm as RotorWrap);
-    let source = format!(
-        "{} (blackbox, {})",
-        path.display(),
-        headers.firmware_revision()
-    );
-    (
-        n,
-        samples.finish(source, rotor, GYRO_FULL_SCALE_RAD_S, Vec::new()),
-    )
+    Ok(Reading {
+        samples: check.samples(),
+        duplicates: check.finish()?,
+    })
 }
 
 #[cfg(test)]

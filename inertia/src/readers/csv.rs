@@ -15,17 +15,17 @@
 
 use std::path::Path;
 
-use super::{
-    fields, number, quote, read_lines, Location, ReadError, ReadOptions, RotorWrap, Samples,
-};
-use crate::recording::{Recording, RotorSpeed};
+use super::check::Checker;
+use super::{collect, fields, quote, text, Location, ReadError, ReadOptions};
+use crate::recording::Recording;
+use crate::source::{Channels, Flow, Reading, RotorUnit, Source, Visit};
 
 /// Column positions found in a header.
 struct Columns {
     t: usize,
     gyro: [usize; 3],
     accel: Option<[usize; 3]>,
-    rotor: Option<(usize, RotorWrap)>,
+    rotor: Option<(usize, RotorUnit)>,
 }
 
 fn columns(path: &Path, header: &str) -> Result<Columns, ReadError> {
@@ -60,8 +60,8 @@ fn columns(path: &Path, header: &str) -> Result<Columns, ReadError> {
         .ok_or_else(|| bad("gyro columns"))?;
     let accel = triple("a");
     let rotor = match (col("rotor_rad_s"), col("erpm")) {
-        (Some(c), _) => Some((c, RotorSpeed::RadPerSec as RotorWrap)),
-        (None, Some(c)) => Some((c, RotorSpeed::Erpm as RotorWrap)),
+        (Some(c), _) => Some((c, RotorUnit::RadPerSec)),
+        (None, Some(c)) => Some((c, RotorUnit::Erpm)),
         (None, None) => None,
     };
     Ok(Columns {
@@ -75,71 +75,233 @@ fn columns(path: &Path, header: &str) -> Result<Columns, ReadError> {
 /// Reads a CSV with named columns (see the module documentation), converting time and gyro
 /// with `opts` (defaults: seconds, rad/s).
 pub fn read_csv(path: &Path, opts: &ReadOptions) -> Result<Recording, ReadError> {
-    let lines = read_lines(path)?;
-    let Some(header) = lines.first() else {
-        return Err(ReadError::new(path, "empty file"));
-    };
-    let c = columns(path, header)?;
-    let kt = opts.time_unit.unwrap_or_default().to_seconds();
-    let kw = opts.gyro_unit.unwrap_or_default().to_rad_per_sec();
-    let mut need = c.t.max(c.gyro[0]).max(c.gyro[1]).max(c.gyro[2]);
-    if let Some(a) = c.accel {
-        need = need.max(a[0]).max(a[1]).max(a[2]);
-    }
-    if let Some((r, _)) = c.rotor {
-        need = need.max(r);
-    }
-    let mut samples = Samples::new(path);
-    for (i, line) in lines.iter().enumerate().skip(1) {
-        let n = i + 1;
-        if line.trim().is_empty() {
-            continue;
+    CsvSource::open(path, opts)?.collect()
+}
+
+/// A row's values: time, gyro, accelerometer, rotor speed (units converted).
+type Row = (f64, [f64; 3], Option<[f64; 3]>, Option<f64>);
+
+/// Where a value of a row goes: time, the gyro axes, the accelerometer axes, the rotor.
+const SLOTS: usize = 8;
+const NO_SLOT: u8 = u8::MAX;
+
+/// A CSV log read row by row (see [`crate::source`]).
+pub struct CsvSource {
+    path: std::path::PathBuf,
+    c: Columns,
+    kt: f64,
+    kw: f64,
+    /// The highest column a row must have.
+    need: usize,
+    /// For each column up to `need`, the slot its value fills (or [`NO_SLOT`]).
+    slot_of: Vec<u8>,
+}
+
+impl CsvSource {
+    /// Reads the header (the rows are read by each [`Source::read_all`]).
+    pub fn open(path: &Path, opts: &ReadOptions) -> Result<Self, ReadError> {
+        let Some(header) = text::first_line(path)? else {
+            return Err(ReadError::new(path, "empty file"));
+        };
+        let c = columns(path, &header).map_err(|e| text::utf8_first(path, e))?;
+        let kt = opts.time_unit.unwrap_or_default().to_seconds();
+        let kw = opts.gyro_unit.unwrap_or_default().to_rad_per_sec();
+        let mut need = c.t.max(c.gyro[0]).max(c.gyro[1]).max(c.gyro[2]);
+        if let Some(a) = c.accel {
+            need = need.max(a[0]).max(a[1]).max(a[2]);
         }
-        let f = fields(line);
-        if f.len() <= need {
+        if let Some((r, _)) = c.rotor {
+            need = need.max(r);
+        }
+        let mut slot_of = vec![NO_SLOT; need + 1];
+        let mut put = |col: usize, slot: u8| {
+            if let Some(s) = slot_of.get_mut(col) {
+                if *s == NO_SLOT {
+                    *s = slot;
+                }
+            }
+        };
+        put(c.t, 0);
+        for k in 0..3 {
+            put(c.gyro[k], 1 + k as u8);
+            if let Some(a) = c.accel {
+                put(a[k], 4 + k as u8);
+            }
+        }
+        if let Some((r, _)) = c.rotor {
+            put(r, 7);
+        }
+        Ok(CsvSource {
+            path: path.to_path_buf(),
+            c,
+            kt,
+            kw,
+            need,
+            slot_of,
+        })
+    }
+
+    /// The whole log as a [`Recording`].
+    fn collect(&self) -> Result<Recording, ReadError> {
+        collect(self)
+    }
+
+    /// The fields of a row for each slot (the first column of each name wins, as in the
+    /// header), the row's field count and whether it uses decimal commas.
+    #[inline]
+    fn split<'l>(&self, line: &'l str) -> ([&'l str; SLOTS], usize, bool) {
+        let mut out = [""; SLOTS];
+        let mut put = |i: usize, f: &'l str| {
+            if let Some(&slot) = self.slot_of.get(i) {
+                if let Some(o) = out.get_mut(slot as usize) {
+                    *o = text::clean(f);
+                }
+            }
+        };
+        // The common row: `,` separators, which one scan splits. A `;` or a tab anywhere
+        // makes the row's separator another (see `text::separator`).
+        let mut start = 0;
+        let mut i = 0;
+        let mut plain = true;
+        for (k, &b) in line.as_bytes().iter().enumerate() {
+            // Digits, signs, points and letters are above `;`; one comparison passes them.
+            if b > b';' || (b'-'..=b'9').contains(&b) {
+                continue;
+            }
+            if b == b',' {
+                put(i, line.get(start..k).unwrap_or_default());
+                i += 1;
+                start = k + 1;
+            } else if b == b';' || b == b'\t' {
+                plain = false;
+                break;
+            }
+        }
+        if plain {
+            put(i, line.get(start..).unwrap_or_default());
+            return (out, i + 1, false);
+        }
+        out = [""; SLOTS];
+        let (sep, dc) = text::separator(line);
+        let mut count = 0;
+        for (i, f) in line.split(sep).enumerate() {
+            count = i + 1;
+            if let Some(&slot) = self.slot_of.get(i) {
+                if let Some(o) = out.get_mut(slot as usize) {
+                    *o = text::clean(f);
+                }
+            }
+        }
+        (out, count, dc)
+    }
+
+    /// One data row: `Ok(None)` for a blank line.
+    fn row(&self, n: usize, line: &str, scratch: &mut String) -> Result<Option<Row>, ReadError> {
+        let path = self.path.as_path();
+        if line.trim().is_empty() {
+            return Ok(None);
+        }
+        let (f, count, dc) = self.split(line);
+        if count <= self.need {
             return Err(ReadError::at(
                 path,
                 Location::Line(n),
                 format!(
                     "truncated row: {} field(s), the header names {}",
-                    f.len(),
-                    need + 1
+                    count,
+                    self.need + 1
                 ),
             ));
         }
-        let t = number(path, n, "time", &f[c.t])? * kt;
+        let t = text::number(path, n, "time", f[0], dc, scratch)? * self.kt;
         let mut w = [0.0; 3];
         for (k, name) in ["wx", "wy", "wz"].iter().enumerate() {
-            w[k] = number(path, n, name, &f[c.gyro[k]])? * kw;
+            w[k] = text::number(path, n, name, f[1 + k], dc, scratch)? * self.kw;
         }
-        let a = match c.accel {
-            Some(cols) => {
+        let a = match self.c.accel {
+            Some(_) => {
                 let mut a = [0.0; 3];
                 for (k, name) in ["ax", "ay", "az"].iter().enumerate() {
-                    a[k] = number(path, n, name, &f[cols[k]])?;
+                    a[k] = text::number(path, n, name, f[4 + k], dc, scratch)?;
                 }
                 Some(a)
             }
             None => None,
         };
-        let r = match c.rotor {
-            Some((col, _)) => Some(number(path, n, "rotor speed", &f[col])?),
+        let r = match self.c.rotor {
+            Some(_) => Some(text::number(path, n, "rotor speed", f[7], dc, scratch)?),
             None => None,
         };
-        samples.push(Location::Line(n), t, w, a, r)?;
+        Ok(Some((t, w, a, r)))
     }
-    samples.finish(
-        format!("{} (csv)", path.display()),
-        c.rotor.map(|(_, wrap)| wrap),
-        f32::INFINITY,
-        Vec::new(),
-    )
+}
+
+impl Source for CsvSource {
+    fn name(&self) -> String {
+        format!("{} (csv)", self.path.display())
+    }
+
+    fn channels(&self) -> Channels {
+        Channels {
+            accel: self.c.accel.is_some(),
+            rotor: self.c.rotor.map(|(_, unit)| unit),
+        }
+    }
+
+    fn full_scale(&self) -> f32 {
+        f32::INFINITY
+    }
+
+    fn read_all(
+        &self,
+        visit: &mut Visit<'_>,
+        progress: &mut dyn FnMut(f32),
+    ) -> Result<Reading, ReadError> {
+        let mut check = Checker::new(&self.path);
+        let mut scratch = String::new();
+        let mut stopped = false;
+        text::each_line(
+            &self.path,
+            &mut |n, line| {
+                if n == 1 {
+                    return Ok(Flow::Continue);
+                }
+                let Some((t, w, a, r)) = self.row(n, line, &mut scratch)? else {
+                    return Ok(Flow::Continue);
+                };
+                match check.check(Location::Line(n), t, w, a, r)? {
+                    Some(s) => {
+                        let f = visit(&s)?;
+                        stopped = f == Flow::Stop;
+                        Ok(f)
+                    }
+                    None => Ok(Flow::Continue),
+                }
+            },
+            progress,
+        )?;
+        if stopped {
+            return Ok(Reading {
+                samples: check.samples(),
+                duplicates: None,
+            });
+        }
+        Ok(Reading {
+            samples: check.samples(),
+            duplicates: check.finish()?,
+        })
+    }
+
+    fn warnings(&self, found: Vec<String>) -> Vec<String> {
+        found
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::readers::{GyroUnit, TimeUnit};
+    use crate::recording::RotorSpeed;
 
     fn tmp(name: &str, bytes: &[u8]) -> std::path::PathBuf {
         let dir = std::env::temp_dir().join(format!("inertia_csv_{}", std::process::id()));

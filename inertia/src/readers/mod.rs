@@ -19,14 +19,22 @@
 //! the wrong time unit).
 
 pub mod blackbox;
+mod check;
 pub mod csv;
 pub mod phyphox;
+mod text;
 pub mod ulog;
+mod units;
+
+pub use units::{unit_warnings, UnitCheck, DEG_PER_SEC_SUSPECT_RAD_S, SUSTAINED_S};
 
 use std::fmt;
 use std::path::{Path, PathBuf};
 
 use crate::recording::{Recording, RotorSpeed};
+use crate::source::Source;
+
+use check::Checker;
 
 /// Where in a file a problem is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -318,61 +326,27 @@ pub(crate) fn number(path: &Path, line: usize, what: &str, s: &str) -> Result<f6
 
 // ---- the checks every reader shares ----
 
-/// Collects samples in SI units, checking each as it comes: values finite (also once in
-/// `f32`), time strictly increasing (an exact duplicate is dropped and counted, going
-/// backwards is an error).
+/// Collects samples in SI units, checking each as it comes ([`Checker`]).
 pub(crate) struct Samples {
-    file: PathBuf,
+    check: Checker,
     t: Vec<f64>,
     gyro: Vec<[f32; 3]>,
     accel: Vec<[f32; 3]>,
     rotor: Vec<f32>,
-    duplicates: usize,
-    first_duplicate: Option<Location>,
 }
 
 /// How a reader's rotor values become a [`RotorSpeed`] (`RotorSpeed::Erpm` or `RadPerSec`).
 pub(crate) type RotorWrap = fn(Vec<f32>) -> RotorSpeed;
 
-const AXES: [&str; 3] = ["x", "y", "z"];
-
 impl Samples {
     pub(crate) fn new(file: &Path) -> Self {
         Samples {
-            file: file.to_path_buf(),
+            check: Checker::new(file),
             t: Vec::new(),
             gyro: Vec::new(),
             accel: Vec::new(),
             rotor: Vec::new(),
-            duplicates: 0,
-            first_duplicate: None,
         }
-    }
-
-    fn finite(&self, at: Location, what: &str, v: f64) -> Result<f32, ReadError> {
-        let x = v as f32;
-        if x.is_finite() {
-            Ok(x)
-        } else {
-            Err(ReadError::at(
-                &self.file,
-                at,
-                format!("{what} = {v} is not finite (or beyond f32)"),
-            ))
-        }
-    }
-
-    fn vec3(&self, at: Location, what: &str, v: [f64; 3]) -> Result<[f32; 3], ReadError> {
-        let out = v.map(|x| x as f32);
-        if out.iter().all(|x| x.is_finite()) {
-            return Ok(out);
-        }
-        // The label is built only for the error (formatting one per value cost most of the
-        // reading time of a long log).
-        for k in 0..3 {
-            self.finite(at, &format!("{what} {}", AXES[k]), v[k])?;
-        }
-        Ok(out)
     }
 
     /// Adds one sample. `accel` and `rotor` must be given for every sample or for none.
@@ -384,39 +358,16 @@ impl Samples {
         accel: Option<[f64; 3]>,
         rotor: Option<f64>,
     ) -> Result<(), ReadError> {
-        if !t.is_finite() {
-            return Err(ReadError::at(
-                &self.file,
-                at,
-                format!("time = {t} is not finite"),
-            ));
-        }
-        let g = self.vec3(at, "gyro", gyro)?;
-        let a = accel.map(|a| self.vec3(at, "accel", a)).transpose()?;
-        let r = rotor
-            .map(|r| self.finite(at, "rotor speed", r))
-            .transpose()?;
-        if let Some(&prev) = self.t.last() {
-            if t == prev {
-                self.duplicates += 1;
-                self.first_duplicate.get_or_insert(at);
-                return Ok(());
+        let (with_accel, with_rotor) = (accel.is_some(), rotor.is_some());
+        if let Some(s) = self.check.check(at, t, gyro, accel, rotor)? {
+            self.t.push(s.t);
+            self.gyro.push(s.gyro);
+            if with_accel {
+                self.accel.push(s.accel);
             }
-            if t < prev {
-                return Err(ReadError::at(
-                    &self.file,
-                    at,
-                    format!("time goes backwards: {t} s after {prev} s"),
-                ));
+            if with_rotor {
+                self.rotor.push(s.rotor);
             }
-        }
-        self.t.push(t);
-        self.gyro.push(g);
-        if let Some(a) = a {
-            self.accel.push(a);
-        }
-        if let Some(r) = r {
-            self.rotor.push(r);
         }
         Ok(())
     }
@@ -430,24 +381,8 @@ impl Samples {
         gyro_full_scale: f32,
         mut warnings: Vec<String>,
     ) -> Result<Recording, ReadError> {
+        warnings.extend(self.check.finish()?);
         let n = self.t.len();
-        if n < 2 {
-            return Err(ReadError::new(
-                &self.file,
-                format!("fewer than two samples ({n})"),
-            ));
-        }
-        if self.duplicates > 0 {
-            let at = match self.first_duplicate {
-                Some(Location::Line(l)) => format!(" (first at line {l})"),
-                Some(Location::Frame(f)) => format!(" (first at frame {f})"),
-                None => String::new(),
-            };
-            warnings.push(format!(
-                "dropped {} sample(s) repeating the previous timestamp{at}",
-                self.duplicates
-            ));
-        }
         let accel = (self.accel.len() == n).then_some(self.accel);
         let rotor = match rotor {
             Some(wrap) if self.rotor.len() == n => Some(wrap(self.rotor)),
@@ -467,58 +402,38 @@ impl Samples {
     }
 }
 
-/// Rates above this, sustained, look like deg/s read as rad/s.
-pub const DEG_PER_SEC_SUSPECT_RAD_S: f32 = 50.0;
-/// How long the rate must stay above [`DEG_PER_SEC_SUSPECT_RAD_S`] to count as sustained, s.
-pub const SUSTAINED_S: f64 = 0.1;
-
-/// Unit sanity warnings: sustained rates above 50 rad/s (deg/s read as rad/s?) and a median
-/// time step outside `[1e-5 s, 1 s]` (wrong time unit?).
-pub fn unit_warnings(t: &[f64], gyro: &[[f32; 3]]) -> Vec<String> {
-    let mut out = Vec::new();
-    // Longest run of samples whose rate magnitude exceeds the threshold.
-    let mut best: Option<(usize, usize)> = None;
-    let mut start: Option<usize> = None;
-    for (i, w) in gyro.iter().enumerate() {
-        let norm = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
-        if norm > DEG_PER_SEC_SUSPECT_RAD_S {
-            let s = *start.get_or_insert(i);
-            let span = t[i] - t[s];
-            if best.is_none_or(|(b0, b1)| span > t[b1] - t[b0]) {
-                best = Some((s, i));
+/// A streaming reader's whole log as a [`Recording`] (what [`read`] returns).
+pub(crate) fn collect(src: &dyn Source) -> Result<Recording, ReadError> {
+    let ch = src.channels();
+    let mut t = Vec::new();
+    let mut gyro = Vec::new();
+    let mut accel = Vec::new();
+    let mut rotor = Vec::new();
+    let reading = src.read_all(
+        &mut |s| {
+            t.push(s.t);
+            gyro.push(s.gyro);
+            if ch.accel {
+                accel.push(s.accel);
             }
-        } else {
-            start = None;
-        }
-    }
-    if let Some((i0, i1)) = best {
-        let span = t[i1] - t[i0];
-        if span >= SUSTAINED_S {
-            out.push(format!(
-                "gyro rate stays above {DEG_PER_SEC_SUSPECT_RAD_S} rad/s for {span:.3} s \
-                 (from t = {:.3} s): that looks like deg/s read as rad/s; check the gyro unit",
-                t[i0]
-            ));
-        }
-    }
-    if t.len() >= 2 {
-        let mut dt: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-        let mid = dt.len() / 2;
-        let (_, median, _) = dt.select_nth_unstable_by(mid, f64::total_cmp);
-        let median = *median;
-        if median < 1e-5 {
-            out.push(format!(
-                "median time step {median:.3e} s is below 1e-5 s: is the time in ms or us \
-                 read as seconds? check the time unit"
-            ));
-        } else if median > 1.0 {
-            out.push(format!(
-                "median time step {median:.3e} s is above 1 s: is the time in ms or us read \
-                 as seconds? check the time unit"
-            ));
-        }
-    }
-    out
+            if ch.rotor.is_some() {
+                rotor.push(s.rotor);
+            }
+            Ok(crate::source::Flow::Continue)
+        },
+        &mut |_| {},
+    )?;
+    let mut found: Vec<String> = reading.duplicates.into_iter().collect();
+    found.extend(unit_warnings(&t, &gyro));
+    Ok(Recording {
+        source: src.name(),
+        t,
+        gyro,
+        accel: ch.accel.then_some(accel),
+        rotor: ch.rotor.map(|u| u.wrap(rotor)),
+        gyro_full_scale: src.full_scale(),
+        warnings: src.warnings(found),
+    })
 }
 
 /// Runs a third-party parser, turning a panic inside it into a [`ReadError`]: the readers

@@ -6,62 +6,143 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{data_file, fields, number, quote, read_lines, Location, ReadError, Samples};
+use super::check::Checker;
+use super::{collect, data_file, fields, number, quote, read_lines, text, Location, ReadError};
 use crate::recording::Recording;
+use crate::source::{Channels, Flow, Reading, Source, Visit};
 
 /// Reads a phyphox gyroscope export (`Raw Data.csv`, or its folder): time in seconds, rates
 /// in rad/s, the phone's axes.
 pub fn read_phyphox(path: &Path) -> Result<Recording, ReadError> {
-    let file = data_file(path);
-    let lines = read_lines(&file)?;
-    let Some(h) = lines.first() else {
-        return Err(ReadError::new(&file, "empty file"));
-    };
-    let f = fields(h);
-    let ok = f.len() >= 4
-        && f[0].starts_with("Time (s)")
-        && f[1..4]
-            .iter()
-            .zip(["x", "y", "z"])
-            .all(|(c, a)| c.contains(&format!(" {a} ")) && c.contains("rad/s"));
-    if !ok {
-        return Err(ReadError::at(
-            &file,
-            Location::Line(1),
-            format!("not a phyphox gyroscope header: {}", quote(h)),
-        ));
-    }
-    let mut samples = Samples::new(&file);
-    for (i, line) in lines.iter().enumerate().skip(1) {
-        let n = i + 1;
-        if line.trim().is_empty() {
-            continue;
-        }
-        let f = fields(line);
-        if f.len() < 4 {
-            return Err(ReadError::at(
+    collect(&PhyphoxSource::open(path)?)
+}
+
+/// A phyphox export read row by row (see [`crate::source`]).
+pub struct PhyphoxSource {
+    file: PathBuf,
+}
+
+impl PhyphoxSource {
+    /// Checks the header (the rows are read by each [`Source::read_all`]).
+    pub fn open(path: &Path) -> Result<Self, ReadError> {
+        let file = data_file(path);
+        let Some(h) = text::first_line(&file)? else {
+            return Err(ReadError::new(&file, "empty file"));
+        };
+        let f = fields(&h);
+        let ok = f.len() >= 4
+            && f[0].starts_with("Time (s)")
+            && f[1..4]
+                .iter()
+                .zip(["x", "y", "z"])
+                .all(|(c, a)| c.contains(&format!(" {a} ")) && c.contains("rad/s"));
+        if !ok {
+            let e = ReadError::at(
                 &file,
+                Location::Line(1),
+                format!("not a phyphox gyroscope header: {}", quote(&h)),
+            );
+            return Err(text::utf8_first(&file, e));
+        }
+        Ok(PhyphoxSource { file })
+    }
+
+    /// One data row: `Ok(None)` for a blank line.
+    fn row(
+        &self,
+        n: usize,
+        line: &str,
+        scratch: &mut String,
+    ) -> Result<Option<(f64, [f64; 3])>, ReadError> {
+        let file = self.file.as_path();
+        if line.trim().is_empty() {
+            return Ok(None);
+        }
+        let (sep, dc) = text::separator(line);
+        let mut f = [""; 4];
+        let mut count = 0;
+        for (i, x) in line.split(sep).enumerate() {
+            count = i + 1;
+            if let Some(o) = f.get_mut(i) {
+                *o = text::clean(x);
+            }
+        }
+        if count < 4 {
+            return Err(ReadError::at(
+                file,
                 Location::Line(n),
-                format!(
-                    "truncated row: {} field(s), need 4 (t, wx, wy, wz)",
-                    f.len()
-                ),
+                format!("truncated row: {count} field(s), need 4 (t, wx, wy, wz)"),
             ));
         }
-        let t = number(&file, n, "time", &f[0])?;
+        let t = text::number(file, n, "time", f[0], dc, scratch)?;
         let w = [
-            number(&file, n, "wx", &f[1])?,
-            number(&file, n, "wy", &f[2])?,
-            number(&file, n, "wz", &f[3])?,
+            text::number(file, n, "wx", f[1], dc, scratch)?,
+            text::number(file, n, "wy", f[2], dc, scratch)?,
+            text::number(file, n, "wz", f[3], dc, scratch)?,
         ];
-        samples.push(Location::Line(n), t, w, None, None)?;
+        Ok(Some((t, w)))
     }
-    samples.finish(
-        format!("{} (phyphox)", file.display()),
-        None,
-        f32::INFINITY,
-        Vec::new(),
-    )
+}
+
+impl Source for PhyphoxSource {
+    fn name(&self) -> String {
+        format!("{} (phyphox)", self.file.display())
+    }
+
+    fn channels(&self) -> Channels {
+        Channels {
+            accel: false,
+            rotor: None,
+        }
+    }
+
+    fn full_scale(&self) -> f32 {
+        f32::INFINITY
+    }
+
+    fn read_all(
+        &self,
+        visit: &mut Visit<'_>,
+        progress: &mut dyn FnMut(f32),
+    ) -> Result<Reading, ReadError> {
+        let mut check = Checker::new(&self.file);
+        let mut scratch = String::new();
+        let mut stopped = false;
+        text::each_line(
+            &self.file,
+            &mut |n, line| {
+                if n == 1 {
+                    return Ok(Flow::Continue);
+                }
+                let Some((t, w)) = self.row(n, line, &mut scratch)? else {
+                    return Ok(Flow::Continue);
+                };
+                match check.check(Location::Line(n), t, w, None, None)? {
+                    Some(s) => {
+                        let f = visit(&s)?;
+                        stopped = f == Flow::Stop;
+                        Ok(f)
+                    }
+                    None => Ok(Flow::Continue),
+                }
+            },
+            progress,
+        )?;
+        if stopped {
+            return Ok(Reading {
+                samples: check.samples(),
+                duplicates: None,
+            });
+        }
+        Ok(Reading {
+            samples: check.samples(),
+            duplicates: check.finish()?,
+        })
+    }
+
+    fn warnings(&self, found: Vec<String>) -> Vec<String> {
+        found
+    }
 }
 
 /// A free-flight window `[start, end]` in the log's time base, seconds.

@@ -1,0 +1,219 @@
+//! Logs read sample by sample, as often as needed, without keeping the samples.
+//!
+//! `inertia identify` reads a log several times (statistics first, then the pipeline) instead
+//! of holding it as a [`Recording`]: a 10-minute 8 kHz log held whole took 950 MiB. Every
+//! reading gives the same samples, checked as [`crate::read`] checks them (values finite, time
+//! increasing, an exact duplicate timestamp dropped), in SI units and the log's own axes.
+//!
+//! | format | how a reading goes | memory |
+//! |---|---|---|
+//! | CSV, phyphox | line by line from the file | a read buffer |
+//! | blackbox | frame by frame, as `blackbox-log` decodes them | the file's bytes (the crate decodes from a byte slice; 10-30 bytes a frame) |
+//! | ULog | from a [`Recording`]: `px4-ulog` parses the whole file into memory anyway | the recording |
+
+use std::path::Path;
+
+use crate::readers::{self, Format, ReadError, ReadOptions};
+use crate::recording::{Recording, RotorSpeed};
+
+/// One sample: time (s), rate (rad/s), specific force (m/s^2; zero without an accelerometer)
+/// and the rotor speed in the channel's own unit ([`Channels::rotor`]; zero without one).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Sample {
+    /// Time, s.
+    pub t: f64,
+    /// Rate, rad/s.
+    pub gyro: [f32; 3],
+    /// Specific force, m/s^2.
+    pub accel: [f32; 3],
+    /// Rotor speed as logged (eRPM or rad/s).
+    pub rotor: f32,
+}
+
+/// The unit of a rotor-speed channel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RotorUnit {
+    /// Electrical revolutions per minute (see [`RotorSpeed::Erpm`]).
+    Erpm,
+    /// Mechanical rad/s.
+    RadPerSec,
+}
+
+impl RotorUnit {
+    /// The unit of a channel.
+    pub fn of(r: &RotorSpeed) -> Self {
+        match r {
+            RotorSpeed::Erpm(_) => RotorUnit::Erpm,
+            RotorSpeed::RadPerSec(_) => RotorUnit::RadPerSec,
+        }
+    }
+
+    /// A channel of this unit holding `v`.
+    pub fn wrap(self, v: Vec<f32>) -> RotorSpeed {
+        match self {
+            RotorUnit::Erpm => RotorSpeed::Erpm(v),
+            RotorUnit::RadPerSec => RotorSpeed::RadPerSec(v),
+        }
+    }
+
+    /// How a logged value becomes mechanical rad/s: `Some(None)` as it is, `Some(Some(k))`
+    /// times `k` (the factor [`RotorSpeed::rad_per_sec`] uses), `None` for eRPM without
+    /// usable `poles`.
+    pub fn factor(self, poles: Option<u32>) -> Option<Option<f32>> {
+        match self {
+            RotorUnit::RadPerSec => Some(None),
+            RotorUnit::Erpm => RotorSpeed::erpm_factor(poles).map(Some),
+        }
+    }
+}
+
+/// Which channels a log has besides time and gyro.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Channels {
+    /// An accelerometer.
+    pub accel: bool,
+    /// A rotor-speed channel, and its unit.
+    pub rotor: Option<RotorUnit>,
+}
+
+/// What one reading found beyond the samples.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Reading {
+    /// Samples given.
+    pub samples: usize,
+    /// The warning about dropped duplicate timestamps, if any were dropped.
+    pub duplicates: Option<String>,
+}
+
+/// Whether a reading goes on after a sample.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Flow {
+    /// The next sample, please.
+    Continue,
+    /// Enough: the reading ends here (without the end-of-log checks).
+    Stop,
+}
+
+/// A sample visitor.
+pub type Visit<'a> = dyn FnMut(&Sample) -> Result<Flow, ReadError> + 'a;
+
+/// A log that can be read sample by sample, any number of times, with the same samples each
+/// time (from any thread).
+pub trait Source: Sync {
+    /// The file and format, for messages and the report (`"FILE (csv)"`).
+    fn name(&self) -> String;
+    /// The channels besides time and gyro.
+    fn channels(&self) -> Channels;
+    /// The gyro's full scale, rad/s (infinite when the log does not state it).
+    fn full_scale(&self) -> f32;
+    /// One reading: `visit` gets every sample in order (until it says [`Flow::Stop`]);
+    /// `progress` now and then the fraction of the log read. A malformed log fails with the
+    /// error [`crate::read`] gives for it; an error of `visit` ends the reading with that
+    /// error.
+    fn read_all(
+        &self,
+        visit: &mut Visit<'_>,
+        progress: &mut dyn FnMut(f32),
+    ) -> Result<Reading, ReadError>;
+    /// The warnings [`crate::read`] puts in [`Recording::warnings`], given `found`: the
+    /// duplicates warning of a reading (if any) followed by the unit warnings.
+    fn warnings(&self, found: Vec<String>) -> Vec<String>;
+}
+
+/// Opens the log at `path` for reading sample by sample, the format detected from the
+/// content as [`crate::read`] does.
+pub fn open<'a>(path: &Path, opts: &ReadOptions) -> Result<Box<dyn Source + 'a>, ReadError> {
+    Ok(match readers::detect(path)? {
+        Format::Blackbox => Box::new(readers::blackbox::BlackboxSource::open(path)?),
+        Format::Ulog => Box::new(RecordingSource::owned(readers::ulog::read_ulog(path)?)),
+        Format::Phyphox => Box::new(readers::phyphox::PhyphoxSource::open(path)?),
+        Format::Csv => Box::new(readers::csv::CsvSource::open(path, opts)?),
+    })
+}
+
+/// A [`Recording`] already in memory as a [`Source`]: its samples as they are (a recording
+/// from [`crate::read`] is already checked), its warnings as they are.
+pub struct RecordingSource<'a> {
+    rec: std::borrow::Cow<'a, Recording>,
+}
+
+impl<'a> RecordingSource<'a> {
+    /// Borrows `rec`.
+    pub fn new(rec: &'a Recording) -> Self {
+        RecordingSource {
+            rec: std::borrow::Cow::Borrowed(rec),
+        }
+    }
+
+    /// Owns `rec`.
+    pub fn owned(rec: Recording) -> Self {
+        RecordingSource {
+            rec: std::borrow::Cow::Owned(rec),
+        }
+    }
+}
+
+impl Source for RecordingSource<'_> {
+    fn name(&self) -> String {
+        self.rec.source.clone()
+    }
+
+    fn channels(&self) -> Channels {
+        Channels {
+            accel: self.rec.accel.is_some(),
+            rotor: self.rec.rotor.as_ref().map(RotorUnit::of),
+        }
+    }
+
+    fn full_scale(&self) -> f32 {
+        self.rec.gyro_full_scale
+    }
+
+    fn read_all(
+        &self,
+        visit: &mut Visit<'_>,
+        progress: &mut dyn FnMut(f32),
+    ) -> Result<Reading, ReadError> {
+        let rec = &*self.rec;
+        let n = rec.t.len();
+        let rotor = rec.rotor.as_ref().map(|r| match r {
+            RotorSpeed::Erpm(v) | RotorSpeed::RadPerSec(v) => v,
+        });
+        let uneven = rec.gyro.len() != n
+            || rec.accel.as_ref().is_some_and(|a| a.len() != n)
+            || rotor.is_some_and(|r| r.len() != n);
+        if uneven {
+            return Err(ReadError::new(
+                Path::new(&rec.source),
+                "the recording's channels differ in length",
+            ));
+        }
+        for i in 0..n {
+            let s = Sample {
+                t: rec.t[i],
+                gyro: rec.gyro[i],
+                accel: rec.accel.as_ref().map_or([0.0; 3], |a| a[i]),
+                rotor: rotor.map_or(0.0, |r| r[i]),
+            };
+            if visit(&s)? == Flow::Stop {
+                return Ok(Reading {
+                    samples: i + 1,
+                    duplicates: None,
+                });
+            }
+            if i % 65536 == 0 {
+                progress(i as f32 / n as f32);
+            }
+        }
+        Ok(Reading {
+            samples: n,
+            duplicates: None,
+        })
+    }
+
+    fn warnings(&self, _found: Vec<String>) -> Vec<String> {
+        // A recording's warnings already hold what a reading finds (`read` put them there),
+        // or are whatever its maker chose.
+        self.rec.warnings.clone()
+    }
+}

@@ -1,0 +1,198 @@
+//! The first reading of a log, before the pipeline can start: everything `identify` computed
+//! from the whole recording (sample count, median time step, gyro noise, unit warnings, the
+//! rotor channel's changes, the plot's extent), in bounded memory and bit for bit.
+//!
+//! The medians are exact ([`crate::select`]); when the first reading leaves one open (many
+//! distinct values), the log is read again for it, the time step and the gyro only.
+
+use crate::readers::{ReadError, UnitCheck};
+use crate::select::Median;
+use crate::source::{Flow, Source};
+use crate::unhold::{Plan, Planner, LOOKAHEAD};
+
+/// What to find besides the sample count, time step and unit warnings.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Wanted {
+    /// The gyro noise estimate.
+    pub noise: bool,
+    /// The rotor channel's changes for the streaming `unhold`, the logged value turned to rad/s
+    /// by this factor (`Some(None)`: as logged).
+    pub unhold: Option<Option<f32>>,
+}
+
+/// The findings.
+#[derive(Clone, Debug, Default)]
+pub struct Survey {
+    /// Samples in the log.
+    pub samples: usize,
+    /// Median time step, s (`None` with fewer than two samples).
+    pub median_dt: Option<f64>,
+    /// The gyro noise `estimate_noise` gives, when wanted.
+    pub noise: Option<f32>,
+    /// The duplicates warning of the reading (if any) and the unit warnings.
+    pub warnings: Vec<String>,
+    /// The rotor's knots, when wanted.
+    pub unhold: Option<Plan>,
+    /// First and last time, s.
+    pub span: (f64, f64),
+    /// Largest absolute rate over the log, at least 1 rad/s (the plot's scale).
+    pub rate_max: f32,
+}
+
+/// Median absolute third difference of each gyro axis (see
+/// [`crate::identify::estimate_noise`]).
+#[derive(Clone, Debug, Default)]
+pub struct NoiseStats {
+    last: [[f32; 3]; 3],
+    seen: usize,
+    medians: [Median<f32>; 3],
+}
+
+impl NoiseStats {
+    /// The next sample's rate.
+    #[inline]
+    pub fn push(&mut self, w: [f32; 3]) {
+        if self.seen >= 3 {
+            let [w0, w1, w2] = self.last;
+            for ax in 0..3 {
+                let d = (w[ax] - 3.0 * w2[ax] + 3.0 * w1[ax] - w0[ax]).abs();
+                if d.is_finite() {
+                    self.medians[ax].push(d);
+                }
+            }
+        }
+        self.last = [self.last[1], self.last[2], w];
+        self.seen += 1;
+    }
+
+    /// Ends a reading; true when another is needed.
+    pub fn end_reading(&mut self) -> bool {
+        self.last = [[0.0; 3]; 3];
+        self.seen = 0;
+        let mut again = false;
+        for m in &mut self.medians {
+            m.end_reading();
+            again |= m.needs_reading();
+        }
+        again
+    }
+
+    /// The noise, once no reading is needed: the median turned into a standard deviation
+    /// (third differences of white noise have variance `20 sigma^2`), smallest over the axes,
+    /// floored at `1e-4 rad/s`; `2e-3` when no axis has a difference.
+    pub fn noise(&self) -> f32 {
+        let mut best = f32::INFINITY;
+        for m in &self.medians {
+            let Some(Some(mad)) = m.result() else {
+                continue;
+            };
+            let s = mad / 0.6745 / 20f32.sqrt();
+            if s < best {
+                best = s;
+            }
+        }
+        if best.is_finite() {
+            best.max(1e-4)
+        } else {
+            2e-3
+        }
+    }
+}
+
+/// Median of the time steps.
+#[derive(Clone, Debug, Default)]
+pub struct DtStats {
+    prev: Option<f64>,
+    median: Median<f64>,
+}
+
+impl DtStats {
+    /// The next sample's time.
+    #[inline]
+    pub fn push(&mut self, t: f64) {
+        if let Some(p) = self.prev {
+            self.median.push(t - p);
+        }
+        self.prev = Some(t);
+    }
+
+    /// Ends a reading; true when another is needed.
+    pub fn end_reading(&mut self) -> bool {
+        self.prev = None;
+        self.median.end_reading();
+        self.median.needs_reading()
+    }
+
+    /// The median, once no reading is needed (`None` without a step).
+    pub fn median(&self) -> Option<f64> {
+        self.median.result().flatten()
+    }
+}
+
+/// Reads `src` once (and again while a median is open). `progress` gets the fraction of the
+/// first reading done.
+pub fn survey(
+    src: &dyn Source,
+    wanted: Wanted,
+    progress: &mut dyn FnMut(f32),
+) -> Result<Survey, ReadError> {
+    let mut dt = DtStats::default();
+    let mut noise = NoiseStats::default();
+    let mut units = UnitCheck::default();
+    let mut planner = wanted.unhold.map(|_| Planner::new(LOOKAHEAD));
+    let factor = wanted.unhold.flatten();
+    let mut span: Option<(f64, f64)> = None;
+    let mut rate_max = 1.0f32;
+    let reading = src.read_all(
+        &mut |s| {
+            dt.push(s.t);
+            if wanted.noise {
+                noise.push(s.gyro);
+            }
+            units.push(s.t, s.gyro);
+            if let Some(p) = &mut planner {
+                p.push(s.t, factor.map_or(s.rotor, |k| s.rotor * k));
+            }
+            span = Some(span.map_or((s.t, s.t), |(a, _)| (a, s.t)));
+            for x in s.gyro {
+                if x.abs() > rate_max {
+                    rate_max = x.abs();
+                }
+            }
+            Ok(Flow::Continue)
+        },
+        progress,
+    )?;
+    let mut again = dt.end_reading();
+    if wanted.noise {
+        again |= noise.end_reading();
+    }
+    while again {
+        src.read_all(
+            &mut |s| {
+                dt.push(s.t);
+                if wanted.noise {
+                    noise.push(s.gyro);
+                }
+                Ok(Flow::Continue)
+            },
+            &mut |_| {},
+        )?;
+        again = dt.end_reading();
+        if wanted.noise {
+            again |= noise.end_reading();
+        }
+    }
+    let median_dt = dt.median();
+    let mut warnings: Vec<String> = reading.duplicates.into_iter().collect();
+    warnings.extend(units.warnings(median_dt));
+    Ok(Survey {
+        samples: reading.samples,
+        median_dt,
+        noise: wanted.noise.then(|| noise.noise()),
+        warnings,
+        unhold: planner.map(Planner::finish),
+        span: span.unwrap_or((0.0, 0.0)),
+        rate_max,
+    })
+}
