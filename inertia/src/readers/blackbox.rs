@@ -575,17 +575,11 @@ fn read_log(
         let t = frame.time_raw() as f64 * 1e-6;
         if let Some(s) = check.check(at, t, w, a, r)? {
             if visit(&s)? == Flow::Stop {
-                return Ok(Reading {
-                    samples: check.samples(),
-                    duplicates: None,
-                });
+                return check.reading(true);
             }
         }
     }
-    Ok(Reading {
-        samples: check.samples(),
-        duplicates: check.finish()?,
-    })
+    check.reading(false)
 }
 
 #[cfg(test)]

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use super::{Location, ReadError};
-use crate::source::Sample;
+use crate::source::{Reading, Sample};
 
 const AXES: [&str; 3] = ["x", "y", "z"];
 
@@ -101,9 +101,13 @@ impl Checker {
         }))
     }
 
-    /// Samples kept so far.
-    pub(crate) fn samples(&self) -> usize {
-        self.samples
+    /// What a reading gave: when the visitor stopped it early, the samples so far and no
+    /// end-of-log checks; otherwise [`Checker::finish`]'s.
+    pub(crate) fn reading(&self, stopped: bool) -> Result<Reading, ReadError> {
+        Ok(Reading {
+            samples: self.samples,
+            duplicates: if stopped { None } else { self.finish()? },
+        })
     }
 
     /// After the last sample: at least two samples, and the duplicates warning if any were

@@ -128,16 +128,7 @@ impl Source for PhyphoxSource {
             },
             progress,
         )?;
-        if stopped {
-            return Ok(Reading {
-                samples: check.samples(),
-                duplicates: None,
-            });
-        }
-        Ok(Reading {
-            samples: check.samples(),
-            duplicates: check.finish()?,
-        })
+        check.reading(stopped)
     }
 
     fn warnings(&self, found: Vec<String>) -> Vec<String> {
