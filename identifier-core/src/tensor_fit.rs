@@ -376,18 +376,11 @@ fn rotor_of(b: &Block<6>) -> [f32; 3] {
 
 /// Cost and normal equations of the first `limit` blocks at `theta` (P = 9, or 12 with the
 /// bias in `theta[9..12]`).
-#[cfg(test)]
-pub(crate) static EVALS: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
-#[cfg(test)]
-pub(crate) static STEPS: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
-
 fn normal<const P: usize>(
     blocks: &[Block<6>],
     limit: usize,
     theta: &[f32; P],
 ) -> Option<Normal<P>> {
-    #[cfg(test)]
-    EVALS.fetch_add(limit as u32, core::sync::atomic::Ordering::Relaxed);
     let j = tensor_of(theta);
     let k = inverse_pd(&j)?;
     let first = blocks.first()?;
@@ -453,8 +446,6 @@ fn normal<const P: usize>(
                 let steps = substeps(span, speed);
                 let dt = span / steps as f32;
                 let mut tau = 0.0f32;
-                #[cfg(test)]
-                STEPS.fetch_add(steps, core::sync::atomic::Ordering::Relaxed);
                 for _ in 0..steps {
                     x = rk4(&k, &seg, &x, tau, dt);
                     tau += dt;
@@ -779,14 +770,7 @@ mod tests {
             }
             // A first guess 10 % off, products zero.
             let init = [[2.3e-4, 0.0, 0.0], [0.0, 2.6e-4, 0.0], [0.0, 0.0, 3.9e-4]];
-            super::EVALS.store(0, core::sync::atomic::Ordering::Relaxed);
-            super::STEPS.store(0, core::sync::atomic::Ordering::Relaxed);
             let o = fit.close(Some(init));
-            std::println!(
-                "{rate} Hz: block-evaluations {} rk4 steps {}",
-                super::EVALS.load(core::sync::atomic::Ordering::Relaxed),
-                super::STEPS.load(core::sync::atomic::Ordering::Relaxed)
-            );
             let e = fit.estimate().unwrap();
             std::println!("{rate} Hz: {o:?} noise {}", e.noise);
             assert_eq!(o, StretchOutcome::Fitted, "{rate} Hz");
