@@ -113,7 +113,8 @@ pub use settings::{GainMatrix, Settings, SettingsError, SignChangeCorrection};
 pub use status::{Counters, Estimate, SampleStatus};
 pub use status::{Exposure, Trust, Verdict};
 pub use tensor::{
-    TensorCounters, TensorEstimate, TensorEstimator, TensorModel, TensorSettings, TensorStatus,
+    TensorCounters, TensorEstimate, TensorEstimator, TensorMethod, TensorModel, TensorSettings,
+    TensorStatus,
 };
 pub use tensor_fit::{FlightTensorFit, TensorFit, TensorFitEstimate};
 pub use trajectory::{FlightRatioFit, RatioFit, RatioFitEstimate, StretchOutcome};

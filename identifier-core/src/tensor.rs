@@ -257,6 +257,20 @@ pub struct TensorEstimate {
     pub samples: u32,
     /// Stretches closed so far (plus the open one).
     pub stretches: u32,
+    /// Which estimator gave the tensor.
+    pub method: TensorMethod,
+}
+
+/// Which estimator gave a [`TensorEstimate`]'s tensor.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TensorMethod {
+    /// [`TensorEstimator`]: Euler's equation integrated per stretch, least squares, updated
+    /// with every sample.
+    EquationError,
+    /// [`crate::TensorFit`]: the trajectory fitted to the gyro once a flight has ended
+    /// (efficient for white gyro noise), described by [`TensorEstimator::with_tensor`].
+    OutputError,
 }
 
 /// Counters for diagnosis.
@@ -742,6 +756,7 @@ impl TensorEstimator {
             excitation: 0.0,
             samples,
             stretches,
+            method: TensorMethod::EquationError,
         };
         let c = &self.counters;
         if c.implausible > 0 || c.gaps.saturating_mul(10) > c.used {
@@ -842,6 +857,7 @@ impl TensorEstimator {
             return base;
         }
         let mut out = base;
+        out.method = TensorMethod::OutputError;
         out.model = TensorModel::Full;
         out.residual_ratio = residual_ratio;
         out.tensor = None;

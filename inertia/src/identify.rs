@@ -79,11 +79,16 @@ pub struct EstimateJson {
     pub samples: u32,
     /// Why `a` is or is not to be trusted (`Converged` only when it is).
     pub status: String,
-    /// Which estimator gave `a`: `Refined` (principal axes, no rotor: the paper's setting) or
-    /// `Tensor` (rotor momentum, or products of inertia needed).
+    /// Which estimator gave `a`: `Trajectory` (the ratio fit once a flight has ended and it
+    /// fits to the noise), `Refined` (during a flight, or when the torque-free model does not
+    /// fit), `RefinedBias` (a gyro bias during a first flight) or `Tensor` (rotor momentum, or
+    /// products of inertia needed).
     pub a_source: String,
     /// Why the tensor is or is not to be trusted.
     pub tensor_status: String,
+    /// Which estimator gave the tensor: `OutputError` (the trajectory fitted once the flight
+    /// ended, when it fits to the noise) or `EquationError` (the per-sample estimator).
+    pub tensor_method: String,
     /// `Full` or `Principal` (products of inertia insignificant and set to zero).
     pub model: String,
     /// `J`, kg m^2, when a rotor momentum fixes the scale; else null.
@@ -117,6 +122,7 @@ impl EstimateJson {
             status: format!("{:?}", r.status),
             a_source: format!("{:?}", r.source),
             tensor_status: format!("{:?}", e.status),
+            tensor_method: format!("{:?}", e.method),
             model: format!("{:?}", e.model),
             tensor_kg_m2: e.tensor,
             tensor_std_kg_m2: e.tensor_std,
