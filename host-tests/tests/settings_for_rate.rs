@@ -1,8 +1,12 @@
-//! Issue 11: settings from the sample rate alone (`RefinedSettings::for_rate`), and the
-//! noise-free bias they leave from 100 Hz to 8 kHz, for the refined and the paper identifier.
+//! Issue 11: settings from the sample rate alone (`RefinedSettings::for_rate`,
+//! `PipelineSettings::for_rate`), and the noise-free bias they leave from 100 Hz to 8 kHz, for
+//! the recommended ratios (the pipeline's, from the trajectory fit once the record ends), the
+//! refined and the paper identifier.
 
 use host_tests::rigid_body::Body;
-use identifier_core::{Identifier, Refined, RefinedSettings, Settings};
+use identifier_core::{
+    FlightPipeline, Identifier, PipelineSettings, RatioSource, Refined, RefinedSettings, Settings,
+};
 
 const RATES: [f64; 6] = [100.0, 200.0, 400.0, 1000.0, 4000.0, 8000.0];
 
@@ -111,6 +115,39 @@ fn paper_bias(rate: f64) -> f64 {
             e
         })
         .fold(0.0, f64::max)
+}
+
+/// Largest noise-free error of the pipeline's recommended ratios over the cases, per rate (no
+/// accelerometer: the whole record is the free flight, ended at its end).
+fn pipeline_bias(rate: f64) -> f64 {
+    cases()
+        .iter()
+        .map(|c| {
+            let (w, dt) = samples(c, rate);
+            let settings = PipelineSettings::for_rate(rate as f32, 1e-3);
+            let mut p = FlightPipeline::new(settings, false).unwrap();
+            for x in &w {
+                p.step(*x, [0.0; 3], [0.0; 3], dt);
+            }
+            p.end_stretch();
+            let r = p.ratios();
+            assert_eq!(r.source, RatioSource::Trajectory, "{rate} Hz {}", c.name);
+            let e = max_err(r.a.unwrap(), Body::free(c.inertia).a());
+            println!("  pipeline {:>6} Hz {:<20} |err| {e:.2e}", rate, c.name);
+            e
+        })
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn pipeline_ratios_noise_free_bias() {
+    let mut worst = 0.0f64;
+    for rate in RATES {
+        let b = pipeline_bias(rate);
+        println!("pipeline ratios at {rate} Hz: noise-free bias {b:.2e}");
+        worst = worst.max(b);
+    }
+    assert!(worst < 1e-5, "worst noise-free bias {worst:.2e}");
 }
 
 #[test]
