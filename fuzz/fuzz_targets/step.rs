@@ -232,6 +232,24 @@ impl Others {
                     assert!(r.std_a.is_some_and(|s| s.iter().all(|x| x.is_finite())));
                 }
             }
+            // The output-error fits on whatever the input was: an ended flight's, and (on a
+            // copy, now and then) the open one's. Finite or absent, never a panic.
+            if p.fits_pending() {
+                p.fit_ended_flight();
+            }
+            if self.steps % 499 == 0 {
+                let mut q = *p;
+                q.end_stretch();
+                if let Some(f) = q.trajectory().estimate() {
+                    assert!(
+                        f.a.iter().chain(f.std_a.iter()).all(|x| x.is_finite()),
+                        "{f:?}"
+                    );
+                }
+                if let Some(f) = q.tensor_fit().estimate() {
+                    assert!(f.tensor.iter().flatten().all(|x| x.is_finite()), "{f:?}");
+                }
+            }
         }
         let want = refusal(omega, dt, full_scale);
         if let Some(r) = self.refined.as_mut() {
