@@ -475,3 +475,19 @@ fn ulog_non_finite_truncated_and_garbage() {
         let _ = read(&p, &ReadOptions::default());
     }
 }
+
+/// A 203-byte ULog found by `scripts/fuzz.sh 90` on which the `px4-ulog` crate panics (an index
+/// out of bounds in its message parser): the reader returns an error naming the file, and no
+/// panic message reaches the user.
+#[test]
+fn a_ulog_the_parser_panics_on_is_an_error() {
+    let bytes = include_bytes!("data/ulog_parser_panics.bin");
+    let p = tmp("ulog_parser_panics.ulg", bytes);
+    assert_eq!(detect(&p).unwrap(), Format::Ulog);
+    let e = read(&p, &ReadOptions::default()).expect_err("a malformed ULog");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("ulog_parser_panics.ulg") && msg.contains("malformed"),
+        "{msg}"
+    );
+}

@@ -439,7 +439,15 @@ pub(crate) fn collect(src: &dyn Source) -> Result<Recording, ReadError> {
 /// Runs a third-party parser, turning a panic inside it into a [`ReadError`]: the readers
 /// promise never to panic on malformed input, and the crates do not all promise that.
 pub(crate) fn guard<T>(file: &Path, what: &str, f: impl FnOnce() -> T) -> Result<T, ReadError> {
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).map_err(|_| {
+    // The panic hook is silenced for the call: the panic becomes the error below, and the
+    // default hook would print a panic message and backtrace above a clean error (a fuzzing
+    // harness's hook would abort). Hooks are global: another thread's panic in this window
+    // would go unprinted, though it still ends that thread.
+    let hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
+    let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    std::panic::set_hook(hook);
+    caught.map_err(|_| {
         ReadError::new(
             file,
             format!("the {what} parser failed on malformed input (it panicked)"),
