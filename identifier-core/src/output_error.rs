@@ -36,6 +36,7 @@
 )]
 
 use crate::symmetric::{cholesky_inverse, cholesky_rel, cholesky_solve, sqrt, Sym};
+use crate::trajectory::StretchOutcome;
 
 /// One block of samples: count, start time, sums of time since the block's start and of its
 /// square, and for each of `K` channels its first sample and the sum of the samples' deviations
@@ -569,5 +570,75 @@ impl<const M: usize> Pooled<M> {
             p[i] += s;
         }
         Some((p, cov, sqrt(s2)))
+    }
+}
+
+/// One stretch's fit as the pooling takes it: the `M` parameters of interest, their
+/// unit-noise covariance block, the cost, the number of parameters fitted, and the bias when
+/// the bias model was taken.
+pub(crate) struct StretchResult<const M: usize> {
+    pub(crate) p: [f32; M],
+    pub(crate) cov: Sym<M>,
+    pub(crate) cost: f32,
+    pub(crate) params: usize,
+    pub(crate) bias: Option<[f32; 3]>,
+}
+
+/// What both fits keep between samples: the open stretch's blocks (`K` channels), the
+/// information pooled over closed stretches (`M` parameters), the last bias found, and what the
+/// last close did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct FitState<const N: usize, const K: usize, const M: usize> {
+    pub(crate) buf: BlockBuffer<N, K>,
+    pub(crate) pooled: Pooled<M>,
+    pub(crate) biased: bool,
+    pub(crate) bias: [f32; 3],
+    pub(crate) last: StretchOutcome,
+}
+
+impl<const N: usize, const K: usize, const M: usize> FitState<N, K, M> {
+    pub(crate) const EMPTY: Self = FitState {
+        buf: BlockBuffer::EMPTY,
+        pooled: Pooled::EMPTY,
+        biased: false,
+        bias: [0.0; 3],
+        last: StretchOutcome::Empty,
+    };
+
+    /// Ends the open stretch: `fit` fits its blocks (at least 8), the result is pooled, and the
+    /// buffer is emptied for the next stretch. What happened is returned and kept.
+    pub(crate) fn close(
+        &mut self,
+        fit: impl FnOnce(&[Block<K>]) -> Option<StretchResult<M>>,
+    ) -> StretchOutcome {
+        let samples = self.buf.samples();
+        let blocks = self.buf.finish();
+        let outcome = if blocks.is_empty() {
+            StretchOutcome::Empty
+        } else if blocks.len() < 8 {
+            StretchOutcome::TooShort
+        } else {
+            let dof_of = |params: usize| (3 * blocks.len()) as f32 - params as f32;
+            match fit(blocks) {
+                Some(r) => {
+                    if !self
+                        .pooled
+                        .add(&r.p, &r.cov, r.cost, dof_of(r.params), samples)
+                    {
+                        StretchOutcome::Failed
+                    } else if let Some(b) = r.bias {
+                        self.biased = true;
+                        self.bias = b;
+                        StretchOutcome::FittedWithBias
+                    } else {
+                        StretchOutcome::Fitted
+                    }
+                }
+                None => StretchOutcome::Failed,
+            }
+        };
+        self.buf.clear();
+        self.last = outcome;
+        outcome
     }
 }

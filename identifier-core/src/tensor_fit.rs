@@ -60,9 +60,9 @@
 
 use crate::output_error::{
     bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, staged_fit,
-    substeps, Block, BlockBuffer, Normal, NormalSums, Pooled,
+    substeps, Block, FitState, Normal, NormalSums, StretchResult,
 };
-use crate::symmetric::{sqrt, Sym};
+use crate::symmetric::sqrt;
 use crate::trajectory::StretchOutcome;
 
 type Mat3 = [[f32; 3]; 3];
@@ -133,14 +133,12 @@ pub struct TensorFitEstimate {
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TensorFit<const N: usize> {
-    buf: BlockBuffer<N, 6>,
+    /// The open stretch's blocks (rate, rotor momentum) and the six entries pooled over closed
+    /// stretches.
+    state: FitState<N, 6, 6>,
     full_scale: f32,
     max_dt: f32,
     noise_std: f32,
-    pooled: Pooled<6>,
-    biased: bool,
-    bias: [f32; 3],
-    last: StretchOutcome,
 }
 
 /// The block buffer used by the pipeline: 256 blocks of rate and rotor momentum (16.7 KB in
@@ -484,17 +482,7 @@ fn normal<const P: usize>(
     sums.finish()
 }
 
-/// One stretch's fit: entries, their unit-noise covariance block, cost, parameter count,
-/// and the bias if the bias model was chosen.
-struct StretchFit {
-    entries: [f32; 6],
-    cov: Sym<6>,
-    cost: f32,
-    params: usize,
-    bias: Option<[f32; 3]>,
-}
-
-fn fit_stretch(blocks: &[Block<6>], init: &Mat3, noise_floor: f32) -> Option<StretchFit> {
+fn fit_stretch(blocks: &[Block<6>], init: &Mat3, noise_floor: f32) -> Option<StretchResult<6>> {
     let total = blocks.len();
     let w0 = rate_of(blocks.first()?);
     let th = [
@@ -527,8 +515,8 @@ fn fit_stretch(blocks: &[Block<6>], init: &Mat3, noise_floor: f32) -> Option<Str
             if let Some(c1) = scaled_inverse(&f1) {
                 let mut e = [0.0f32; 6];
                 e.copy_from_slice(&t1[..6]);
-                return Some(StretchFit {
-                    entries: e,
+                return Some(StretchResult {
+                    p: e,
                     cov: block(&c1),
                     cost: cost1,
                     params: P1,
@@ -543,8 +531,8 @@ fn fit_stretch(blocks: &[Block<6>], init: &Mat3, noise_floor: f32) -> Option<Str
     for i in 0..6 {
         m[i].copy_from_slice(&cov0[i][..6]);
     }
-    Some(StretchFit {
-        entries: e,
+    Some(StretchResult {
+        p: e,
         cov: m,
         cost: cost0,
         params: P0,
@@ -559,14 +547,10 @@ impl<const N: usize> TensorFit<N> {
     /// `N` must be at least 16.
     pub const fn new(full_scale: f32, max_dt: f32, noise_std: f32) -> Self {
         TensorFit {
-            buf: BlockBuffer::EMPTY,
+            state: FitState::EMPTY,
             full_scale,
             max_dt,
             noise_std,
-            pooled: Pooled::EMPTY,
-            biased: false,
-            bias: [0.0; 3],
-            last: StretchOutcome::Empty,
         }
     }
 
@@ -584,72 +568,47 @@ impl<const N: usize> TensorFit<N> {
             .all(|w| w.is_finite() && w.abs() < self.full_scale)
             && h.iter().all(|x| x.is_finite());
         let y = [omega[0], omega[1], omega[2], h[0], h[1], h[2]];
-        self.buf
+        self.state
+            .buf
             .add(&y, usable, dt, self.max_dt, mean_spread(dt, inputs));
     }
 
     /// Ends the open stretch: fits it from the tensor `init` (kg m^2; a positive definite
     /// first guess, such as [`crate::TensorEstimator`]'s), pools it and starts a new stretch.
     pub fn close(&mut self, init: Option<[[f32; 3]; 3]>) -> StretchOutcome {
-        let samples = self.buf.samples();
-        let blocks = self.buf.finish();
-        let outcome = if blocks.is_empty() {
-            StretchOutcome::Empty
-        } else if blocks.len() < 8 {
-            StretchOutcome::TooShort
-        } else {
-            match init.and_then(|j| fit_stretch(blocks, &j, self.noise_std)) {
-                Some(fit) => {
-                    let dof = (3 * blocks.len()) as f32 - fit.params as f32;
-                    if !self
-                        .pooled
-                        .add(&fit.entries, &fit.cov, fit.cost, dof, samples)
-                    {
-                        StretchOutcome::Failed
-                    } else if let Some(b) = fit.bias {
-                        self.biased = true;
-                        self.bias = b;
-                        StretchOutcome::FittedWithBias
-                    } else {
-                        StretchOutcome::Fitted
-                    }
-                }
-                None => StretchOutcome::Failed,
-            }
-        };
-        self.buf.clear();
-        self.last = outcome;
-        outcome
+        let noise = self.noise_std;
+        self.state
+            .close(|blocks| init.and_then(|j| fit_stretch(blocks, &j, noise)))
     }
 
     /// Drops the open stretch without fitting it (a flight without rotor momentum: the scale
     /// of `J` is not determined).
     pub fn discard(&mut self) {
-        self.buf.clear();
+        self.state.buf.clear();
     }
 
     /// What the last [`TensorFit::close`] did.
     pub fn last_outcome(&self) -> StretchOutcome {
-        self.last
+        self.state.last
     }
 
     /// Samples in the open stretch (not yet fitted).
     pub fn open_samples(&self) -> u32 {
-        self.buf.samples()
+        self.state.buf.samples()
     }
 
     /// The estimate pooled over the closed stretches (information-weighted, `output_error`),
     /// `None` before one was fitted.
     pub fn estimate(&self) -> Option<TensorFitEstimate> {
-        let (e, cov, noise) = self.pooled.mean()?;
+        let (e, cov, noise) = self.state.pooled.mean()?;
         Some(TensorFitEstimate {
             tensor: tensor_of(&e),
             cov,
             noise,
-            stretches: self.pooled.stretches,
-            samples: self.pooled.samples,
-            biased: self.biased,
-            bias: self.bias,
+            stretches: self.state.pooled.stretches,
+            samples: self.state.pooled.samples,
+            biased: self.state.biased,
+            bias: self.state.bias,
         })
     }
 

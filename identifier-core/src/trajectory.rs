@@ -86,7 +86,7 @@
 
 use crate::output_error::{
     bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, staged_fit,
-    substeps, Block, BlockBuffer, Normal, NormalSums, Pooled,
+    substeps, Block, FitState, Normal, NormalSums, StretchResult,
 };
 use crate::symmetric::{sqrt, Sym};
 
@@ -160,15 +160,11 @@ pub enum StretchOutcome {
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RatioFit<const N: usize> {
-    buf: BlockBuffer<N, 3>,
+    /// The open stretch's blocks and the moments `(p1, p2)` pooled over closed stretches.
+    state: FitState<N, 3, 2>,
     full_scale: f32,
     max_dt: f32,
     noise_std: f32,
-    /// The moments `(p1, p2)` pooled over closed stretches.
-    pooled: Pooled<2>,
-    biased: bool,
-    bias: [f32; 3],
-    last: StretchOutcome,
 }
 
 /// The block buffer used by the pipeline: 256 blocks (10 KB in all). With 128 blocks (156 ms
@@ -466,14 +462,10 @@ impl<const N: usize> RatioFit<N> {
     /// least 16 (fewer blocks are not enough to fit).
     pub const fn new(full_scale: f32, max_dt: f32, noise_std: f32) -> Self {
         RatioFit {
-            buf: BlockBuffer::EMPTY,
+            state: FitState::EMPTY,
             full_scale,
             max_dt,
             noise_std,
-            pooled: Pooled::EMPTY,
-            biased: false,
-            bias: [0.0; 3],
-            last: StretchOutcome::Empty,
         }
     }
 
@@ -490,7 +482,8 @@ impl<const N: usize> RatioFit<N> {
         let usable = omega
             .iter()
             .all(|w| w.is_finite() && w.abs() < self.full_scale);
-        self.buf
+        self.state
+            .buf
             .add(&omega, usable, dt, self.max_dt, mean_spread(dt, inputs));
     }
 
@@ -498,52 +491,35 @@ impl<const N: usize> RatioFit<N> {
     /// pooled estimate and starts a new stretch. What happened is returned and kept
     /// ([`RatioFit::last_outcome`]).
     pub fn close(&mut self) -> StretchOutcome {
-        let samples = self.buf.samples();
-        let blocks = self.buf.finish();
-        let outcome = if blocks.is_empty() {
-            StretchOutcome::Empty
-        } else if blocks.len() < 8 {
-            StretchOutcome::TooShort
-        } else {
-            match fit_stretch(blocks, self.noise_std) {
-                Some((fit, biased, p)) => {
-                    let c = [
-                        [fit.cov[0][0], fit.cov[0][1]],
-                        [fit.cov[1][0], fit.cov[1][1]],
-                    ];
-                    let dof = (3 * blocks.len()) as f32 - p as f32;
-                    let th = [fit.theta[0], fit.theta[1]];
-                    if !self.pooled.add(&th, &c, fit.cost, dof, samples) {
-                        StretchOutcome::Failed
-                    } else if biased {
-                        self.biased = true;
-                        self.bias = [fit.theta[5], fit.theta[6], fit.theta[7]];
-                        StretchOutcome::FittedWithBias
-                    } else {
-                        StretchOutcome::Fitted
-                    }
-                }
-                None => StretchOutcome::Failed,
-            }
-        };
-        self.buf.clear();
-        self.last = outcome;
-        outcome
+        let noise = self.noise_std;
+        self.state.close(|blocks| {
+            let (fit, biased, params) = fit_stretch(blocks, noise)?;
+            Some(StretchResult {
+                p: [fit.theta[0], fit.theta[1]],
+                cov: [
+                    [fit.cov[0][0], fit.cov[0][1]],
+                    [fit.cov[1][0], fit.cov[1][1]],
+                ],
+                cost: fit.cost,
+                params,
+                bias: biased.then_some([fit.theta[5], fit.theta[6], fit.theta[7]]),
+            })
+        })
     }
 
     /// Drops the open stretch without fitting it.
     pub fn discard(&mut self) {
-        self.buf.clear();
+        self.state.buf.clear();
     }
 
     /// What the last [`RatioFit::close`] did.
     pub fn last_outcome(&self) -> StretchOutcome {
-        self.last
+        self.state.last
     }
 
     /// Samples in the open stretch (not yet fitted).
     pub fn open_samples(&self) -> u32 {
-        self.buf.samples()
+        self.state.buf.samples()
     }
 
     /// The pooled estimate of the closed stretches: `p = p_1 + (sum M_s)^-1 sum M_s (p_s - p_1)`
@@ -551,7 +527,7 @@ impl<const N: usize> RatioFit<N> {
     /// each stretch's marginal information, `cov(p) = sigma^2 (sum M_s)^-1`,
     /// `sigma^2 = sum cost_s / sum dof_s`. `None` before a stretch was fitted.
     pub fn estimate(&self) -> Option<RatioFitEstimate> {
-        let (p, cov, noise) = self.pooled.mean()?;
+        let (p, cov, noise) = self.state.pooled.mean()?;
         let (a, dadp) = ratios_of(p[0], p[1])?;
         let mut std_a = [0.0f32; 3];
         for i in 0..3 {
@@ -569,10 +545,10 @@ impl<const N: usize> RatioFit<N> {
             moments: [p[0], p[1], 1.0 - p[0] - p[1]],
             std_moments: std_m,
             noise,
-            stretches: self.pooled.stretches,
-            samples: self.pooled.samples,
-            biased: self.biased,
-            bias: self.bias,
+            stretches: self.state.pooled.stretches,
+            samples: self.state.pooled.samples,
+            biased: self.state.biased,
+            bias: self.state.bias,
         })
     }
 
