@@ -15,10 +15,9 @@
 
 use std::path::Path;
 
-use super::check::Checker;
 use super::{collect, fields, quote, text, Location, ReadError, ReadOptions};
 use crate::recording::Recording;
-use crate::source::{Channels, Flow, Reading, RotorUnit, Source, Visit};
+use crate::source::{Channels, Reading, RotorUnit, Source, Visit};
 
 /// Column positions found in a header.
 struct Columns {
@@ -79,7 +78,7 @@ pub fn read_csv(path: &Path, opts: &ReadOptions) -> Result<Recording, ReadError>
 }
 
 /// A row's values: time, gyro, accelerometer, rotor speed (units converted).
-type Row = (f64, [f64; 3], Option<[f64; 3]>, Option<f64>);
+type Row = text::TableRow;
 
 /// Where a value of a row goes: time, the gyro axes, the accelerometer axes, the rotor.
 const SLOTS: usize = 8;
@@ -257,30 +256,9 @@ impl Source for CsvSource {
         visit: &mut Visit<'_>,
         progress: &mut dyn FnMut(f32),
     ) -> Result<Reading, ReadError> {
-        let mut check = Checker::new(&self.path);
-        let mut scratch = String::new();
-        let mut stopped = false;
-        text::each_line(
-            &self.path,
-            &mut |n, line| {
-                if n == 1 {
-                    return Ok(Flow::Continue);
-                }
-                let Some((t, w, a, r)) = self.row(n, line, &mut scratch)? else {
-                    return Ok(Flow::Continue);
-                };
-                match check.check(Location::Line(n), t, w, a, r)? {
-                    Some(s) => {
-                        let f = visit(&s)?;
-                        stopped = f == Flow::Stop;
-                        Ok(f)
-                    }
-                    None => Ok(Flow::Continue),
-                }
-            },
-            progress,
-        )?;
-        check.reading(stopped)
+        text::read_table(&self.path, visit, progress, &mut |n, line, scratch| {
+            self.row(n, line, scratch)
+        })
     }
 
     fn warnings(&self, found: Vec<String>) -> Vec<String> {

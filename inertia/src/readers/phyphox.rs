@@ -6,10 +6,9 @@
 
 use std::path::{Path, PathBuf};
 
-use super::check::Checker;
 use super::{collect, data_file, fields, number, quote, read_lines, text, Location, ReadError};
 use crate::recording::Recording;
-use crate::source::{Channels, Flow, Reading, Source, Visit};
+use crate::source::{Channels, Reading, Source, Visit};
 
 /// Reads a phyphox gyroscope export (`Raw Data.csv`, or its folder): time in seconds, rates
 /// in rad/s, the phone's axes.
@@ -105,30 +104,9 @@ impl Source for PhyphoxSource {
         visit: &mut Visit<'_>,
         progress: &mut dyn FnMut(f32),
     ) -> Result<Reading, ReadError> {
-        let mut check = Checker::new(&self.file);
-        let mut scratch = String::new();
-        let mut stopped = false;
-        text::each_line(
-            &self.file,
-            &mut |n, line| {
-                if n == 1 {
-                    return Ok(Flow::Continue);
-                }
-                let Some((t, w)) = self.row(n, line, &mut scratch)? else {
-                    return Ok(Flow::Continue);
-                };
-                match check.check(Location::Line(n), t, w, None, None)? {
-                    Some(s) => {
-                        let f = visit(&s)?;
-                        stopped = f == Flow::Stop;
-                        Ok(f)
-                    }
-                    None => Ok(Flow::Continue),
-                }
-            },
-            progress,
-        )?;
-        check.reading(stopped)
+        text::read_table(&self.file, visit, progress, &mut |n, line, scratch| {
+            Ok(self.row(n, line, scratch)?.map(|(t, w)| (t, w, None, None)))
+        })
     }
 
     fn warnings(&self, found: Vec<String>) -> Vec<String> {

@@ -10,8 +10,9 @@ use std::fs::File;
 use std::io::{BufRead, BufReader};
 use std::path::Path;
 
+use super::check::Checker;
 use super::{quote, Location, ReadError};
-use crate::source::Flow;
+use crate::source::{Flow, Reading, Visit};
 
 /// Read buffer: large enough that a line rarely straddles two reads.
 const BUFFER: usize = 1 << 20;
@@ -76,6 +77,49 @@ pub(crate) fn each_line(
         }
     }
     failed.map_or(Ok(()), Err)
+}
+
+/// One data row of a text table: time, gyro, accelerometer and rotor speed (units
+/// converted), `None` for a row to skip (blank).
+pub(crate) type TableRow = (f64, [f64; 3], Option<[f64; 3]>, Option<f64>);
+
+/// Parses one data row of a table: `(line number, line, scratch) -> row`.
+pub(crate) type RowParser<'a> =
+    dyn FnMut(usize, &str, &mut String) -> Result<Option<TableRow>, ReadError> + 'a;
+
+/// The rows of a text table with a header line, each parsed by `row(number, line, scratch)`,
+/// checked ([`Checker`]) and given to `visit` until it says [`Flow::Stop`]: the reading loop
+/// of the CSV and phyphox readers.
+pub(crate) fn read_table(
+    path: &Path,
+    visit: &mut Visit<'_>,
+    progress: &mut dyn FnMut(f32),
+    row: &mut RowParser<'_>,
+) -> Result<Reading, ReadError> {
+    let mut check = Checker::new(path);
+    let mut scratch = String::new();
+    let mut stopped = false;
+    each_line(
+        path,
+        &mut |n, line| {
+            if n == 1 {
+                return Ok(Flow::Continue);
+            }
+            let Some((t, w, a, r)) = row(n, line, &mut scratch)? else {
+                return Ok(Flow::Continue);
+            };
+            match check.check(Location::Line(n), t, w, a, r)? {
+                Some(s) => {
+                    let f = visit(&s)?;
+                    stopped = f == Flow::Stop;
+                    Ok(f)
+                }
+                None => Ok(Flow::Continue),
+            }
+        },
+        progress,
+    )?;
+    check.reading(stopped)
 }
 
 /// The first line of `path` (`None` for a file with no line). Only that line is read: a
