@@ -9,7 +9,7 @@ use crate::readers::ReadError;
 use crate::source::{Flow, Sample, Source};
 use crate::unhold::{Plan, Unhold, LOOKAHEAD};
 
-use super::Rotor;
+use super::{IdentifyError, Rotor};
 
 /// One sample's inputs.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -96,6 +96,27 @@ const AHEAD_QUEUE: usize = 8;
 type Batch = (Vec<Input>, f32);
 
 impl Inputs<'_> {
+    /// [`Inputs::read_ahead`] with a visitor that fails with an [`IdentifyError`]: its first
+    /// error stops the reading and is returned (a reading error otherwise).
+    pub(crate) fn read_ahead_with(
+        &self,
+        visit: &mut dyn FnMut(&Input) -> Result<Flow, IdentifyError>,
+        progress: &mut dyn FnMut(f32),
+    ) -> Result<(), IdentifyError> {
+        let mut failed: Option<IdentifyError> = None;
+        self.read_ahead(
+            &mut |x| match visit(x) {
+                Ok(f) => Ok(f),
+                Err(e) => {
+                    failed = Some(e);
+                    Ok(Flow::Stop)
+                }
+            },
+            progress,
+        )?;
+        failed.map_or(Ok(()), Err)
+    }
+
     /// [`Inputs::read`] on a thread of its own, `visit` on this one: the reading (parsing
     /// text, decoding frames) runs beside the pooled pipeline instead of before each step.
     /// At most [`AHEAD_QUEUE`] batches of [`AHEAD_BATCH`] inputs wait.

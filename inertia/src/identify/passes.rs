@@ -146,7 +146,6 @@ pub(crate) fn gate(
         let mut recent = Recent::new();
         let mut runs: Vec<Run> = Vec::new();
         let mut last_fed: Option<usize> = None;
-        let mut failed: Option<IdentifyError> = None;
         let mut step = |x: &Input| -> Result<(), IdentifyError> {
             recent.put(x);
             if let Some(t) = trace.as_mut() {
@@ -180,19 +179,9 @@ pub(crate) fn gate(
             last_fed = Some(end.saturating_sub(1));
             Ok(())
         };
-        inputs.read_ahead(
-            &mut |x| match step(x) {
-                Ok(()) => Ok(Flow::Continue),
-                Err(e) => {
-                    failed = Some(e);
-                    Ok(Flow::Stop)
-                }
-            },
-            &mut |f| progress.update(f),
-        )?;
-        if let Some(e) = failed {
-            return Err(e);
-        }
+        inputs.read_ahead_with(&mut |x| step(x).map(|()| Flow::Continue), &mut |f| {
+            progress.update(f)
+        })?;
         // The log ends: a free flight still open is fitted now (the trajectory fit runs at
         // each stretch's end, as the firmware's does at the catch).
         p.end_stretch();
@@ -220,7 +209,6 @@ pub(crate) fn rerun(
     std::thread::scope(|scope| {
         let mut pool = Pool::new(scope, settings, workers)?;
         let (mut ri, mut qi) = (0usize, 0usize);
-        let mut failed: Option<IdentifyError> = None;
         let mut step = |x: &Input| -> Result<Flow, IdentifyError> {
             let Some(run) = runs.get(ri) else {
                 return Ok(Flow::Stop);
@@ -248,19 +236,9 @@ pub(crate) fn rerun(
             }
             Ok(Flow::Continue)
         };
-        inputs.read_ahead(
-            &mut |x| match step(x) {
-                Ok(f) => Ok(f),
-                Err(e) => {
-                    failed = Some(e);
-                    Ok(Flow::Stop)
-                }
-            },
-            &mut |f| progress.update(f * inputs.samples as f32 / end as f32),
-        )?;
-        if let Some(e) = failed {
-            return Err(e);
-        }
+        inputs.read_ahead_with(&mut step, &mut |f| {
+            progress.update(f * inputs.samples as f32 / end as f32)
+        })?;
         if ri != runs.len() {
             return Err(IdentifyError::Internal(
                 "the log ended inside a throw".into(),
@@ -313,7 +291,6 @@ pub(crate) fn segments(
         let mut runs: Vec<Run> = Vec::new();
         for group in groups {
             let mut cur = group.start;
-            let mut failed: Option<IdentifyError> = None;
             let mut step = |x: &Input| -> Result<Flow, IdentifyError> {
                 if let Some(t) = trace.as_mut() {
                     t.push(x);
@@ -350,19 +327,7 @@ pub(crate) fn segments(
                 let done = cur >= group.end && trace.is_none();
                 Ok(if done { Flow::Stop } else { Flow::Continue })
             };
-            inputs.read_ahead(
-                &mut |x| match step(x) {
-                    Ok(f) => Ok(f),
-                    Err(e) => {
-                        failed = Some(e);
-                        Ok(Flow::Stop)
-                    }
-                },
-                &mut |f| progress.update(f),
-            )?;
-            if let Some(e) = failed {
-                return Err(e);
-            }
+            inputs.read_ahead_with(&mut step, &mut |f| progress.update(f))?;
             for &h in held.get(cur..group.end).unwrap_or_default() {
                 close(h, &runs, &mut pool, &mut pooled)?;
             }
