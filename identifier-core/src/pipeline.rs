@@ -121,6 +121,18 @@ pub struct Ratios {
 /// identifier (measured with `scripts/bench-estimators.sh`, racquet section).
 pub const TRAJECTORY_FIT_RATIO: f32 = 2.0;
 
+/// The verdicts about the data themselves (too few samples, no excitation, units, clipping):
+/// they hold for every estimate from the same samples. `None` for the others.
+fn data_verdict(status: TensorStatus) -> Option<TensorStatus> {
+    match status {
+        TensorStatus::TooFewSamples
+        | TensorStatus::NoExcitation
+        | TensorStatus::UnitsLookWrong
+        | TensorStatus::Saturated => Some(status),
+        _ => None,
+    }
+}
+
 /// One sample waiting in the delay line.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -390,6 +402,7 @@ impl<const N: usize> Pipeline<N> {
             TensorStatus::UnitsLookWrong | TensorStatus::Saturated => t.status,
             _ => status,
         };
+        let informed = trust.has_information() && self.refined.noise_estimate().is_some();
         if let Some(fe) = self.trajectory.estimate() {
             // The whole-trajectory fit is efficient when (1) holds to the noise; when its
             // residual is well above the gyro's noise (unmodelled torque, as on real tosses
@@ -406,24 +419,15 @@ impl<const N: usize> Pipeline<N> {
             // tosses through air the tensor's `a` spreads 10-36 % from toss to toss): the
             // refined identifier's estimate is the least affected, and marked as such.
             let tensor_fits = !principal && t.status == TensorStatus::Converged;
-            let informed = trust.has_information() && self.refined.noise_estimate().is_some();
             if !fits && !tensor_fits && informed {
-                let status = match status {
-                    TensorStatus::TooFewSamples
-                    | TensorStatus::NoExcitation
-                    | TensorStatus::UnitsLookWrong
-                    | TensorStatus::Saturated => status,
-                    _ => TensorStatus::ModelMismatch,
-                };
                 return Ratios {
                     a: Some(self.refined.block_estimate()),
                     std_a: Some(self.refined.std_a()),
-                    status,
+                    status: data_verdict(status).unwrap_or(TensorStatus::ModelMismatch),
                     source: RatioSource::Refined,
                 };
             }
         }
-        let informed = trust.has_information() && self.refined.noise_estimate().is_some();
         let (a_r, s_r) = (self.refined.block_estimate(), self.refined.std_a());
         // Hausman test of a constant gyro bias: without one, the refined identifier and its
         // bias-augmented twin (same samples) differ only by noise of variance
@@ -465,17 +469,7 @@ impl<const N: usize> Pipeline<N> {
                 // bias model's: judge it afresh (the data-side verdicts stay). When the tensor
                 // also wants products of inertia, a bias and products cannot be told apart
                 // from these data: never Converged then.
-                let var = s_b.map(|x| x * x);
-                let status = match status {
-                    TensorStatus::TooFewSamples
-                    | TensorStatus::NoExcitation
-                    | TensorStatus::UnitsLookWrong
-                    | TensorStatus::Saturated => status,
-                    _ if !physically_possible(a_b, var) => TensorStatus::PhysicallyImpossible,
-                    _ if !principal => TensorStatus::ModelMismatch,
-                    _ if precise(var, self.settings.refined.eps) => TensorStatus::Converged,
-                    _ => TensorStatus::Converging,
-                };
+                let status = self.judge(status, a_b, s_b, principal);
                 return Ratios {
                     a: Some(a_b),
                     std_a: Some(s_b),
@@ -512,17 +506,7 @@ impl<const N: usize> Pipeline<N> {
         status: TensorStatus,
         principal: bool,
     ) -> Ratios {
-        let var = fe.std_a.map(|x| x * x);
-        let status = match status {
-            TensorStatus::TooFewSamples
-            | TensorStatus::NoExcitation
-            | TensorStatus::UnitsLookWrong
-            | TensorStatus::Saturated => status,
-            _ if !physically_possible(fe.a, var) => TensorStatus::PhysicallyImpossible,
-            _ if !principal => TensorStatus::ModelMismatch,
-            _ if precise(var, self.settings.refined.eps) => TensorStatus::Converged,
-            _ => TensorStatus::Converging,
-        };
+        let status = self.judge(status, fe.a, fe.std_a, principal);
         // No estimate where the data carry none (as the refined identifier reports it).
         let informed = !matches!(
             status,
@@ -533,6 +517,27 @@ impl<const N: usize> Pipeline<N> {
             std_a: informed.then_some(fe.std_a),
             status,
             source: RatioSource::Trajectory,
+        }
+    }
+
+    /// An estimate of `a` other than the refined identifier's, judged afresh: the data-side
+    /// verdicts of `status` stay ([`data_verdict`]); then not physically possible; products of
+    /// inertia wanted by the tensor (`!principal`: a model assuming principal axes is not to be
+    /// trusted, `ModelMismatch`); `Converged` when every standard deviation is within `eps`.
+    fn judge(
+        &self,
+        status: TensorStatus,
+        a: [f32; 3],
+        std_a: [f32; 3],
+        principal: bool,
+    ) -> TensorStatus {
+        let var = std_a.map(|x| x * x);
+        match data_verdict(status) {
+            Some(v) => v,
+            None if !physically_possible(a, var) => TensorStatus::PhysicallyImpossible,
+            None if !principal => TensorStatus::ModelMismatch,
+            None if precise(var, self.settings.refined.eps) => TensorStatus::Converged,
+            None => TensorStatus::Converging,
         }
     }
 
