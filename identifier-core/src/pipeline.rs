@@ -793,7 +793,11 @@ impl<const N: usize> Pipeline<N> {
         self.refined_bias.step(p.omega, p.dt);
         // A decimated sample is the mean of `inputs` readings: their time spread is part of
         // the block means' time variance in the output-error fits.
-        self.trajectory.step_mean(p.omega, p.dt, p.inputs);
+        // Once a rotor has been seen the ratio fit is never run (`fit_ended_flight` discards
+        // its blocks: the ratios are the tensor's), so it is not fed either.
+        if !self.rotor_seen {
+            self.trajectory.step_mean(p.omega, p.dt, p.inputs);
+        }
         self.tensor_fit.step_mean(p.omega, p.h, p.dt, p.inputs);
         Exit {
             sample: p,
