@@ -18,9 +18,23 @@
 //! [`GateSettings::max_offset`]. A plain `|f| < threshold` test would fail: at 30 rad/s and
 //! 11 mm, (F1) exceeds 1 g.
 //!
+//! Both sides of (F1) pass through the same low-pass filter ([`GateSettings::lowpass_hz`])
+//! before the fit: a linear filter keeps `f = K r` exact for a constant `r`, and it removes what
+//! is no contact force but no rigid-body rotation either, the vibration of a spinning rotor's
+//! imbalance. On the shared thrown-FC logs the flywheel at 1200-1600 rad/s shook the
+//! accelerometer by 2-7 m/s^2 RMS, so without the filter the gate cut every board-alone throw
+//! in two and lost 0.17 s of its 0.59 s free flight (the spin-up's peak, where the rotor
+//! momentum tells most); with it the free residual stays at 0.07-0.3 m/s^2 and all five throws
+//! are one free flight each.
+//!
 //! The window is made of blocks; per sample only the sums `K^T K`, `K^T f` and `|f|^2` of the
 //! open block are updated (about 60 floating-point operations), and one 3x3 solve is done per
-//! block.
+//! block. The window's sums are never kept as a running total (adding the newest block and
+//! subtracting the oldest would let rounding drift over a long log): the blocks are taken in
+//! chunks of one window length, and each window is the sum of two fresh partial sums, the tail
+//! of the previous chunk (suffix sums, formed once per chunk) and the head of the current one
+//! (a prefix sum). That is three block additions per block instead of one per block of the
+//! window.
 //!
 //! # Still periods and the gyro bias
 //!
@@ -57,14 +71,23 @@ pub struct GateSettings {
     /// Still: the standard deviation of every rate component over the window below this,
     /// rad/s (a hand turning the body slowly is not still; the gyro's own noise is far less).
     pub still_spread: f32,
+    /// Corner frequency, Hz, of the low-pass filter applied to both sides of (F1) before the
+    /// fit (two first-order stages). A spinning rotor's imbalance shakes the accelerometer at
+    /// the rotor's speed (a flywheel at 1500 rad/s: 240 Hz, 5-7 m/s^2 RMS on the shared
+    /// thrown-FC logs), which is no contact force; the rigid-body terms live below about
+    /// 15 Hz. The same linear filter on `K` and `f` keeps `f = K r` exact. `INFINITY` for none.
+    pub lowpass_hz: f32,
 }
 
 impl GateSettings {
-    /// Settings for a sample rate: blocks of about 2.5 ms, windows of about 40 ms (16 blocks),
-    /// residual 2 m/s^2 (0.2 g), offset up to 0.1 m, still within 0.5 m/s^2 of `g`, rates
-    /// below 0.05 rad/s (3 deg/s) and their spread over the window below 0.01 rad/s.
+    /// Settings for a sample rate: windows of 40 ms whatever the rate (as many blocks of about
+    /// 2.5 ms as fit, at most [`MAX_WINDOW_BLOCKS`]: the window's length in time, not in
+    /// samples, decides how long a touch must last to be seen), residual 2 m/s^2 (0.2 g),
+    /// offset up to 0.1 m, still within 0.5 m/s^2 of `g`, rates below 0.05 rad/s (3 deg/s)
+    /// and their spread over the window below 0.01 rad/s.
     pub fn for_rate(rate_hz: f32) -> Self {
-        let b = rate_hz * 0.0025;
+        // Samples per block: about 2.5 ms, rounded (1 to 1024).
+        let b = rate_hz * 0.0025 + 0.5;
         let block = if b >= 1024.0 {
             1024
         } else if b >= 1.0 {
@@ -72,14 +95,24 @@ impl GateSettings {
         } else {
             1
         };
+        // Blocks per window: 40 ms of blocks, rounded (1 to MAX_WINDOW_BLOCKS).
+        let w = 0.04 * rate_hz / f32::from(block) + 0.5;
+        let window_blocks = if w >= MAX_WINDOW_BLOCKS as f32 {
+            MAX_WINDOW_BLOCKS as u8
+        } else if w >= 1.0 {
+            w as u8
+        } else {
+            1
+        };
         GateSettings {
             block,
-            window_blocks: MAX_WINDOW_BLOCKS as u8,
+            window_blocks,
             max_residual: 2.0,
             max_offset: 0.1,
             still_accel: 0.5,
             still_rate: 0.05,
             still_spread: 0.01,
+            lowpass_hz: 30.0,
         }
     }
 
@@ -95,6 +128,7 @@ impl GateSettings {
             && pos(self.still_accel)
             && pos(self.still_rate)
             && pos(self.still_spread)
+            && self.lowpass_hz > 0.0
     }
 }
 
@@ -180,9 +214,18 @@ pub struct FreeFlightGate {
     settings: GateSettings,
     prev: Option<([f32; 3], [f32; 3])>,
     open: BlockSums,
-    ring: [BlockSums; MAX_WINDOW_BLOCKS],
-    head: u8,
-    filled: u8,
+    /// The low-pass filter's two stages over the row `(K by rows, f)` of (F1).
+    lowpass: Option<[[f32; 12]; 2]>,
+    /// `suffix[j]`, `j >= chunk`: the sum of blocks `j..window_blocks` of the previous chunk;
+    /// `suffix[j]`, `j < chunk`: block `j` of the current chunk (its slot is free once the
+    /// window has moved past the previous chunk's block `j`).
+    suffix: [BlockSums; MAX_WINDOW_BLOCKS],
+    /// Sum of the current chunk's blocks so far.
+    prefix: BlockSums,
+    /// Blocks in the current chunk.
+    chunk: u8,
+    /// A whole chunk has been seen since the window was last broken (`suffix` is valid).
+    filled: bool,
     last_fit: Option<WindowFit>,
     bias: Option<[f32; 3]>,
     /// Sum of the rates and sample count over the current run of still windows.
@@ -199,9 +242,11 @@ impl FreeFlightGate {
             settings,
             prev: None,
             open: BlockSums::ZERO,
-            ring: [BlockSums::ZERO; MAX_WINDOW_BLOCKS],
-            head: 0,
-            filled: 0,
+            lowpass: None,
+            suffix: [BlockSums::ZERO; MAX_WINDOW_BLOCKS],
+            prefix: BlockSums::ZERO,
+            chunk: 0,
+            filled: false,
             last_fit: None,
             bias: None,
             still_sum: [0.0; 3],
@@ -229,7 +274,10 @@ impl FreeFlightGate {
     pub fn break_window(&mut self) {
         self.prev = None;
         self.open = BlockSums::ZERO;
-        self.filled = 0;
+        self.lowpass = None;
+        self.prefix = BlockSums::ZERO;
+        self.chunk = 0;
+        self.filled = false;
         self.last_fit = None;
     }
 
@@ -267,6 +315,7 @@ impl FreeFlightGate {
                 (omega[2] - w0[2]) * inv,
             ];
             let k = kmatrix(w, wd);
+            let (k, f) = self.filter(k, f, dt);
             add_normal(&mut self.open, &k, f);
         }
         self.prev = Some((omega, accel));
@@ -274,31 +323,48 @@ impl FreeFlightGate {
         if self.open.n < self.settings.block {
             return None;
         }
-        // Close the block into the ring.
-        let idx = (self.head as usize) % MAX_WINDOW_BLOCKS;
-        if let Some(slot) = self.ring.get_mut(idx) {
-            *slot = self.open;
-        }
+        // Close the block into the current chunk.
+        let newest = self.open;
         self.open = BlockSums::ZERO;
-        let wb = self.settings.window_blocks;
-        self.head = ((idx + 1) % MAX_WINDOW_BLOCKS) as u8;
-        if self.filled < wb {
-            self.filled += 1;
+        let wb = self
+            .settings
+            .window_blocks
+            .clamp(1, MAX_WINDOW_BLOCKS as u8);
+        let c = self.chunk as usize;
+        if let Some(slot) = self.suffix.get_mut(c) {
+            *slot = newest;
         }
-        if self.filled < wb {
-            return None;
-        }
-        let mut sum = BlockSums::ZERO;
-        for back in 0..wb as usize {
-            let i = (idx + MAX_WINDOW_BLOCKS - back) % MAX_WINDOW_BLOCKS;
-            if let Some(b) = self.ring.get(i) {
-                sum.add(b);
+        self.prefix.add(&newest);
+        self.chunk += 1;
+        let sum = if self.chunk >= wb {
+            // The chunk is a whole window: it is the window, and its suffix sums (formed in
+            // place, newest first) serve the next `wb - 1` windows.
+            let sum = self.prefix;
+            for j in (0..(wb as usize).saturating_sub(1)).rev() {
+                let next = self.suffix.get(j + 1).copied().unwrap_or(BlockSums::ZERO);
+                if let Some(s) = self.suffix.get_mut(j) {
+                    s.add(&next);
+                }
             }
-        }
+            self.prefix = BlockSums::ZERO;
+            self.chunk = 0;
+            self.filled = true;
+            sum
+        } else if self.filled {
+            // The previous chunk's blocks `chunk..wb` and the current chunk's.
+            let mut sum = self
+                .suffix
+                .get(self.chunk as usize)
+                .copied()
+                .unwrap_or(BlockSums::ZERO);
+            sum.add(&self.prefix);
+            sum
+        } else {
+            return None;
+        };
         let fit = self.fit(&sum);
         // The bias is the mean rate over the longest run of still blocks so far (a bench is
         // longer than any pause in a hand, and the average's noise is sigma / sqrt(samples)).
-        let newest = self.ring.get(idx).copied().unwrap_or(BlockSums::ZERO);
         if fit.still {
             if self.still_n == 0 {
                 self.still_sum = sum.w;
@@ -320,6 +386,27 @@ impl FreeFlightGate {
         }
         self.last_fit = Some(fit);
         Some(fit)
+    }
+
+    /// Two first-order low-pass stages (`y += a (x - y)`, `a = x / (1 + x)`, `x = 2 pi fc
+    /// dt`: exact for any time step) over the row `(K, f)`; the first row starts the filter.
+    fn filter(&mut self, k: [[f32; 3]; 3], f: [f32; 3], dt: f32) -> ([[f32; 3]; 3], [f32; 3]) {
+        let [[k0, k1, k2], [k3, k4, k5], [k6, k7, k8]] = k;
+        let row = [k0, k1, k2, k3, k4, k5, k6, k7, k8, f[0], f[1], f[2]];
+        let fc = self.settings.lowpass_hz;
+        let a = if fc < f32::INFINITY {
+            let x = 2.0 * core::f32::consts::PI * fc * dt;
+            x / (1.0 + x)
+        } else {
+            1.0
+        };
+        let [s1, s2] = self.lowpass.get_or_insert([row; 2]);
+        for ((y1, y2), x) in s1.iter_mut().zip(s2.iter_mut()).zip(row.iter()) {
+            *y1 += a * (x - *y1);
+            *y2 += a * (*y1 - *y2);
+        }
+        let [k0, k1, k2, k3, k4, k5, k6, k7, k8, f0, f1, f2] = *s2;
+        ([[k0, k1, k2], [k3, k4, k5], [k6, k7, k8]], [f0, f1, f2])
     }
 
     fn fit(&self, s: &BlockSums) -> WindowFit {
