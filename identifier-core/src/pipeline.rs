@@ -8,7 +8,8 @@
 //! ```
 //!
 //! A sample is committed to the estimator only once the gate has seen `delay` samples past it
-//! (the catch guard): a catch makes the window that contains it fail the fit within one block,
+//! (the catch guard): a catch makes the window that contains it fail the fit within a block or
+//! two (the gate's low-pass filter delays a gentle touch by about 10 ms, a hard one by less),
 //! and every sample still in the delay line is dropped, so no hand or impact sample reaches the
 //! estimator. At the release, samples are fed only from `guard_release` seconds after the
 //! start of the first free window. Without an accelerometer every sample is taken as free and
@@ -49,11 +50,16 @@ impl PipelineSettings {
     /// Settings for a gyro at `rate_hz` with white noise `noise_std` rad/s: guards of 50 ms
     /// after the release and 30 ms before the catch.
     ///
-    /// Above 2 kHz the input is averaged down to about 2 kHz (`decimation = round(rate /
-    /// 2000)`: 4 at 8 kHz, 2 at 4 kHz, 1 at 2 kHz and below); the estimators and the gate get
-    /// the decimated rate and the averaged noise `noise_std / sqrt(decimation)`.
+    /// Above 1.5 kHz the input is averaged down to about 1 kHz (`decimation = round(rate /
+    /// 1000)`: 8 at 8 kHz, 4 at 4 kHz, 2 at 2 kHz, 1 below 1.5 kHz); the estimators and the
+    /// gate get the decimated rate and the averaged noise `noise_std / sqrt(decimation)`. A
+    /// thrown body turns at most about 35 rad/s (a +-2000 deg/s gyro's full scale): at 1 kHz
+    /// that is 0.035 rad per estimator sample, and the output-error fits model each sample as
+    /// the mean it is (block means to second order in their time spread), so nothing is lost
+    /// that the bound would count, and the per-input cost at 8 kHz is an eighth of a 1 kHz
+    /// step.
     pub fn for_rate(rate_hz: f32, noise_std: f32) -> Self {
-        let d = rate_hz / 2000.0 + 0.5;
+        let d = rate_hz / 1000.0 + 0.5;
         let decimation: u8 = if d >= 16.0 {
             16
         } else if d >= 1.0 {
@@ -601,7 +607,8 @@ impl<const N: usize> Pipeline<N> {
         }
     }
 
-    /// The refined identifier fed the same samples.
+    /// The refined identifier fed the same samples (until a rotor momentum is seen: from then
+    /// on the ratios are the tensor's and it is no longer fed).
     pub fn refined(&self) -> &Refined {
         &self.refined
     }
@@ -650,36 +657,53 @@ impl<const N: usize> Pipeline<N> {
         if g.n == 0 {
             g.first = input;
         }
+        // This runs on every input sample (8 kHz), so it is kept to a few comparisons: a NaN
+        // fails every `<`; an infinite rate fails `< full_scale` unless the full scale is
+        // infinite, and then `< INFINITY`; the other six are finite exactly when their sum is
+        // (a sum of finite readings beyond `f32::MAX` is refused too, which no accelerometer or
+        // rotor reaches).
         let fs = self.settings.tensor.full_scale;
-        let finite = omega
-            .iter()
-            .chain(accel.iter())
-            .chain(h.iter())
-            .all(|x| x.is_finite());
-        let good_dt = dt.is_finite() && dt > 0.0;
-        let refused = !finite || !good_dt || omega.iter().any(|w| w.abs() >= fs);
-        if refused {
-            if g.taint.is_none() {
-                g.taint = Some((omega, accel, h, dt));
-            }
-        } else {
-            for k in 0..3 {
-                if let (Some(o), Some(a), Some(r)) =
-                    (g.omega.get_mut(k), g.accel.get_mut(k), g.h.get_mut(k))
-                {
-                    *o += omega.get(k).copied().unwrap_or(0.0);
-                    *a += accel.get(k).copied().unwrap_or(0.0);
-                    *r += h.get(k).copied().unwrap_or(0.0);
-                }
-            }
+        let inf = f32::INFINITY;
+        let good_dt = dt > 0.0 && dt < inf;
+        let [o0, o1, o2] = omega;
+        let [a0, a1, a2] = accel;
+        let [h0, h1, h2] = h;
+        let (m0, m1, m2) = (o0.abs(), o1.abs(), o2.abs());
+        let rest = a0 + a1 + a2 + h0 + h1 + h2;
+        let accepted =
+            good_dt && m0 < fs && m1 < fs && m2 < fs && m0 + m1 + m2 < inf && rest.is_finite();
+        if accepted {
+            let [go0, go1, go2] = &mut g.omega;
+            *go0 += o0;
+            *go1 += o1;
+            *go2 += o2;
+            let [ga0, ga1, ga2] = &mut g.accel;
+            *ga0 += a0;
+            *ga1 += a1;
+            *ga2 += a2;
+            let [gh0, gh1, gh2] = &mut g.h;
+            *gh0 += h0;
+            *gh1 += h1;
+            *gh2 += h2;
+        } else if g.taint.is_none() {
+            g.taint = Some((omega, accel, h, dt));
         }
-        if dt.is_finite() && dt > 0.0 {
+        if good_dt {
             g.dt += dt;
         }
         g.n += 1;
         if g.n < d {
             return None;
         }
+        self.close_group()
+    }
+
+    /// The group is complete: its mean (or its refused sample) goes on as one estimator
+    /// sample. Kept out of line so the other `d - 1` calls of [`Pipeline::step`] stay a few
+    /// dozen instructions (no floating-point registers to save).
+    #[inline(never)]
+    fn close_group(&mut self) -> Option<Exit> {
+        let g = &mut self.group;
         let done = *g;
         *g = Group::EMPTY;
         let good = f32::from(done.n) - if done.taint.is_some() { 1.0 } else { 0.0 };
@@ -789,13 +813,16 @@ impl<const N: usize> Pipeline<N> {
         self.fed_inputs = self.fed_inputs.saturating_add(u32::from(p.inputs));
         let status = self.estimator.step(p.omega, p.h, p.dt);
         self.rotor_seen |= p.h.iter().any(|x| *x != 0.0);
-        self.refined.step(p.omega, p.dt);
-        self.refined_bias.step(p.omega, p.dt);
-        // A decimated sample is the mean of `inputs` readings: their time spread is part of
-        // the block means' time variance in the output-error fits.
-        // Once a rotor has been seen the ratio fit is never run (`fit_ended_flight` discards
-        // its blocks: the ratios are the tensor's), so it is not fed either.
+        // Once a rotor has been seen the ratios are the tensor's (`ratios_with`): the
+        // torque-free ratio estimators' model no longer holds and their results are never
+        // used, so they are not fed (the ratio fit's blocks are discarded unfitted by
+        // `fit_ended_flight`). On a flywheel throw at 8 kHz this is about a third of the
+        // per-sample work.
         if !self.rotor_seen {
+            self.refined.step(p.omega, p.dt);
+            self.refined_bias.step(p.omega, p.dt);
+            // A decimated sample is the mean of `inputs` readings: their time spread is part
+            // of the block means' time variance in the output-error fits.
             self.trajectory.step_mean(p.omega, p.dt, p.inputs);
         }
         self.tensor_fit.step_mean(p.omega, p.h, p.dt, p.inputs);
