@@ -73,6 +73,20 @@ struct CloseLoopArgs {
     /// Time unit of a CSV: s, ms or us (also confirms a time step that looks wrong).
     #[arg(long, value_parser = parse_time_unit)]
     time_unit: Option<TimeUnit>,
+    /// Rotor (flywheel) inertia about its axis, kg m^2: the base model becomes the inertia
+    /// tensor with the rotor momentum (products of inertia and the rotor exact), on the free
+    /// flights `identify` finds (or the segments given).
+    #[arg(long)]
+    rotor_inertia: Option<f32>,
+    /// Rotor axis in the gyro frame: x, y, z, -x, -y or -z (with --rotor-inertia).
+    #[arg(long, value_parser = parse_axis, allow_hyphen_values = true)]
+    rotor_axis: Option<[f32; 3]>,
+    /// Motor poles, to turn eRPM into mechanical speed (with --rotor-inertia).
+    #[arg(long)]
+    rotor_poles: Option<u32>,
+    /// Use the rotor speed exactly as logged (sample and hold).
+    #[arg(long)]
+    rotor_raw: bool,
 }
 
 fn parse_format(s: &str) -> Result<Format, String> {
@@ -323,6 +337,9 @@ fn run_close_loop(args: CloseLoopArgs) -> Result<ExitCode, String> {
         gyro_unit: args.gyro_unit,
         time_unit: args.time_unit,
     };
+    if args.rotor_inertia.is_some() {
+        return run_close_loop_tensor(&args, &units);
+    }
     let (log, warnings) =
         inertia::close_loop::load(&args.input, args.format, args.segments.as_deref(), &units)?;
     for w in &warnings {
@@ -369,6 +386,66 @@ fn run_close_loop(args: CloseLoopArgs) -> Result<ExitCode, String> {
         report::plots(&an, dir, &title).map_err(|e| e.to_string())?;
     }
     println!("{}", report::summary_line(&an));
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `inertia close-loop` with a rotor: the tensor as the base model
+/// ([`inertia::close_loop::tensor`]). Exit 3 for unusable input, 4 when the free flights
+/// cannot determine the tensor.
+fn run_close_loop_tensor(args: &CloseLoopArgs, units: &ReadOptions) -> Result<ExitCode, String> {
+    use inertia::close_loop::tensor;
+    let (Some(inertia), Some(axis)) = (args.rotor_inertia, args.rotor_axis) else {
+        return Err("--rotor-inertia needs --rotor-axis".into());
+    };
+    if !(inertia.is_finite() && inertia > 0.0) {
+        return Err(format!("--rotor-inertia {inertia} must be positive"));
+    }
+    let rec = read(&args.input, units).map_err(|e| e.to_string())?;
+    for w in &rec.warnings {
+        eprintln!("warning: {w}");
+    }
+    let segments = match &args.segments {
+        Some(p) => Some(
+            inertia::readers::phyphox::read_segments(p)
+                .map_err(|e| e.to_string())?
+                .into_iter()
+                .map(|s| (s.start, s.end))
+                .collect(),
+        ),
+        None => None,
+    };
+    let opts = tensor::TensorOptions {
+        rotor: Rotor {
+            inertia,
+            axis,
+            poles: args.rotor_poles,
+        },
+        alpha: args.alpha,
+        block_s: 0.01,
+        segments,
+        rotor_raw: args.rotor_raw,
+    };
+    let an = match tensor::analyse_tensor(&rec, &opts) {
+        Ok(an) => an,
+        Err(e) => {
+            eprintln!("error: {}: {e}", args.input.display());
+            return Ok(ExitCode::from(4));
+        }
+    };
+    let json = serde_json::to_string_pretty(&an).map_err(|e| e.to_string())?;
+    std::fs::write(&args.json, json)
+        .map_err(|e| format!("writing {}: {e}", args.json.display()))?;
+    let title = args
+        .title
+        .clone()
+        .unwrap_or_else(|| args.input.display().to_string());
+    if let Some(dir) = &args.plots {
+        std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+        std::fs::write(dir.join("summary.md"), tensor::markdown(&an, &title))
+            .map_err(|e| format!("writing {}: {e}", dir.display()))?;
+        tensor::plots(&an, dir, &title).map_err(|e| e.to_string())?;
+    }
+    println!("{}", tensor::summary_line(&an));
     Ok(ExitCode::SUCCESS)
 }
 

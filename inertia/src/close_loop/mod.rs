@@ -13,6 +13,7 @@ pub mod model;
 pub mod plot;
 pub mod report;
 pub mod stats;
+pub mod tensor;
 
 use std::path::Path;
 

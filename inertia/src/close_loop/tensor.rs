@@ -1,0 +1,859 @@
+//! Closing the loop with the inertia tensor as the base model: for logs with a known rotor
+//! momentum (a flywheel, spinning propellers), where the torque-free principal-axis model of
+//! [`super::analysis`] cannot hold.
+//!
+//! Euler's equation with the rotor momentum `h(t)`, integrated over a block `[t0, t1]` of the
+//! free flight so that no derivative of the gyro is needed:
+//!
+//! ```text
+//! J (w(t1) - w(t0)) + integral w x (J w) dt  =  -(h(t1) - h(t0)) - integral w x h dt
+//!                                                + integral tau dt                    (TB)
+//! ```
+//!
+//! is linear in the six entries of `J` (kg m^2): products of inertia and the rotor momentum are
+//! exact terms here, not linearised effects. The candidate effects add columns to (TB):
+//!
+//! * `body_torque` (`tau`, N m): `integral tau dt = tau (t1 - t0)`;
+//! * `damping` (`d_i`, N m s): `tau_i = -d_i w_i`, column `-integral w_i dt e_i`;
+//! * `gyro_bias` (`b`, rad/s): the gyro reads `w + b`; (TB) at `w - b`, linearised at the
+//!   current `J`: `-b x integral (J w + h) dt - integral w x (J b) dt`;
+//! * `rotor_lag` (`delta`, s): the logged rotor speed lags the rotor, `h(t + delta)` is the
+//!   true momentum. Not linearised (a first-order column `delta h'` came out at half the lag
+//!   put into a simulated log): `delta` is searched over +-10 ms (0.25 ms grid, parabolic
+//!   refinement), `J` and the other effects refitted at each, its standard deviation from the
+//!   curvature of the residual sum of squares;
+//! * `rotor_axis` (`eps_1, eps_2`, rad): the rotor turns about `u + eps_1 p + eps_2 q` (`p, q`
+//!   perpendicular to the given axis `u`): two more momentum terms like `h`'s;
+//! * `gyro_scale` (`s_k`): the gyro reads `(1 + s_k) w_k`, linearised at the current `J`.
+//!
+//! Each round adds the candidate whose F statistic is largest when it is significant at
+//! `alpha / (candidates left)` (Bonferroni, family-wise `alpha` per round) and stops when none
+//! is. The F test takes the blocks' residuals as independent with equal variance; neighbouring
+//! blocks share an end sample and a real rotor's vibration colours the residual, so the
+//! p-values are approximate (the report says how white the residual is).
+//!
+//! The free flights are those `inertia identify` feeds its on-board pipeline (gate, guards,
+//! gyro bias from the bench), or the given segments; the rotor speed the same as there.
+
+use serde::Serialize;
+
+use crate::identify::{identify, unhold, IdentifyOptions, Rotor};
+use crate::Recording;
+
+/// The effects (TB) can take, in a fixed order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TensorEffect {
+    /// Constant body-frame torque, N m.
+    BodyTorque,
+    /// Viscous damping per axis, N m s.
+    Damping,
+    /// Constant gyro bias, rad/s.
+    GyroBias,
+    /// Delay of the logged rotor speed, s.
+    RotorLag,
+    /// Tilt of the rotor axis, rad.
+    RotorAxis,
+    /// Gyro scale factor per axis.
+    GyroScale,
+}
+
+impl TensorEffect {
+    /// Every candidate.
+    pub const ALL: [TensorEffect; 6] = [
+        TensorEffect::BodyTorque,
+        TensorEffect::Damping,
+        TensorEffect::GyroBias,
+        TensorEffect::RotorLag,
+        TensorEffect::RotorAxis,
+        TensorEffect::GyroScale,
+    ];
+
+    /// Parameters it adds.
+    pub fn n_params(self) -> usize {
+        match self {
+            TensorEffect::RotorLag => 1,
+            TensorEffect::RotorAxis => 2,
+            _ => 3,
+        }
+    }
+
+    /// Names of its parameters.
+    pub fn param_names(self) -> &'static [&'static str] {
+        match self {
+            TensorEffect::BodyTorque => &["tau_x", "tau_y", "tau_z"],
+            TensorEffect::Damping => &["d_x", "d_y", "d_z"],
+            TensorEffect::GyroBias => &["b_x", "b_y", "b_z"],
+            TensorEffect::RotorLag => &["delta_s"],
+            TensorEffect::RotorAxis => &["eps_1", "eps_2"],
+            TensorEffect::GyroScale => &["s_x", "s_y", "s_z"],
+        }
+    }
+}
+
+/// Options of [`analyse_tensor`].
+#[derive(Clone, Debug)]
+pub struct TensorOptions {
+    /// The rotor (inertia, axis, poles).
+    pub rotor: Rotor,
+    /// Family-wise significance level of each selection round.
+    pub alpha: f64,
+    /// Block length, s (10 ms: the gyro noise in `w(t1) - w(t0)` is small against the
+    /// integral, and a rotor's vibration at a few hundred hertz averages out within a block).
+    pub block_s: f64,
+    /// Hand-chosen free flights `(start_s, end_s)`; `None`: the gate's.
+    pub segments: Option<Vec<(f64, f64)>>,
+    /// The rotor speed as logged (sample and hold), not interpolated.
+    pub rotor_raw: bool,
+}
+
+/// One model's fit.
+#[derive(Clone, Debug, Serialize)]
+pub struct TensorFitReport {
+    /// Effects in the model, in the order they were added.
+    pub effects: Vec<TensorEffect>,
+    /// The tensor, kg m^2, in the log's gyro axes.
+    pub tensor_kg_m2: [[f64; 3]; 3],
+    /// Its standard deviations (least squares, residual variance), kg m^2.
+    pub tensor_std_kg_m2: [[f64; 3]; 3],
+    /// Principal moments, ascending, kg m^2.
+    pub principal_moments: [f64; 3],
+    /// Each effect's parameters with their standard deviations.
+    pub effect_params: Vec<EffectParams>,
+    /// RMS residual of (TB) per block, kg m^2/s.
+    pub residual_rms: f64,
+    /// The same over the noise the gyro alone would leave (`noise |J| sqrt(2)` per block).
+    pub residual_over_noise: f64,
+    /// Lag-one autocorrelation of the residual (0 for white).
+    pub residual_lag1: f64,
+}
+
+/// An effect's fitted parameters.
+#[derive(Clone, Debug, Serialize)]
+pub struct EffectParams {
+    /// The effect.
+    pub effect: TensorEffect,
+    /// Parameter names.
+    pub names: Vec<&'static str>,
+    /// Values.
+    pub values: Vec<f64>,
+    /// Standard deviations.
+    pub std: Vec<f64>,
+}
+
+/// One candidate tried in a round.
+#[derive(Clone, Debug, Serialize)]
+pub struct TensorCandidate {
+    /// The effect.
+    pub effect: TensorEffect,
+    /// F statistic of adding it.
+    pub f: f64,
+    /// Its p-value.
+    pub p: f64,
+    /// RMS residual with it, kg m^2/s.
+    pub residual_rms: f64,
+    /// Its parameters fitted with the model so far ([`TensorEffect::param_names`]).
+    pub params: Vec<f64>,
+}
+
+/// One selection round.
+#[derive(Clone, Debug, Serialize)]
+pub struct TensorRound {
+    /// Every candidate tried.
+    pub candidates: Vec<TensorCandidate>,
+    /// The one added, if any was significant.
+    pub chosen: Option<TensorEffect>,
+    /// The level each candidate was tested at.
+    pub level: f64,
+}
+
+/// What [`analyse_tensor`] found.
+#[derive(Clone, Debug, Serialize)]
+pub struct TensorAnalysis {
+    /// Always `"tensor"`.
+    pub base_model: &'static str,
+    /// The log.
+    pub source: String,
+    /// Free-flight stretches used, `(start_s, end_s)`.
+    pub stretches: Vec<(f64, f64)>,
+    /// Blocks (three equations each).
+    pub blocks: usize,
+    /// Block length, s.
+    pub block_s: f64,
+    /// Gyro noise used for `residual_over_noise`, rad/s.
+    pub noise_std: f64,
+    /// The on-board estimate of the same free flights (`inertia identify`'s pooled tensor) and
+    /// its status, for reference.
+    pub on_board_tensor_kg_m2: Option<[[f32; 3]; 3]>,
+    /// Its status.
+    pub on_board_status: String,
+    /// The base model (the tensor alone).
+    pub before: TensorFitReport,
+    /// The selection rounds.
+    pub rounds: Vec<TensorRound>,
+    /// The final model.
+    pub after: TensorFitReport,
+    /// Relative change of the tensor from before to after (Frobenius norm).
+    pub tensor_change: f64,
+    /// Residual per block before and after, per axis: `(t_mid, before, after)`.
+    #[serde(skip)]
+    pub residuals: Vec<(f64, [f64; 3], [f64; 3])>,
+}
+
+type V3 = [f64; 3];
+
+fn cross(a: V3, b: V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn mat_vec(j: &[f64; 6], w: V3) -> V3 {
+    let [xx, yy, zz, xy, xz, yz] = *j;
+    [
+        xx * w[0] + xy * w[1] + xz * w[2],
+        xy * w[0] + yy * w[1] + yz * w[2],
+        xz * w[0] + yz * w[1] + zz * w[2],
+    ]
+}
+
+/// `E_k w` for the k-th entry of `J` (xx, yy, zz, xy, xz, yz).
+fn unit_mat_vec(k: usize, w: V3) -> V3 {
+    let mut j = [0.0; 6];
+    j[k] = 1.0;
+    mat_vec(&j, w)
+}
+
+/// The samples of one block: time, rate (bias removed), momentum, and the momenta the rotor
+/// would have about its axis's two perpendiculars.
+struct Block {
+    t: Vec<f64>,
+    w: Vec<V3>,
+    h: Vec<V3>,
+    hp: Vec<V3>,
+    hq: Vec<V3>,
+}
+
+impl Block {
+    fn trap(&self, f: impl Fn(usize) -> V3) -> V3 {
+        let mut s = [0.0; 3];
+        for i in 1..self.t.len() {
+            let dt = self.t[i] - self.t[i - 1];
+            let (a, b) = (f(i - 1), f(i));
+            for k in 0..3 {
+                s[k] += 0.5 * dt * (a[k] + b[k]);
+            }
+        }
+        s
+    }
+
+    fn delta(&self, v: &[V3]) -> V3 {
+        let (a, b) = (v[0], v[v.len() - 1]);
+        [b[0] - a[0], b[1] - a[1], b[2] - a[2]]
+    }
+
+    /// Momentum terms of (TB) for a momentum series `g`: `g(t1) - g(t0) + integral w x g`.
+    fn momentum(&self, g: &[V3]) -> V3 {
+        let d = self.delta(g);
+        let i = self.trap(|k| cross(self.w[k], g[k]));
+        [d[0] + i[0], d[1] + i[1], d[2] + i[2]]
+    }
+
+    /// The columns of the `J` entries and the right-hand side, and each effect's columns
+    /// (the nonlinear ones linearised at `j`).
+    fn rows(&self, j: &[f64; 6], effects: &[TensorEffect]) -> (Vec<V3>, V3) {
+        let dw = self.delta(&self.w);
+        let mut cols: Vec<V3> = (0..6)
+            .map(|k| {
+                let e = unit_mat_vec(k, dw);
+                let i = self.trap(|s| cross(self.w[s], unit_mat_vec(k, self.w[s])));
+                [e[0] + i[0], e[1] + i[1], e[2] + i[2]]
+            })
+            .collect();
+        let m = self.momentum(&self.h);
+        let y = [-m[0], -m[1], -m[2]];
+        let span = self.t[self.t.len() - 1] - self.t[0];
+        for e in effects {
+            match e {
+                TensorEffect::BodyTorque => {
+                    for k in 0..3 {
+                        let mut c = [0.0; 3];
+                        c[k] = -span;
+                        cols.push(c);
+                    }
+                }
+                TensorEffect::Damping => {
+                    let iw = self.trap(|s| self.w[s]);
+                    for k in 0..3 {
+                        let mut c = [0.0; 3];
+                        c[k] = iw[k];
+                        cols.push(c);
+                    }
+                }
+                TensorEffect::GyroBias => {
+                    let l = self.trap(|s| {
+                        let jw = mat_vec(j, self.w[s]);
+                        let h = self.h[s];
+                        [jw[0] + h[0], jw[1] + h[1], jw[2] + h[2]]
+                    });
+                    for k in 0..3 {
+                        let mut b = [0.0; 3];
+                        b[k] = 1.0;
+                        let jb = mat_vec(j, b);
+                        let a = cross(b, l);
+                        let c = self.trap(|s| cross(self.w[s], jb));
+                        cols.push([-a[0] - c[0], -a[1] - c[1], -a[2] - c[2]]);
+                    }
+                }
+                // Searched, not a column (the blocks are built at the lag).
+                TensorEffect::RotorLag => {}
+                TensorEffect::RotorAxis => {
+                    cols.push(self.momentum(&self.hp));
+                    cols.push(self.momentum(&self.hq));
+                }
+                TensorEffect::GyroScale => {
+                    for k in 0..3 {
+                        // d/ds_k of (TB) at w_k -> (1 - s_k) w_k (the reading is (1 + s_k) w).
+                        let ws: Vec<V3> = self
+                            .w
+                            .iter()
+                            .map(|w| {
+                                let mut v = [0.0; 3];
+                                v[k] = -w[k];
+                                v
+                            })
+                            .collect();
+                        let jd = mat_vec(j, self.delta(&ws));
+                        let a = self.trap(|s| {
+                            let l = mat_vec(j, self.w[s]);
+                            let h = self.h[s];
+                            cross(ws[s], [l[0] + h[0], l[1] + h[1], l[2] + h[2]])
+                        });
+                        let b = self.trap(|s| cross(self.w[s], mat_vec(j, ws[s])));
+                        cols.push([
+                            jd[0] + a[0] + b[0],
+                            jd[1] + a[1] + b[1],
+                            jd[2] + a[2] + b[2],
+                        ]);
+                    }
+                }
+            }
+        }
+        (cols, y)
+    }
+}
+
+/// Least squares of the stacked rows; `None` when singular.
+struct Ls {
+    x: Vec<f64>,
+    cov: Vec<Vec<f64>>,
+    rss: f64,
+    n: usize,
+    residuals: Vec<V3>,
+}
+
+fn solve(blocks: &[Block], j: &[f64; 6], effects: &[TensorEffect]) -> Option<Ls> {
+    let mut rows = Vec::new();
+    let mut ys = Vec::new();
+    for b in blocks {
+        let (cols, y) = b.rows(j, effects);
+        for r in 0..3 {
+            rows.push(cols.iter().map(|c| c[r]).collect::<Vec<f64>>());
+            ys.push(y[r]);
+        }
+    }
+    let fit = super::stats::lstsq(&rows, &ys)?;
+    let x = fit.theta.clone();
+    let residuals: Vec<V3> = ys
+        .chunks(3)
+        .zip(rows.chunks(3))
+        .map(|(y, r)| {
+            let mut e = [0.0; 3];
+            for k in 0..3 {
+                let pred: f64 = r[k].iter().zip(x.iter()).map(|(a, b)| a * b).sum();
+                e[k] = y[k] - pred;
+            }
+            e
+        })
+        .collect();
+    Some(Ls {
+        cov: fit.cov(),
+        rss: fit.rss,
+        n: ys.len(),
+        x,
+        residuals,
+    })
+}
+
+/// Fits the model with `effects`, relinearising the nonlinear effects at the new `J` (three
+/// passes).
+fn fit_model(blocks: &[Block], j0: &[f64; 6], effects: &[TensorEffect]) -> Option<(Ls, [f64; 6])> {
+    let nonlinear = effects
+        .iter()
+        .any(|e| matches!(e, TensorEffect::GyroBias | TensorEffect::GyroScale));
+    let mut j = *j0;
+    let mut out = None;
+    for _ in 0..if nonlinear { 3 } else { 1 } {
+        let ls = solve(blocks, &j, effects)?;
+        j = [ls.x[0], ls.x[1], ls.x[2], ls.x[3], ls.x[4], ls.x[5]];
+        out = Some(ls);
+    }
+    out.map(|ls| (ls, j))
+}
+
+fn report(
+    ls: &Ls,
+    j: &[f64; 6],
+    effects: &[TensorEffect],
+    noise: f64,
+    lag: Option<(f64, f64)>,
+) -> TensorFitReport {
+    let t = [[j[0], j[3], j[4]], [j[3], j[1], j[5]], [j[4], j[5], j[2]]];
+    let sd = |k: usize| {
+        ls.cov
+            .get(k)
+            .and_then(|r| r.get(k))
+            .copied()
+            .unwrap_or(f64::NAN)
+            .max(0.0)
+            .sqrt()
+    };
+    let s = [sd(0), sd(1), sd(2), sd(3), sd(4), sd(5)];
+    let ts = [[s[0], s[3], s[4]], [s[3], s[1], s[5]], [s[4], s[5], s[2]]];
+    let (ev, _) = crate::calibrate::eigen(&t);
+    let mut effect_params = Vec::new();
+    let mut at = 6;
+    for e in effects {
+        if *e == TensorEffect::RotorLag {
+            let (d, sd_d) = lag.unwrap_or((f64::NAN, f64::NAN));
+            effect_params.push(EffectParams {
+                effect: *e,
+                names: e.param_names().to_vec(),
+                values: vec![d],
+                std: vec![sd_d],
+            });
+            continue;
+        }
+        let n = e.n_params();
+        effect_params.push(EffectParams {
+            effect: *e,
+            names: e.param_names().to_vec(),
+            values: ls.x[at..at + n].to_vec(),
+            std: (at..at + n).map(sd).collect(),
+        });
+        at += n;
+    }
+    let rms = (ls.rss / ls.n.max(1) as f64).sqrt();
+    let jn = t.iter().flatten().map(|x| x * x).sum::<f64>().sqrt();
+    let floor = noise * jn * std::f64::consts::SQRT_2;
+    let lag1 = lag_one(&ls.residuals);
+    TensorFitReport {
+        effects: effects.to_vec(),
+        tensor_kg_m2: t,
+        tensor_std_kg_m2: ts,
+        principal_moments: ev,
+        effect_params,
+        residual_rms: rms,
+        residual_over_noise: if floor > 0.0 { rms / floor } else { f64::NAN },
+        residual_lag1: lag1,
+    }
+}
+
+/// Mean over the axes of the lag-one autocorrelation of the blocks' residuals.
+fn lag_one(res: &[V3]) -> f64 {
+    let mut acc = 0.0;
+    for k in 0..3 {
+        let x: Vec<f64> = res.iter().map(|e| e[k]).collect();
+        let mean = x.iter().sum::<f64>() / x.len().max(1) as f64;
+        let var: f64 = x.iter().map(|v| (v - mean).powi(2)).sum();
+        let cov: f64 = x.windows(2).map(|w| (w[0] - mean) * (w[1] - mean)).sum();
+        acc += if var > 0.0 { cov / var } else { 0.0 };
+    }
+    acc / 3.0
+}
+
+/// Upper tail of the F distribution with `(d1, d2)` degrees of freedom (Paulson's normal
+/// approximation, as the torque-free close-loop uses).
+fn f_sf(f: f64, d1: f64, d2: f64) -> f64 {
+    if f.is_nan() || f <= 0.0 {
+        return 1.0;
+    }
+    super::stats::normal_sf(super::stats::f_to_z(f, d1, d2))
+}
+
+/// The round's best candidate so far: F, effect, fit, tensor, rotor lag and its std.
+type Best = (f64, TensorEffect, Ls, [f64; 6], Option<(f64, f64)>);
+
+/// Runs the tensor close-loop on `rec`.
+pub fn analyse_tensor(rec: &Recording, opts: &TensorOptions) -> Result<TensorAnalysis, String> {
+    let id = identify(
+        rec,
+        &IdentifyOptions {
+            rotor: Some(opts.rotor),
+            segments: opts.segments.clone(),
+            noise_std: None,
+            rotor_raw: opts.rotor_raw,
+            trace: false,
+        },
+    )
+    .map_err(|e| e.to_string())?;
+    let ch = rec
+        .rotor
+        .as_ref()
+        .ok_or("the log has no rotor-speed channel")?;
+    let speed = ch
+        .rad_per_sec(opts.rotor.poles)
+        .ok_or("the log gives rotor speed as eRPM: --rotor-poles is needed")?;
+    let speed = if opts.rotor_raw {
+        speed
+    } else {
+        unhold(&rec.t, &speed)
+    };
+    let u = opts.rotor.axis.map(f64::from);
+    let (p, q) = perpendiculars(u);
+    let jr = f64::from(opts.rotor.inertia);
+    let bias = id.gyro_bias.map(f64::from);
+    let n = rec.len();
+    let dt_med = {
+        let mut d: Vec<f64> = rec.t.windows(2).map(|w| w[1] - w[0]).collect();
+        d.sort_by(|a, b| a.total_cmp(b));
+        d.get(d.len() / 2).copied().unwrap_or(1e-3)
+    };
+    let per_block = ((opts.block_s / dt_med).round() as usize).max(2);
+    // The rotor speed at any time (linear between samples, held beyond the ends).
+    let speed_at = |t: f64| -> f64 {
+        let k = rec.t.partition_point(|x| *x <= t);
+        if k == 0 {
+            return f64::from(speed[0]);
+        }
+        if k >= n {
+            return f64::from(speed[n - 1]);
+        }
+        let (t0, t1) = (rec.t[k - 1], rec.t[k]);
+        let (s0, s1) = (f64::from(speed[k - 1]), f64::from(speed[k]));
+        if t1 > t0 {
+            s0 + (s1 - s0) * (t - t0) / (t1 - t0)
+        } else {
+            s1
+        }
+    };
+    let mut stretches = Vec::new();
+    let mut spans = Vec::new();
+    for run in id.fed_runs.iter().flatten() {
+        let (a, b) = (run.start, run.end.min(n));
+        if b <= a + 1 {
+            continue;
+        }
+        stretches.push((rec.t[a], rec.t[b - 1]));
+        let mut s = a;
+        while s + per_block < b {
+            spans.push(s..s + per_block + 1);
+            s += per_block;
+        }
+    }
+    // The blocks with the logged rotor speed read `delta` seconds later (`h(t + delta)`).
+    let make_blocks = |delta: f64| -> Vec<Block> {
+        spans
+            .iter()
+            .map(|span| {
+                let t: Vec<f64> = span.clone().map(|i| rec.t[i]).collect();
+                let w: Vec<V3> = span
+                    .clone()
+                    .map(|i| [0, 1, 2].map(|k| f64::from(rec.gyro[i][k]) - bias[k]))
+                    .collect();
+                let sp: Vec<f64> = t.iter().map(|x| speed_at(x + delta)).collect();
+                let along =
+                    |v: V3| -> Vec<V3> { sp.iter().map(|s| v.map(|c| c * jr * s)).collect() };
+                Block {
+                    h: along(u),
+                    hp: along(p),
+                    hq: along(q),
+                    t,
+                    w,
+                }
+            })
+            .collect()
+    };
+    let mut blocks = make_blocks(0.0);
+    if blocks.len() < 10 {
+        return Err(format!(
+            "{} blocks of free flight: too few for the tensor and its effects",
+            blocks.len()
+        ));
+    }
+    let noise = f64::from(crate::identify::estimate_noise(&rec.gyro));
+    let zero = [0.0; 6];
+    let (base, jb) = fit_model(&blocks, &zero, &[]).ok_or("the tensor is not determined")?;
+    let before = report(&base, &jb, &[], noise, None);
+    let mut chosen: Vec<TensorEffect> = Vec::new();
+    let (mut cur, mut jc) = (base, jb);
+    let mut lag: Option<(f64, f64)> = None;
+    let mut rounds = Vec::new();
+    loop {
+        let left: Vec<TensorEffect> = TensorEffect::ALL
+            .into_iter()
+            .filter(|e| !chosen.contains(e))
+            .collect();
+        if left.is_empty() {
+            break;
+        }
+        let level = opts.alpha / left.len() as f64;
+        let p0 = cur.x.len() + usize::from(lag.is_some());
+        let mut cands = Vec::new();
+        let mut best: Option<Best> = None;
+        for e in left {
+            let linear: Vec<TensorEffect> = chosen
+                .iter()
+                .copied()
+                .chain(core::iter::once(e))
+                .filter(|x| *x != TensorEffect::RotorLag)
+                .collect();
+            let (fit, new_lag) = if e == TensorEffect::RotorLag {
+                match search_lag(&make_blocks, &jc, &linear) {
+                    Some((ls, j, d, sd)) => (Some((ls, j)), Some((d, sd))),
+                    None => (None, None),
+                }
+            } else {
+                (fit_model(&blocks, &jc, &linear), lag)
+            };
+            let Some((ls, j)) = fit else {
+                continue;
+            };
+            let p1 = ls.x.len() + usize::from(new_lag.is_some());
+            let q = (p1 - p0) as f64;
+            let dof = ls.n as f64 - p1 as f64;
+            let f = ((cur.rss - ls.rss) / q) / (ls.rss / dof);
+            let pv = f_sf(f, q, dof);
+            let params = if e == TensorEffect::RotorLag {
+                new_lag.map(|l| vec![l.0]).unwrap_or_default()
+            } else {
+                ls.x[ls.x.len() - e.n_params()..].to_vec()
+            };
+            cands.push(TensorCandidate {
+                effect: e,
+                f,
+                p: pv,
+                residual_rms: (ls.rss / ls.n as f64).sqrt(),
+                params,
+            });
+            if pv < level && best.as_ref().is_none_or(|b| f > b.0) {
+                best = Some((f, e, ls, j, new_lag));
+            }
+        }
+        let pick = best.as_ref().map(|b| b.1);
+        rounds.push(TensorRound {
+            candidates: cands,
+            chosen: pick,
+            level,
+        });
+        match best {
+            Some((_, e, ls, j, new_lag)) => {
+                chosen.push(e);
+                if new_lag != lag {
+                    lag = new_lag;
+                    if let Some((d, _)) = lag {
+                        blocks = make_blocks(d);
+                    }
+                }
+                cur = ls;
+                jc = j;
+            }
+            None => break,
+        }
+    }
+    let after = report(&cur, &jc, &chosen, noise, lag);
+    let change = {
+        let d: f64 = (0..6)
+            .map(|k| (jc[k] - jb[k]).powi(2) * if k < 3 { 1.0 } else { 2.0 })
+            .sum();
+        let b: f64 = (0..6)
+            .map(|k| jb[k].powi(2) * if k < 3 { 1.0 } else { 2.0 })
+            .sum();
+        (d / b).sqrt()
+    };
+    let mut residuals = Vec::new();
+    let blocks0 = make_blocks(0.0);
+    let (b0, _) = fit_model(&blocks0, &zero, &[]).ok_or("the tensor is not determined")?;
+    for ((blk, e0), e1) in blocks
+        .iter()
+        .zip(b0.residuals.iter())
+        .zip(cur.residuals.iter())
+    {
+        let tm = 0.5 * (blk.t[0] + blk.t[blk.t.len() - 1]);
+        residuals.push((tm, *e0, *e1));
+    }
+    Ok(TensorAnalysis {
+        base_model: "tensor",
+        source: rec.source.clone(),
+        stretches,
+        blocks: blocks.len(),
+        block_s: per_block as f64 * dt_med,
+        noise_std: noise,
+        on_board_tensor_kg_m2: id.pooled.tensor_kg_m2,
+        on_board_status: id.pooled.status.clone(),
+        before,
+        rounds,
+        after,
+        tensor_change: change,
+        residuals,
+    })
+}
+
+/// The rotor lag that minimises the residual with the linear `effects`: a 0.25 ms grid over
+/// +-10 ms, then a parabola through the best point and its neighbours. Returns the fit, its
+/// tensor, the lag and its standard deviation (`sqrt(2 s^2 / RSS'')`).
+fn search_lag(
+    make_blocks: &dyn Fn(f64) -> Vec<Block>,
+    j0: &[f64; 6],
+    effects: &[TensorEffect],
+) -> Option<(Ls, [f64; 6], f64, f64)> {
+    const STEP: f64 = 2.5e-4;
+    let rss = |d: f64| fit_model(&make_blocks(d), j0, effects).map(|(ls, _)| ls.rss);
+    let grid: Vec<(f64, f64)> = (-40..=40)
+        .filter_map(|k| {
+            let d = k as f64 * STEP;
+            rss(d).map(|r| (d, r))
+        })
+        .collect();
+    let (i, &(d0, r0)) = grid
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1 .1.total_cmp(&b.1 .1))?;
+    let (dm, dp) = (grid.get(i.wrapping_sub(1)), grid.get(i + 1));
+    let (d, curv) = match (dm, dp) {
+        (Some(&(_, rm)), Some(&(_, rp))) => {
+            let c = (rp - 2.0 * r0 + rm) / (STEP * STEP);
+            if c > 0.0 {
+                (d0 - 0.5 * (rp - rm) / STEP / c, c)
+            } else {
+                (d0, f64::NAN)
+            }
+        }
+        _ => (d0, f64::NAN),
+    };
+    let (ls, j) = fit_model(&make_blocks(d), j0, effects)?;
+    let s2 = ls.rss / (ls.n as f64 - ls.x.len() as f64 - 1.0).max(1.0);
+    let sd = (2.0 * s2 / curv).sqrt();
+    Some((ls, j, d, sd))
+}
+
+/// Two unit vectors perpendicular to `u` and to each other.
+fn perpendiculars(u: V3) -> (V3, V3) {
+    let a = if u[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let p = cross(u, a);
+    let np = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+    let p = p.map(|x| x / np);
+    (p, cross(u, p))
+}
+
+/// One line for the terminal.
+pub fn summary_line(an: &TensorAnalysis) -> String {
+    let names: Vec<String> = an.after.effects.iter().map(|e| format!("{e:?}")).collect();
+    format!(
+        "tensor base model, {} blocks of {:.1} ms: residual {:.3e} -> {:.3e} kg m^2/s ({:.1}x -> {:.1}x the gyro noise's share); effects added: {}; tensor moved {:.2} %",
+        an.blocks,
+        an.block_s * 1e3,
+        an.before.residual_rms,
+        an.after.residual_rms,
+        an.before.residual_over_noise,
+        an.after.residual_over_noise,
+        if names.is_empty() {
+            "none".to_string()
+        } else {
+            names.join(", ")
+        },
+        100.0 * an.tensor_change
+    )
+}
+
+/// A markdown table of the rounds and the model before and after.
+pub fn markdown(an: &TensorAnalysis, title: &str) -> String {
+    let mut s = format!("# Close-loop (tensor base model): {title}\n\n");
+    s += &format!(
+        "{} blocks of {:.1} ms from {} free-flight stretch(es); gyro noise {:.2e} rad/s; on-board estimate status {}.\n\n",
+        an.blocks,
+        an.block_s * 1e3,
+        an.stretches.len(),
+        an.noise_std,
+        an.on_board_status
+    );
+    s += "| model | residual RMS (kg m^2/s) | / gyro noise's share | lag-1 autocorrelation | principal moments (kg m^2) |\n|---|---|---|---|---|\n";
+    for (name, r) in [("before (tensor)", &an.before), ("after", &an.after)] {
+        s += &format!(
+            "| {name} | {:.3e} | {:.1} | {:.2} | {:.4e}, {:.4e}, {:.4e} |\n",
+            r.residual_rms,
+            r.residual_over_noise,
+            r.residual_lag1,
+            r.principal_moments[0],
+            r.principal_moments[1],
+            r.principal_moments[2]
+        );
+    }
+    s += "\n| round | candidate | F | p | residual RMS | chosen |\n|---|---|---|---|---|---|\n";
+    for (i, r) in an.rounds.iter().enumerate() {
+        for c in &r.candidates {
+            s += &format!(
+                "| {} | {:?} | {:.1} | {:.1e} | {:.3e} | {} |\n",
+                i + 1,
+                c.effect,
+                c.f,
+                c.p,
+                c.residual_rms,
+                if r.chosen == Some(c.effect) {
+                    "yes"
+                } else {
+                    ""
+                }
+            );
+        }
+    }
+    for e in &an.after.effect_params {
+        let v: Vec<String> = e
+            .names
+            .iter()
+            .zip(e.values.iter().zip(e.std.iter()))
+            .map(|(n, (v, sd))| format!("{n} = {v:.3e} +- {sd:.1e}"))
+            .collect();
+        s += &format!("\n{:?}: {}\n", e.effect, v.join(", "));
+    }
+    s += &format!(
+        "\nThe tensor moved by {:.2} % (Frobenius) from before to after.\n",
+        100.0 * an.tensor_change
+    );
+    s
+}
+
+/// `residuals.svg`: the blocks' residual per axis before and after.
+pub fn plots(an: &TensorAnalysis, dir: &std::path::Path, title: &str) -> anyhow::Result<()> {
+    use super::plot::{write_svg, Chart, Series};
+    let axis = ["x", "y", "z"];
+    let titles: Vec<String> = axis
+        .iter()
+        .map(|a| format!("{title}: residual of (TB), {a} row, before and after"))
+        .collect();
+    let charts: Vec<Chart> = (0..3)
+        .map(|k| Chart {
+            title: &titles[k],
+            x_label: "t (s)",
+            y_label: "kg m^2/s",
+            y_range: None,
+            series: vec![
+                Series {
+                    name: "tensor alone".into(),
+                    points: an.residuals.iter().map(|(t, b, _)| (*t, b[k])).collect(),
+                },
+                Series {
+                    name: "with the effects added".into(),
+                    points: an.residuals.iter().map(|(t, _, a)| (*t, a[k])).collect(),
+                },
+            ],
+        })
+        .collect();
+    write_svg(&dir.join("residuals.svg"), &charts)
+}
