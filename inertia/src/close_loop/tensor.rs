@@ -841,16 +841,24 @@ pub fn plots(an: &TensorAnalysis, dir: &std::path::Path, title: &str) -> anyhow:
         .map(|k| Chart {
             title: &titles[k],
             x_label: "t (s)",
-            y_label: "kg m^2/s",
+            y_label: "1e-6 kg m^2/s",
             y_range: None,
             series: vec![
                 Series {
                     name: "tensor alone".into(),
-                    points: an.residuals.iter().map(|(t, b, _)| (*t, b[k])).collect(),
+                    points: an
+                        .residuals
+                        .iter()
+                        .map(|(t, b, _)| (*t, 1e6 * b[k]))
+                        .collect(),
                 },
                 Series {
                     name: "with the effects added".into(),
-                    points: an.residuals.iter().map(|(t, _, a)| (*t, a[k])).collect(),
+                    points: an
+                        .residuals
+                        .iter()
+                        .map(|(t, _, a)| (*t, 1e6 * a[k]))
+                        .collect(),
                 },
             ],
         })
