@@ -465,11 +465,14 @@ pub(crate) fn bias_worth_fitting(
     let seen = cost_plain / dof_plain;
     let floor = noise_floor * noise_floor;
     let s2 = if seen > floor { seen } else { floor };
-    !(s2 > 0.0) || score > 0.5 * 16.27 * s2
+    !(s2 > 0.0) || score > 0.5 * BIAS_CHI2 * s2
 }
 
+/// Chi-square (3 degrees of freedom) a constant gyro bias must exceed: 21.11, 0.01 %.
+pub(crate) const BIAS_CHI2: f32 = 21.11;
+
 /// The likelihood-ratio test of a constant gyro bias (3 more parameters): true when
-/// `(cost_plain - cost_bias) / s2 > 16.27` (chi-square, 3 degrees of freedom, 0.1 %), with
+/// `(cost_plain - cost_bias) / s2 > BIAS_CHI2` (chi-square, 3 degrees of freedom, 0.01 %), with
 /// `s2` the bias model's residual variance per sample but never below `noise_floor^2` (on
 /// nearly noise-free data the rounding of the sums is not white, and no bias is worth a
 /// 3-parameter model).
@@ -480,7 +483,7 @@ pub(crate) fn bias_found(cost_plain: f32, cost_bias: f32, dof_bias: f32, noise_f
     let seen = cost_bias / dof_bias;
     let floor = noise_floor * noise_floor;
     let s2 = if seen > floor { seen } else { floor };
-    s2 > 0.0 && cost_plain - cost_bias > 16.27 * s2
+    s2 > 0.0 && cost_plain - cost_bias > BIAS_CHI2 * s2
 }
 
 /// Free flights pooled by information: each fitted stretch adds the information of its `M`
