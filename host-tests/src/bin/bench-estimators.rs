@@ -200,7 +200,13 @@ fn run_scenario(sc: &Scenario, seeds: u64, methods: &[Box<dyn Method>]) -> Scena
                 let n = finals.len() as f64;
                 let mean: [f64; 3] =
                     std::array::from_fn(|i| finals.iter().map(|e| e[i]).sum::<f64>() / n);
-                eprintln!("mean error {}: {:.2e}, {:.2e}, {:.2e}", m.name(), mean[0], mean[1], mean[2]);
+                eprintln!(
+                    "mean error {}: {:.2e}, {:.2e}, {:.2e}",
+                    m.name(),
+                    mean[0],
+                    mean[1],
+                    mean[2]
+                );
             }
             let calib = per_seed.iter().all(|s| s[mi].3.is_some()).then(|| {
                 let z: Vec<[f64; 3]> = per_seed
