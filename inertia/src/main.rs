@@ -401,6 +401,16 @@ fn run_close_loop_tensor(args: &CloseLoopArgs, units: &ReadOptions) -> Result<Ex
         return Err(format!("--rotor-inertia {inertia} must be positive"));
     }
     let rec = read(&args.input, units).map_err(|e| e.to_string())?;
+    // The same refusals as the torque-free close-loop: rates that look like deg/s, a time step
+    // that looks like ms or us, unless the unit was declared.
+    let omega: Vec<[f64; 3]> = rec.gyro.iter().map(|w| w.map(f64::from)).collect();
+    inertia::close_loop::input::check_series_units(
+        &rec.t,
+        &omega,
+        units.gyro_unit.is_some(),
+        units.time_unit.is_some(),
+    )
+    .map_err(|e| format!("{}: {e}", args.input.display()))?;
     for w in &rec.warnings {
         eprintln!("warning: {w}");
     }

@@ -467,3 +467,46 @@ fn number_arguments_take_a_leading_minus() {
         r.stderr
     );
 }
+
+#[test]
+fn the_tensor_base_model_refuses_wrong_units_too() {
+    // `--rotor-inertia` switches to the tensor base model (`close_loop::tensor`); its input
+    // gets the same unit checks before anything is fitted.
+    let dir = tmpdir("tensor-units");
+    let (t, w) = clean();
+    let write = |name: &str, t_scale: f64, w_scale: f64| {
+        let mut csv = String::from("t,wx,wy,wz,rotor_rad_s\n");
+        for (tk, v) in t.iter().zip(&w) {
+            csv.push_str(&format!(
+                "{},{},{},{},300\n",
+                tk * t_scale,
+                v[0] * w_scale,
+                v[1] * w_scale,
+                v[2] * w_scale
+            ));
+        }
+        let p = dir.join(name);
+        std::fs::write(&p, csv).unwrap();
+        p
+    };
+    let rotor = ["--rotor-inertia", "1.7e-6", "--rotor-axis", "-z"];
+    let deg = write("deg.csv", 1.0, 180.0 / std::f64::consts::PI);
+    let r = close_loop(&dir, &deg, &rotor);
+    assert_eq!(r.code, 3, "{}", r.stderr);
+    assert!(r.stderr.contains("--gyro-unit deg/s"), "{}", r.stderr);
+    assert!(r.json.is_none());
+    let ms = write("ms.csv", 1e3, 1.0);
+    let r = close_loop(&dir, &ms, &rotor);
+    assert_eq!(r.code, 3, "{}", r.stderr);
+    assert!(r.stderr.contains("--time-unit ms"), "{}", r.stderr);
+    // Declared, both are converted and analysed.
+    let r = close_loop(
+        &dir,
+        &deg,
+        &[&rotor[..], &["--gyro-unit", "deg/s"]].concat(),
+    );
+    assert_eq!(r.code, 0, "{}", r.stderr);
+    assert_eq!(r.json.unwrap()["base_model"], "tensor");
+    let r = close_loop(&dir, &ms, &[&rotor[..], &["--time-unit", "ms"]].concat());
+    assert_eq!(r.code, 0, "{}", r.stderr);
+}

@@ -117,7 +117,16 @@ pub const MIN_MEDIAN_STEP_S: f64 = 1e-5;
 /// [`DEG_PER_SEC_SUSPECT_RAD_S`] for at least [`SUSTAINED_S`]) or the median time step like ms
 /// or us, unless the user declared that unit (`gyro_declared`, `time_declared`).
 pub fn check_units(log: &Log, gyro_declared: bool, time_declared: bool) -> Result<(), String> {
-    let (t, w) = (&log.t, &log.omega);
+    check_series_units(&log.t, &log.omega, gyro_declared, time_declared)
+}
+
+/// [`check_units`] on plain series: times (s) and rates (rad/s as read).
+pub fn check_series_units(
+    t: &[f64],
+    w: &[[f64; 3]],
+    gyro_declared: bool,
+    time_declared: bool,
+) -> Result<(), String> {
     if !gyro_declared {
         let limit = f64::from(DEG_PER_SEC_SUSPECT_RAD_S);
         let (mut best, mut start) = (0.0f64, None::<usize>);
