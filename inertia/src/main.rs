@@ -439,7 +439,11 @@ fn run_close_loop_tensor(args: &CloseLoopArgs, units: &ReadOptions) -> Result<Ex
         Ok(an) => an,
         Err(e) => {
             eprintln!("error: {}: {e}", args.input.display());
-            return Ok(ExitCode::from(4));
+            let code = match e {
+                tensor::TensorLoopError::Input(_) => 3,
+                tensor::TensorLoopError::Data(_) => 4,
+            };
+            return Ok(ExitCode::from(code));
         }
     };
     let json = serde_json::to_string_pretty(&an).map_err(|e| e.to_string())?;

@@ -486,8 +486,30 @@ fn f_sf(f: f64, d1: f64, d2: f64) -> f64 {
 /// The round's best candidate so far: F, effect, fit, tensor, rotor lag and its std.
 type Best = (f64, TensorEffect, Ls, [f64; 6], Option<(f64, f64)>);
 
+/// Why [`analyse_tensor`] gave no result.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TensorLoopError {
+    /// The input cannot be used: no free flight, no rotor channel, no pole count for an eRPM
+    /// channel, too short (the command exits 3).
+    Input(String),
+    /// The free flights cannot determine the tensor and its effects (exit 4).
+    Data(String),
+}
+
+impl core::fmt::Display for TensorLoopError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            TensorLoopError::Input(m) | TensorLoopError::Data(m) => f.write_str(m),
+        }
+    }
+}
+
 /// Runs the tensor close-loop on `rec`.
-pub fn analyse_tensor(rec: &Recording, opts: &TensorOptions) -> Result<TensorAnalysis, String> {
+pub fn analyse_tensor(
+    rec: &Recording,
+    opts: &TensorOptions,
+) -> Result<TensorAnalysis, TensorLoopError> {
+    use TensorLoopError::{Data, Input};
     let id = identify(
         rec,
         &IdentifyOptions {
@@ -498,14 +520,14 @@ pub fn analyse_tensor(rec: &Recording, opts: &TensorOptions) -> Result<TensorAna
             trace: false,
         },
     )
-    .map_err(|e| e.to_string())?;
+    .map_err(|e| Input(e.to_string()))?;
     let ch = rec
         .rotor
         .as_ref()
-        .ok_or("the log has no rotor-speed channel")?;
-    let speed = ch
-        .rad_per_sec(opts.rotor.poles)
-        .ok_or("the log gives rotor speed as eRPM: --rotor-poles is needed")?;
+        .ok_or_else(|| Input("the log has no rotor-speed channel".into()))?;
+    let speed = ch.rad_per_sec(opts.rotor.poles).ok_or_else(|| {
+        Input("the log gives rotor speed as eRPM: --rotor-poles is needed".into())
+    })?;
     let speed = if opts.rotor_raw {
         speed
     } else {
@@ -578,14 +600,15 @@ pub fn analyse_tensor(rec: &Recording, opts: &TensorOptions) -> Result<TensorAna
     };
     let mut blocks = make_blocks(0.0);
     if blocks.len() < 10 {
-        return Err(format!(
+        return Err(Data(format!(
             "{} blocks of free flight: too few for the tensor and its effects",
             blocks.len()
-        ));
+        )));
     }
     let noise = f64::from(crate::identify::estimate_noise(&rec.gyro));
     let zero = [0.0; 6];
-    let (base, jb) = fit_model(&blocks, &zero, &[]).ok_or("the tensor is not determined")?;
+    let (base, jb) = fit_model(&blocks, &zero, &[])
+        .ok_or_else(|| Data("the tensor is not determined".into()))?;
     let before = report(&base, &jb, &[], noise, None);
     let mut chosen: Vec<TensorEffect> = Vec::new();
     let (mut cur, mut jc) = (base, jb);
@@ -675,7 +698,8 @@ pub fn analyse_tensor(rec: &Recording, opts: &TensorOptions) -> Result<TensorAna
     };
     let mut residuals = Vec::new();
     let blocks0 = make_blocks(0.0);
-    let (b0, _) = fit_model(&blocks0, &zero, &[]).ok_or("the tensor is not determined")?;
+    let (b0, _) = fit_model(&blocks0, &zero, &[])
+        .ok_or_else(|| Data("the tensor is not determined".into()))?;
     for ((blk, e0), e1) in blocks
         .iter()
         .zip(b0.residuals.iter())
