@@ -73,20 +73,64 @@ struct CloseLoopArgs {
     /// Time unit of a CSV: s, ms or us (also confirms a time step that looks wrong).
     #[arg(long, value_parser = parse_time_unit)]
     time_unit: Option<TimeUnit>,
-    /// Rotor (flywheel) inertia about its axis, kg m^2: the base model becomes the inertia
-    /// tensor with the rotor momentum (products of inertia and the rotor exact), on the free
-    /// flights `identify` finds (or the segments given).
+    /// With a rotor, the base model becomes the inertia tensor with the rotor momentum
+    /// (products of inertia and the rotor exact), on the free flights `identify` finds (or the
+    /// segments given).
+    #[command(flatten)]
+    rotor: RotorArgs,
+}
+
+impl CloseLoopArgs {
+    /// The report's title: `--title`, else the input's path.
+    fn title(&self) -> String {
+        self.title
+            .clone()
+            .unwrap_or_else(|| self.input.display().to_string())
+    }
+}
+
+/// Writes `value` as pretty JSON to `path`.
+fn write_json(path: &std::path::Path, value: &impl serde::Serialize) -> Result<(), String> {
+    let json = serde_json::to_string_pretty(value).map_err(|e| e.to_string())?;
+    std::fs::write(path, json).map_err(|e| format!("writing {}: {e}", path.display()))
+}
+
+/// The rotor options `identify`, `export-replay` and `close-loop` share.
+#[derive(clap::Args)]
+struct RotorArgs {
+    /// Rotor (flywheel) inertia about its axis, kg m^2: makes the tensor absolute.
     #[arg(long)]
     rotor_inertia: Option<f32>,
-    /// Rotor axis in the gyro frame: x, y, z, -x, -y or -z (with --rotor-inertia).
+    /// Rotor axis in the gyro frame: x, y, z, -x, -y or -z (direction of positive speed).
     #[arg(long, value_parser = parse_axis, allow_hyphen_values = true)]
     rotor_axis: Option<[f32; 3]>,
-    /// Motor poles, to turn eRPM into mechanical speed (with --rotor-inertia).
+    /// Motor poles, to turn eRPM into mechanical speed.
     #[arg(long)]
     rotor_poles: Option<u32>,
-    /// Use the rotor speed exactly as logged (sample and hold).
+    /// Use the rotor speed exactly as logged (sample and hold) instead of interpolating the
+    /// telemetry's held steps.
     #[arg(long)]
     rotor_raw: bool,
+}
+
+impl RotorArgs {
+    /// The rotor, when given: `--rotor-inertia` (positive) and `--rotor-axis` together.
+    fn rotor(&self) -> Result<Option<Rotor>, String> {
+        match (self.rotor_inertia, self.rotor_axis) {
+            (None, None) => Ok(None),
+            (Some(j), Some(axis)) => {
+                if !(j.is_finite() && j > 0.0) {
+                    return Err(format!("--rotor-inertia {j} must be positive"));
+                }
+                Ok(Some(Rotor {
+                    inertia: j,
+                    axis,
+                    poles: self.rotor_poles,
+                }))
+            }
+            _ => Err("--rotor-inertia and --rotor-axis go together".into()),
+        }
+    }
 }
 
 fn parse_format(s: &str) -> Result<Format, String> {
@@ -106,15 +150,8 @@ struct IdentifyArgs {
     /// from the content).
     #[arg(long)]
     input: PathBuf,
-    /// Rotor (flywheel) inertia about its axis, kg m^2: makes the tensor absolute.
-    #[arg(long)]
-    rotor_inertia: Option<f32>,
-    /// Rotor axis in the gyro frame: x, y, z, -x, -y or -z (direction of positive speed).
-    #[arg(long, value_parser = parse_axis, allow_hyphen_values = true)]
-    rotor_axis: Option<[f32; 3]>,
-    /// Motor poles, to turn eRPM into mechanical speed.
-    #[arg(long)]
-    rotor_poles: Option<u32>,
+    #[command(flatten)]
+    rotor: RotorArgs,
     /// CSV of hand-chosen free flights, one `start_s,end_s` per line (log time).
     #[arg(long)]
     segments: Option<PathBuf>,
@@ -127,10 +164,6 @@ struct IdentifyArgs {
     /// Gyro white noise, rad/s (estimated from the data when absent).
     #[arg(long)]
     noise_std: Option<f32>,
-    /// Use the rotor speed exactly as logged (sample and hold) instead of interpolating the
-    /// telemetry's held steps.
-    #[arg(long)]
-    rotor_raw: bool,
     /// Where to write the JSON report.
     #[arg(long)]
     json: PathBuf,
@@ -201,26 +234,8 @@ fn parse_segments(path: &PathBuf) -> Result<Vec<(f64, f64)>, String> {
 /// The rotor options (both or neither) and the noise option of `identify` and
 /// `export-replay`, checked the same way for both: a replay must be refused exactly when
 /// `identify` would refuse.
-fn rotor_and_noise(
-    inertia: Option<f32>,
-    axis: Option<[f32; 3]>,
-    poles: Option<u32>,
-    noise_std: Option<f32>,
-) -> Result<Option<Rotor>, String> {
-    let rotor = match (inertia, axis) {
-        (None, None) => None,
-        (Some(j), Some(axis)) => {
-            if !(j.is_finite() && j > 0.0) {
-                return Err(format!("--rotor-inertia {j} must be positive"));
-            }
-            Some(Rotor {
-                inertia: j,
-                axis,
-                poles,
-            })
-        }
-        _ => return Err("--rotor-inertia and --rotor-axis go together".into()),
-    };
+fn rotor_and_noise(rotor: &RotorArgs, noise_std: Option<f32>) -> Result<Option<Rotor>, String> {
+    let rotor = rotor.rotor()?;
     if let Some(s) = noise_std {
         if !(s.is_finite() && s > 0.0) {
             return Err(format!("--noise-std {s} must be positive"));
@@ -274,12 +289,7 @@ impl Progress for Bar {
 }
 
 fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
-    let rotor = rotor_and_noise(
-        args.rotor_inertia,
-        args.rotor_axis,
-        args.rotor_poles,
-        args.noise_std,
-    )?;
+    let rotor = rotor_and_noise(&args.rotor, args.noise_std)?;
     let segments = args.segments.as_ref().map(parse_segments).transpose()?;
     let opts = ReadOptions {
         gyro_unit: args.gyro_unit,
@@ -290,7 +300,7 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
         rotor,
         segments,
         noise_std: args.noise_std,
-        rotor_raw: args.rotor_raw,
+        rotor_raw: args.rotor.rotor_raw,
         trace: args.plots.is_some(),
     };
     let mut bar = Bar::new(&args.input);
@@ -337,8 +347,13 @@ fn run_close_loop(args: CloseLoopArgs) -> Result<ExitCode, String> {
         gyro_unit: args.gyro_unit,
         time_unit: args.time_unit,
     };
-    if args.rotor_inertia.is_some() {
-        return run_close_loop_tensor(&args, &units);
+    if let Some(rotor) = args.rotor.rotor()? {
+        return run_close_loop_tensor(&args, rotor, &units);
+    }
+    if args.rotor.rotor_poles.is_some() || args.rotor.rotor_raw {
+        return Err(
+            "--rotor-poles and --rotor-raw go with --rotor-inertia and --rotor-axis".into(),
+        );
     }
     let (log, warnings) =
         inertia::close_loop::load(&args.input, args.format, args.segments.as_deref(), &units)?;
@@ -371,13 +386,8 @@ fn run_close_loop(args: CloseLoopArgs) -> Result<ExitCode, String> {
             at.join(", ")
         );
     }
-    let json = serde_json::to_string_pretty(&an).map_err(|e| e.to_string())?;
-    std::fs::write(&args.json, json)
-        .map_err(|e| format!("writing {}: {e}", args.json.display()))?;
-    let title = args
-        .title
-        .clone()
-        .unwrap_or_else(|| args.input.display().to_string());
+    write_json(&args.json, &an)?;
+    let title = args.title();
     let md = report::markdown(&an, &title);
     if let Some(dir) = &args.plots {
         std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
@@ -392,14 +402,12 @@ fn run_close_loop(args: CloseLoopArgs) -> Result<ExitCode, String> {
 /// `inertia close-loop` with a rotor: the tensor as the base model
 /// ([`inertia::close_loop::tensor`]). Exit 3 for unusable input, 4 when the free flights
 /// cannot determine the tensor.
-fn run_close_loop_tensor(args: &CloseLoopArgs, units: &ReadOptions) -> Result<ExitCode, String> {
+fn run_close_loop_tensor(
+    args: &CloseLoopArgs,
+    rotor: Rotor,
+    units: &ReadOptions,
+) -> Result<ExitCode, String> {
     use inertia::close_loop::tensor;
-    let (Some(inertia), Some(axis)) = (args.rotor_inertia, args.rotor_axis) else {
-        return Err("--rotor-inertia needs --rotor-axis".into());
-    };
-    if !(inertia.is_finite() && inertia > 0.0) {
-        return Err(format!("--rotor-inertia {inertia} must be positive"));
-    }
     let rec = read(&args.input, units).map_err(|e| e.to_string())?;
     // The same refusals as the torque-free close-loop: rates that look like deg/s, a time step
     // that looks like ms or us, unless the unit was declared.
@@ -425,15 +433,11 @@ fn run_close_loop_tensor(args: &CloseLoopArgs, units: &ReadOptions) -> Result<Ex
         None => None,
     };
     let opts = tensor::TensorOptions {
-        rotor: Rotor {
-            inertia,
-            axis,
-            poles: args.rotor_poles,
-        },
+        rotor,
         alpha: args.alpha,
         block_s: 0.01,
         segments,
-        rotor_raw: args.rotor_raw,
+        rotor_raw: args.rotor.rotor_raw,
     };
     let an = match tensor::analyse_tensor(&rec, &opts) {
         Ok(an) => an,
@@ -446,13 +450,8 @@ fn run_close_loop_tensor(args: &CloseLoopArgs, units: &ReadOptions) -> Result<Ex
             return Ok(ExitCode::from(code));
         }
     };
-    let json = serde_json::to_string_pretty(&an).map_err(|e| e.to_string())?;
-    std::fs::write(&args.json, json)
-        .map_err(|e| format!("writing {}: {e}", args.json.display()))?;
-    let title = args
-        .title
-        .clone()
-        .unwrap_or_else(|| args.input.display().to_string());
+    write_json(&args.json, &an)?;
+    let title = args.title();
     if let Some(dir) = &args.plots {
         std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
         std::fs::write(dir.join("summary.md"), tensor::markdown(&an, &title))
@@ -480,18 +479,8 @@ struct ExportReplayArgs {
     /// The log (any format `identify` reads).
     #[arg(long)]
     input: PathBuf,
-    /// Rotor (flywheel) inertia about its axis, kg m^2.
-    #[arg(long)]
-    rotor_inertia: Option<f32>,
-    /// Rotor axis in the gyro frame: x, y, z, -x, -y or -z.
-    #[arg(long, value_parser = parse_axis, allow_hyphen_values = true)]
-    rotor_axis: Option<[f32; 3]>,
-    /// Motor poles, to turn eRPM into mechanical speed.
-    #[arg(long)]
-    rotor_poles: Option<u32>,
-    /// Use the rotor speed exactly as logged (as `identify --rotor-raw`).
-    #[arg(long)]
-    rotor_raw: bool,
+    #[command(flatten)]
+    rotor: RotorArgs,
     /// Gyro unit of a CSV: rad/s or deg/s.
     #[arg(long, value_parser = parse_gyro_unit)]
     gyro_unit: Option<GyroUnit>,
@@ -518,18 +507,13 @@ struct TelemetryArgs {
 }
 
 fn run_export_replay(args: ExportReplayArgs) -> Result<ExitCode, String> {
-    let rotor = rotor_and_noise(
-        args.rotor_inertia,
-        args.rotor_axis,
-        args.rotor_poles,
-        args.noise_std,
-    )?;
+    let rotor = rotor_and_noise(&args.rotor, args.noise_std)?;
     let opts = ReadOptions {
         gyro_unit: args.gyro_unit,
         time_unit: args.time_unit,
     };
     let rec = read(&args.input, &opts).map_err(|e| e.to_string())?;
-    let e = replay::export(&rec, rotor, args.noise_std, args.rotor_raw, &args.out)?;
+    let e = replay::export(&rec, rotor, args.noise_std, args.rotor.rotor_raw, &args.out)?;
     eprintln!(
         "{}: {} samples at {} Hz, noise {} rad/s, accelerometer {}",
         args.out.display(),
