@@ -37,6 +37,7 @@
 
 use serde::Serialize;
 
+use super::model::cross;
 use crate::identify::{identify, unhold, IdentifyOptions, Rotor};
 use crate::Recording;
 
@@ -201,14 +202,6 @@ pub struct TensorAnalysis {
 }
 
 type V3 = [f64; 3];
-
-fn cross(a: V3, b: V3) -> V3 {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
 
 fn mat_vec(j: &[f64; 6], w: V3) -> V3 {
     let [xx, yy, zz, xy, xz, yz] = *j;
@@ -610,6 +603,8 @@ pub fn analyse_tensor(
     let (base, jb) = fit_model(&blocks, &zero, &[])
         .ok_or_else(|| Data("the tensor is not determined".into()))?;
     let before = report(&base, &jb, &[], noise, None);
+    // The base fit's residuals, for the plot (the base fit is `cur` until an effect is added).
+    let base_residuals = base.residuals.clone();
     let mut chosen: Vec<TensorEffect> = Vec::new();
     let (mut cur, mut jc) = (base, jb);
     let mut lag: Option<(f64, f64)> = None;
@@ -697,12 +692,9 @@ pub fn analyse_tensor(
         (d / b).sqrt()
     };
     let mut residuals = Vec::new();
-    let blocks0 = make_blocks(0.0);
-    let (b0, _) = fit_model(&blocks0, &zero, &[])
-        .ok_or_else(|| Data("the tensor is not determined".into()))?;
     for ((blk, e0), e1) in blocks
         .iter()
-        .zip(b0.residuals.iter())
+        .zip(base_residuals.iter())
         .zip(cur.residuals.iter())
     {
         let tm = 0.5 * (blk.t[0] + blk.t[blk.t.len() - 1]);
