@@ -251,18 +251,25 @@ pub fn median_dt(t: &[f64]) -> f64 {
 /// `20 sigma^2`), turned into a standard deviation, smallest over the axes. Floored at
 /// `1e-4 rad/s`.
 pub fn estimate_noise(gyro: &[[f32; 3]]) -> f32 {
-    let mut best = f32::INFINITY;
-    for ax in 0..3 {
+    noise_from_medians((0..3).map(|ax| {
         let mut d: Vec<f32> = gyro
             .windows(4)
             .map(|w| (w[3][ax] - 3.0 * w[2][ax] + 3.0 * w[1][ax] - w[0][ax]).abs())
             .filter(|x| x.is_finite())
             .collect();
-        if d.is_empty() {
-            continue;
-        }
         d.sort_by(|a, b| a.total_cmp(b));
-        let mad = d[d.len() / 2];
+        d.get(d.len() / 2).copied()
+    }))
+}
+
+/// The noise from each axis's median absolute third difference (`None` for an axis without
+/// one): the median turned into a standard deviation (third differences of white noise have
+/// variance `20 sigma^2`), smallest over the axes, floored at `1e-4 rad/s`; `2e-3` when no axis
+/// has a difference. Shared by [`estimate_noise`] and the streaming survey, so both give the
+/// same bits.
+pub(crate) fn noise_from_medians(medians: impl IntoIterator<Item = Option<f32>>) -> f32 {
+    let mut best = f32::INFINITY;
+    for mad in medians.into_iter().flatten() {
         let s = mad / 0.6745 / 20f32.sqrt();
         if s < best {
             best = s;

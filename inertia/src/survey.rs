@@ -81,21 +81,7 @@ impl NoiseStats {
     /// (third differences of white noise have variance `20 sigma^2`), smallest over the axes,
     /// floored at `1e-4 rad/s`; `2e-3` when no axis has a difference.
     pub fn noise(&self) -> f32 {
-        let mut best = f32::INFINITY;
-        for m in &self.medians {
-            let Some(Some(mad)) = m.result() else {
-                continue;
-            };
-            let s = mad / 0.6745 / 20f32.sqrt();
-            if s < best {
-                best = s;
-            }
-        }
-        if best.is_finite() {
-            best.max(1e-4)
-        } else {
-            2e-3
-        }
+        crate::identify::noise_from_medians(self.medians.iter().map(|m| m.result().flatten()))
     }
 }
 
