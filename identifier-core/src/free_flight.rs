@@ -52,6 +52,10 @@ pub const G: f32 = 9.806_65;
 /// Most blocks in a window.
 pub const MAX_WINDOW_BLOCKS: usize = 16;
 
+/// Fewest samples [`GateSettings::for_rate`] puts in a window (the three offsets of (F1) are
+/// fitted to it).
+const MIN_WINDOW_SAMPLES: f32 = 16.0;
+
 /// Tuning of [`FreeFlightGate`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -80,11 +84,12 @@ pub struct GateSettings {
 }
 
 impl GateSettings {
-    /// Settings for a sample rate: windows of 40 ms whatever the rate (as many blocks of about
-    /// 2.5 ms as fit, at most [`MAX_WINDOW_BLOCKS`]: the window's length in time, not in
-    /// samples, decides how long a touch must last to be seen), residual 2 m/s^2 (0.2 g),
-    /// offset up to 0.1 m, still within 0.5 m/s^2 of `g`, rates below 0.05 rad/s (3 deg/s)
-    /// and their spread over the window below 0.01 rad/s.
+    /// Settings for a sample rate: windows of about 40 ms (as many blocks of about 2.5 ms as
+    /// fit, at most [`MAX_WINDOW_BLOCKS`]: the window's length in time decides how long a touch
+    /// must last to be seen) but never fewer than 16 samples (below 400 Hz the window is 16
+    /// one-sample blocks, longer than 40 ms: three offsets are fitted to it), residual 2 m/s^2
+    /// (0.2 g), offset up to 0.1 m, still within 0.5 m/s^2 of `g`, rates below 0.05 rad/s
+    /// (3 deg/s) and their spread over the window below 0.01 rad/s.
     pub fn for_rate(rate_hz: f32) -> Self {
         // Samples per block: about 2.5 ms, rounded (1 to 1024).
         let b = rate_hz * 0.0025 + 0.5;
@@ -95,8 +100,12 @@ impl GateSettings {
         } else {
             1
         };
-        // Blocks per window: 40 ms of blocks, rounded (1 to MAX_WINDOW_BLOCKS).
-        let w = 0.04 * rate_hz / f32::from(block) + 0.5;
+        // Blocks per window: 40 ms of blocks, rounded, and at least 16 samples (1 to
+        // MAX_WINDOW_BLOCKS).
+        let bf = f32::from(block);
+        let w = 0.04 * rate_hz / bf + 0.5;
+        let least = (MIN_WINDOW_SAMPLES + bf - 1.0) / bf;
+        let w = if w < least { least } else { w };
         let window_blocks = if w >= MAX_WINDOW_BLOCKS as f32 {
             MAX_WINDOW_BLOCKS as u8
         } else if w >= 1.0 {
@@ -496,6 +505,21 @@ fn add_normal(s: &mut BlockSums, k: &[[f32; 3]; 3], f: [f32; 3]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn windows_are_about_40_ms_and_never_under_16_samples() {
+        for (rate, block, blocks) in [
+            (100.0, 1, 16),
+            (200.0, 1, 16),
+            (400.0, 1, 16),
+            (1000.0, 3, 13),
+            (2000.0, 5, 16),
+            (8000.0, 20, 16),
+        ] {
+            let g = GateSettings::for_rate(rate);
+            assert_eq!((g.block, g.window_blocks), (block, blocks), "{rate} Hz");
+        }
+    }
 
     #[test]
     fn still_is_not_free_and_gives_bias() {
