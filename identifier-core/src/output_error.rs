@@ -614,6 +614,19 @@ impl<const N: usize, const K: usize, const M: usize> FitState<N, K, M> {
         &mut self,
         fit: impl FnOnce(&[Block<K>]) -> Option<StretchResult<M>>,
     ) -> StretchOutcome {
+        let mut pooled = self.pooled;
+        let outcome = self.close_into(&mut pooled, fit);
+        self.pooled = pooled;
+        outcome
+    }
+
+    /// [`FitState::close`] pooling into `pooled` instead of the state's own (a fit of other
+    /// parameters of the same blocks: the tensor up to scale).
+    pub(crate) fn close_into<const M2: usize>(
+        &mut self,
+        pooled: &mut Pooled<M2>,
+        fit: impl FnOnce(&[Block<K>]) -> Option<StretchResult<M2>>,
+    ) -> StretchOutcome {
         let samples = self.buf.samples();
         let blocks = self.buf.finish();
         let outcome = if blocks.is_empty() {
@@ -624,10 +637,7 @@ impl<const N: usize, const K: usize, const M: usize> FitState<N, K, M> {
             let dof_of = |params: usize| (3 * blocks.len()) as f32 - params as f32;
             match fit(blocks) {
                 Some(r) => {
-                    if !self
-                        .pooled
-                        .add(&r.p, &r.cov, r.cost, dof_of(r.params), samples)
-                    {
+                    if !pooled.add(&r.p, &r.cov, r.cost, dof_of(r.params), samples) {
                         StretchOutcome::Failed
                     } else if let Some(b) = r.bias {
                         self.biased = true;

@@ -335,10 +335,17 @@ impl<const N: usize> Pipeline<N> {
     /// estimator's own.
     pub fn estimate(&self) -> TensorEstimate {
         let e = self.estimator.estimate();
-        if !self.rotor_seen {
-            return e;
-        }
         let noise = self.settings.tensor.noise_std;
+        if !self.rotor_seen {
+            return match self.tensor_fit.estimate_normalized() {
+                Some(f) if f.noise <= TRAJECTORY_FIT_RATIO * noise => {
+                    let t = &f.tensor;
+                    let j = [t[0][0], t[1][1], t[2][2], t[0][1], t[0][2], t[1][2]];
+                    self.estimator.with_normalized(e, j, f.cov, f.noise / noise)
+                }
+                _ => e,
+            };
+        }
         match self.tensor_fit.estimate() {
             Some(f) if f.noise <= TRAJECTORY_FIT_RATIO * noise => {
                 let t = &f.tensor;
@@ -600,15 +607,37 @@ impl<const N: usize> Pipeline<N> {
         self.fits_pending
     }
 
-    /// Fits the stretch that ended with the tensor's output-error fit, from the tensor
-    /// estimator's estimate (with rotor momentum; without, the scale is not determined and the
-    /// stretch is dropped).
+    /// Fits the stretch that ended with the tensor's output-error fit: in kg m^2 from the
+    /// tensor estimator's estimate when a rotor momentum was seen; otherwise up to scale, from
+    /// the better of the estimator's normalised tensor (products of inertia included) and the
+    /// ratio fit's principal moments (closed just before; efficient, but principal axes only).
     fn close_tensor_fit(&mut self) {
+        let e = self.estimator.estimate();
         if self.rotor_seen {
-            let init = self.estimator.estimate().tensor;
-            self.tensor_fit.close(init);
+            self.tensor_fit.close(e.tensor);
         } else {
-            self.tensor_fit.discard();
+            let fe = self.trajectory.estimate();
+            let principal = fe.map(|f| {
+                let m = f.moments;
+                [[m[0], 0.0, 0.0], [0.0, m[1], 0.0], [0.0, 0.0, m[2]]]
+            });
+            // A bias is looked for when the principal-axis fit found one or does not explain
+            // the data (see `TensorFit::close_normalized`).
+            let fits = TRAJECTORY_FIT_RATIO * self.settings.refined.noise_std;
+            let test_bias = fe.is_none_or(|f| {
+                let explained = f.noise <= fits;
+                f.biased || !explained
+            });
+            let mut inits = [[[0.0f32; 3]; 3]; 2];
+            let mut n = 0;
+            for j in [e.normalized, principal].into_iter().flatten() {
+                if let Some(dst) = inits.get_mut(n) {
+                    *dst = j;
+                    n += 1;
+                }
+            }
+            self.tensor_fit
+                .close_normalized(inits.get(..n).unwrap_or(&[]), test_bias);
         }
     }
 

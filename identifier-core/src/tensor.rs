@@ -895,6 +895,37 @@ impl TensorEstimator {
         self.describe(out, j, cov, Some((j, cov)))
     }
 
+    /// `base` with the tensor up to scale replaced by `nj` (entries xx, yy, zz, xy, xz, yz of
+    /// `J / trace J`) of covariance `cov_n`, from the output-error fit of the same samples
+    /// without rotor momentum ([`crate::TensorFit::close_normalized`]) whose residual is
+    /// `residual_ratio` times the gyro noise: the full model, described and judged as the
+    /// estimator's own. `base` is returned unchanged when there are too few samples or the
+    /// units look wrong. `NoExcitation` from the equation error's own measure is not kept: a
+    /// body spinning near a principal axis gives the equation error too little to go on
+    /// while the trajectory still determines `J / trace J` (the fit's covariance, which is
+    /// singular without excitation and then no fit is given, says how well).
+    pub fn with_normalized(
+        &self,
+        base: TensorEstimate,
+        nj: [f32; 6],
+        cov_n: Sym<6>,
+        residual_ratio: f32,
+    ) -> TensorEstimate {
+        if matches!(
+            base.status,
+            TensorStatus::TooFewSamples | TensorStatus::UnitsLookWrong
+        ) {
+            return base;
+        }
+        let mut out = base;
+        out.method = TensorMethod::OutputError;
+        out.model = TensorModel::Full;
+        out.residual_ratio = residual_ratio;
+        out.tensor = None;
+        out.tensor_std = None;
+        self.describe(out, nj, cov_n, None)
+    }
+
     /// The estimate's description from the normalised tensor `nj` (entries xx, yy, zz, xy,
     /// xz, yz, trace 1) with its covariance, or from the absolute one when given (then the
     /// normalised follows, `N = J / tr`, `dN = (I - N t^T) dJ / tr`): principal moments and

@@ -45,6 +45,17 @@
 //! The fit starts from an estimate of `J` the caller gives (the pipeline gives
 //! [`crate::TensorEstimator`]'s) and the first block's rate, on growing prefixes of the blocks.
 //!
+//! # Up to scale
+//!
+//! Without rotor momentum (`h = 0`), `w(t)` of (F1) does not change when `J` is multiplied by
+//! any constant: only `J / trace J` is determined. [`TensorFit::close_normalized`] then holds
+//! the trace at the first guess's, `Jzz = tr - Jxx - Jyy`, fits the five free entries (the
+//! sensitivity to `Jxx` is `dw/dJxx - dw/dJzz`, the same for `Jyy`) with `w(t_0)` and the
+//! optional bias, and reports them divided by the trace, their covariance by its square
+//! (rank 5 over the six entries: `dJzz = -dJxx - dJyy`). It is the tensor's counterpart of
+//! [`crate::RatioFit`] (which assumes principal axes) and is pooled apart from the absolute
+//! fits.
+//!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 225 / 303
 //! instructions per sample; one fit of a 0.6 s throw at 2 kHz 136 M / 155 M instructions, about
 //! 0.8-0.9 s at 168 MHz: far too long for one gyro period, which is why the pipeline runs it in
@@ -60,9 +71,9 @@
 
 use crate::output_error::{
     bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, staged_fit,
-    substeps, Block, FitState, Normal, NormalSums, StretchResult,
+    substeps, Block, FitState, Normal, NormalSums, Pooled, StretchResult,
 };
-use crate::symmetric::sqrt;
+use crate::symmetric::{sqrt, Sym};
 use crate::trajectory::StretchOutcome;
 
 type Mat3 = [[f32; 3]; 3];
@@ -136,6 +147,8 @@ pub struct TensorFit<const N: usize> {
     /// The open stretch's blocks (rate, rotor momentum) and the six entries pooled over closed
     /// stretches.
     state: FitState<N, 6, 6>,
+    /// The five free entries of `J / trace J` pooled over stretches fitted up to scale.
+    normalized: Pooled<5>,
     full_scale: f32,
     max_dt: f32,
     noise_std: f32,
@@ -372,18 +385,42 @@ fn rotor_of(b: &Block<6>) -> [f32; 3] {
     [b.mean(3), b.mean(4), b.mean(5)]
 }
 
-/// Cost and normal equations of the first `limit` blocks at `theta` (P = 9, or 12 with the
-/// bias in `theta[9..12]`).
+/// Entries of `J` fitted by a parameter vector of length `P`: the six entries in kg m^2 (`P`
+/// = 9, or 12 with the bias), or five with the trace held (`P` = 8 or 11: `Jzz = trace - Jxx -
+/// Jyy`, the tensor up to scale).
+const fn entries_of(p: usize) -> usize {
+    if p == P0 - 1 || p == P1 - 1 {
+        5
+    } else {
+        6
+    }
+}
+
+/// The six entries `(xx, yy, zz, xy, xz, yz)` from `theta` (see [`entries_of`]).
+fn six<const P: usize>(theta: &[f32; P], trace: f32) -> [f32; 6] {
+    let g = |i: usize| theta.get(i).copied().unwrap_or(0.0);
+    if entries_of(P) == 6 {
+        [g(0), g(1), g(2), g(3), g(4), g(5)]
+    } else {
+        [g(0), g(1), trace - g(0) - g(1), g(2), g(3), g(4)]
+    }
+}
+
+/// Cost and normal equations of the first `limit` blocks at `theta`: `P` = 9 (six entries,
+/// initial rate) or 12 (and the bias), or 8 and 11 with the trace held at `trace` (the tensor up
+/// to scale: the sensitivity to `Jxx` is `d/dJxx - d/dJzz`, and the same for `Jyy`).
 fn normal<const P: usize>(
     blocks: &[Block<6>],
     limit: usize,
     theta: &[f32; P],
+    trace: f32,
 ) -> Option<Normal<P>> {
-    let j = tensor_of(theta);
+    let m = entries_of(P);
+    let e6 = six(theta, trace);
+    let j = tensor_of(&e6);
     let k = inverse_pd(&j)?;
-    let first = blocks.first()?;
-    let w0 = [theta[6], theta[7], theta[8]];
-    let _ = first;
+    let g = |i: usize| theta.get(i).copied().unwrap_or(0.0);
+    let w0 = [g(m), g(m + 1), g(m + 2)];
     let (h_first, _) = rotor_node(blocks, 0);
     let jw = mul(&j, w0);
     let mut x = Aug {
@@ -409,10 +446,12 @@ fn normal<const P: usize>(
         }
     }
     let k_norm = sqrt(k_norm);
-    let mut bias = [0.0f32; 3];
-    if P == P1 {
-        bias = [theta[9], theta[10], theta[11]];
-    }
+    let biased = P == m + 6;
+    let bias = if biased {
+        [g(m + 3), g(m + 4), g(m + 5)]
+    } else {
+        [0.0f32; 3]
+    };
     let mut sums = NormalSums::<P>::EMPTY;
     // Node b-1: time, rotor momentum at the mean time, its curvature.
     let mut prev: Option<(f32, [f32; 3], [f32; 3])> = None;
@@ -472,9 +511,31 @@ fn normal<const P: usize>(
         for i in 0..3 {
             let r = y[i] - w[i] - half_v * w2[i] - bias[i];
             let mut row = [0.0f32; P];
-            row[..P0].copy_from_slice(&u[i]);
-            if P == P1 {
-                row[P0 + i] = 1.0;
+            let ui = &u[i];
+            if m == 6 {
+                for (dst, src) in row.iter_mut().zip(ui.iter()) {
+                    *dst = *src;
+                }
+            } else {
+                // Trace held: Jzz moves against Jxx and Jyy.
+                let cols = [
+                    ui[0] - ui[2],
+                    ui[1] - ui[2],
+                    ui[3],
+                    ui[4],
+                    ui[5],
+                    ui[6],
+                    ui[7],
+                    ui[8],
+                ];
+                for (dst, src) in row.iter_mut().zip(cols.iter()) {
+                    *dst = *src;
+                }
+            }
+            if biased {
+                if let Some(dst) = row.get_mut(m + 3 + i) {
+                    *dst = 1.0;
+                }
             }
             sums.add(b.n, r, &row);
         }
@@ -482,62 +543,121 @@ fn normal<const P: usize>(
     sums.finish()
 }
 
-fn fit_stretch(blocks: &[Block<6>], init: &Mat3, noise_floor: f32) -> Option<StretchResult<6>> {
+/// Fits one stretch from `th` (`P` parameters without the bias, `PB` with it, the first `M`
+/// of interest; see [`normal`]): the plain model by [`staged_fit`] (or, when `staged` is
+/// false, by [`levenberg`] on all the blocks at once), then, when `test_bias`, the bias model
+/// if the likelihood-ratio test asks for it.
+fn fit_model<const P: usize, const PB: usize, const M: usize>(
+    blocks: &[Block<6>],
+    th: [f32; P],
+    trace: f32,
+    noise_floor: f32,
+    staged: bool,
+    test_bias: bool,
+) -> Option<StretchResult<M>> {
     let total = blocks.len();
-    let w0 = rate_of(blocks.first()?);
-    let th = [
-        init[0][0], init[1][1], init[2][2], init[0][1], init[0][2], init[1][2], w0[0], w0[1], w0[2],
-    ];
-    let (th, cost0, f0) = staged_fit(|p, limit| normal(blocks, limit, p), th, total)?;
-    let cov0 = scaled_inverse(&f0)?;
-    let block = |c: &[[f32; P1]; P1]| {
-        let mut m = [[0.0f32; 6]; 6];
-        for i in 0..6 {
-            m[i].copy_from_slice(&c[i][..6]);
-        }
-        m
+    let (th, cost0, f0) = if staged {
+        staged_fit(|p, limit| normal(blocks, limit, p, trace), th, total)?
+    } else {
+        let dof = (3 * total) as f32 - P as f32;
+        levenberg(|p| normal(blocks, total, p, trace), th, 30, dof)?
     };
-    let mut th1 = [0.0f32; P1];
-    th1[..P0].copy_from_slice(&th);
-    let dof1 = (3 * total) as f32 - P1 as f32;
-    let dof0 = (3 * total) as f32 - P0 as f32;
+    let cov0 = scaled_inverse(&f0)?;
+    let mut th1 = [0.0f32; PB];
+    for (dst, src) in th1.iter_mut().zip(th.iter()) {
+        *dst = *src;
+    }
+    let dof1 = (3 * total) as f32 - PB as f32;
+    let dof0 = (3 * total) as f32 - P as f32;
     // One evaluation decides whether the bias model is worth its fit.
-    let worth = normal(blocks, total, &th1)
-        .and_then(|(_, f, g)| score(&f, &g))
-        .is_none_or(|sc| bias_worth_fitting(sc, cost0, dof0, noise_floor));
+    let worth = test_bias
+        && normal(blocks, total, &th1, trace)
+            .and_then(|(_, f, g)| score(&f, &g))
+            .is_none_or(|sc| bias_worth_fitting(sc, cost0, dof0, noise_floor));
     let with_bias = if worth {
-        levenberg(|p| normal(blocks, total, p), th1, 30, dof1)
+        levenberg(|p| normal(blocks, total, p, trace), th1, 30, dof1)
     } else {
         None
+    };
+    let first =
+        |v: &[f32]| -> [f32; M] { core::array::from_fn(|i| v.get(i).copied().unwrap_or(0.0)) };
+    let block = |c: &[[f32; PB]]| -> Sym<M> {
+        core::array::from_fn(|i| c.get(i).map_or([0.0; M], |row| first(row)))
     };
     if let Some((t1, cost1, f1)) = with_bias {
         if bias_found(cost0, cost1, dof1, noise_floor) {
             if let Some(c1) = scaled_inverse(&f1) {
-                let mut e = [0.0f32; 6];
-                e.copy_from_slice(&t1[..6]);
+                let g = |i: usize| t1.get(i).copied().unwrap_or(0.0);
                 return Some(StretchResult {
-                    p: e,
+                    p: first(&t1),
                     cov: block(&c1),
                     cost: cost1,
-                    params: P1,
-                    bias: Some([t1[9], t1[10], t1[11]]),
+                    params: PB,
+                    bias: Some([g(M + 3), g(M + 4), g(M + 5)]),
                 });
             }
         }
     }
-    let mut e = [0.0f32; 6];
-    e.copy_from_slice(&th[..6]);
-    let mut m = [[0.0f32; 6]; 6];
-    for i in 0..6 {
-        m[i].copy_from_slice(&cov0[i][..6]);
-    }
+    let block0: Sym<M> = core::array::from_fn(|i| cov0.get(i).map_or([0.0; M], |row| first(row)));
     Some(StretchResult {
-        p: e,
-        cov: m,
+        p: first(&th),
+        cov: block0,
         cost: cost0,
-        params: P0,
+        params: P,
         bias: None,
     })
+}
+
+/// The absolute fit (six entries in kg m^2) from `init`.
+fn fit_stretch(blocks: &[Block<6>], init: &Mat3, noise_floor: f32) -> Option<StretchResult<6>> {
+    let w0 = rate_of(blocks.first()?);
+    let th = [
+        init[0][0], init[1][1], init[2][2], init[0][1], init[0][2], init[1][2], w0[0], w0[1], w0[2],
+    ];
+    fit_model::<P0, P1, 6>(blocks, th, 0.0, noise_floor, true, true)
+}
+
+/// The fit up to scale from the best of the first guesses `inits` (any scale each): the one
+/// whose trajectory from the first block's rate fits all the blocks best (one evaluation of
+/// the cost each; a poor start can end in a local minimum that fits nearly as well as the
+/// truth on a short, noisy toss), the trace held at its trace, the five free entries `(Jxx,
+/// Jyy, Jxy, Jxz, Jyz)` returned divided by it (trace 1), their covariance by its square.
+fn fit_stretch_normalized(
+    blocks: &[Block<6>],
+    inits: &[Mat3],
+    noise_floor: f32,
+    test_bias: bool,
+) -> Option<StretchResult<5>> {
+    let w0 = rate_of(blocks.first()?);
+    let start = |init: &Mat3| {
+        let tr = init[0][0] + init[1][1] + init[2][2];
+        let th = [
+            init[0][0], init[1][1], init[0][1], init[0][2], init[1][2], w0[0], w0[1], w0[2],
+        ];
+        (tr > 0.0 && tr.is_finite()).then_some((th, tr))
+    };
+    let mut best: Option<([f32; P0 - 1], f32, f32)> = None;
+    for (th, tr) in inits.iter().filter_map(start) {
+        if let Some((cost, _, _)) = normal(blocks, blocks.len(), &th, tr) {
+            if best.is_none_or(|b| cost < b.2) {
+                best = Some((th, tr, cost));
+            }
+        }
+    }
+    let (th, tr, cost) = best?;
+    // Growing prefixes keep a start whose trajectory drifts away from the data from being
+    // pulled into a wrong basin by the far blocks. A start that already follows all the data
+    // to twice the noise (the ratio fit's principal moments, usually) needs no such care, and
+    // the prefixes would throw it away: on a short noisy toss the first 16 blocks alone
+    // determine the eight parameters so poorly that the fit left the right basin.
+    let dof = (3 * blocks.len()) as f32 - (P0 - 1) as f32;
+    let follows = dof > 0.0 && cost <= 4.0 * noise_floor * noise_floor * dof;
+    let mut r =
+        fit_model::<{ P0 - 1 }, { P1 - 1 }, 5>(blocks, th, tr, noise_floor, !follows, test_bias)?;
+    let k = 1.0 / tr;
+    r.p = r.p.map(|x| x * k);
+    r.cov = r.cov.map(|row| row.map(|x| x * k * k));
+    Some(r)
 }
 
 impl<const N: usize> TensorFit<N> {
@@ -548,6 +668,7 @@ impl<const N: usize> TensorFit<N> {
     pub const fn new(full_scale: f32, max_dt: f32, noise_std: f32) -> Self {
         TensorFit {
             state: FitState::EMPTY,
+            normalized: Pooled::EMPTY,
             full_scale,
             max_dt,
             noise_std,
@@ -581,8 +702,28 @@ impl<const N: usize> TensorFit<N> {
             .close(|blocks| init.and_then(|j| fit_stretch(blocks, &j, noise)))
     }
 
-    /// Drops the open stretch without fitting it (a flight without rotor momentum: the scale
-    /// of `J` is not determined).
+    /// Ends the open stretch of a flight whose rotor momentum does not fix the scale of `J`
+    /// (none, or constant along the rate): fits `J / trace J` from whichever of the first
+    /// guesses `inits` (positive definite, any scale) fits the blocks best as it stands (one
+    /// evaluation each; none: the stretch fails), the trace held (five free entries and the initial
+    /// rate, and, when `test_bias`, the bias if its likelihood-ratio test asks for it), pools
+    /// it apart from the absolute fits ([`TensorFit::estimate_normalized`]) and starts a new
+    /// stretch.
+    ///
+    /// Why the bias test can be switched off: on a short noisy toss the bias and the products
+    /// of inertia are nearly interchangeable, and the likelihood has far-apart minima that the
+    /// test (calibrated for a local alternative) takes for a bias on about 1 in 50 flights,
+    /// moving `J` by tens of its standard deviations. The pipeline tests it only when the
+    /// principal-axis fit of the same blocks ([`crate::RatioFit`]) found a bias or did not fit
+    /// to the noise.
+    pub fn close_normalized(&mut self, inits: &[[[f32; 3]; 3]], test_bias: bool) -> StretchOutcome {
+        let noise = self.noise_std;
+        self.state.close_into(&mut self.normalized, |blocks| {
+            fit_stretch_normalized(blocks, inits, noise, test_bias)
+        })
+    }
+
+    /// Drops the open stretch without fitting it.
     pub fn discard(&mut self) {
         self.state.buf.clear();
     }
@@ -607,6 +748,44 @@ impl<const N: usize> TensorFit<N> {
             noise,
             stretches: self.state.pooled.stretches,
             samples: self.state.pooled.samples,
+            biased: self.state.biased,
+            bias: self.state.bias,
+        })
+    }
+
+    /// The tensor up to scale pooled over the stretches closed by
+    /// [`TensorFit::close_normalized`]: `tensor` is `J / trace J`, `cov` the covariance of its
+    /// six entries (rank 5: `dJzz = -dJxx - dJyy`); `None` before one was fitted.
+    pub fn estimate_normalized(&self) -> Option<TensorFitEstimate> {
+        let (p, c5, noise) = self.normalized.mean()?;
+        let e = [p[0], p[1], 1.0 - p[0] - p[1], p[2], p[3], p[4]];
+        // Row k: entry k of the six as a combination of the five free ones.
+        let rows: [[f32; 5]; 6] = [
+            [1.0, 0.0, 0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0, 0.0, 0.0],
+            [-1.0, -1.0, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0, 0.0],
+            [0.0, 0.0, 0.0, 0.0, 1.0],
+        ];
+        let mut cov = [[0.0f32; 6]; 6];
+        for (i, ri) in rows.iter().enumerate() {
+            for (j, rj) in rows.iter().enumerate() {
+                let mut acc = 0.0;
+                for (a, ca) in ri.iter().zip(c5.iter()) {
+                    for (b, cab) in rj.iter().zip(ca.iter()) {
+                        acc += a * b * cab;
+                    }
+                }
+                cov[i][j] = acc;
+            }
+        }
+        Some(TensorFitEstimate {
+            tensor: tensor_of(&e),
+            cov,
+            noise,
+            stretches: self.normalized.stretches,
+            samples: self.normalized.samples,
             biased: self.state.biased,
             bias: self.state.bias,
         })
@@ -739,6 +918,49 @@ mod tests {
                     assert!(err < 2e-4 * 3.6e-4, "{rate} Hz: {:?} vs {j:?}", e.tensor);
                 }
             }
+        }
+    }
+
+    #[test]
+    fn without_rotor_momentum_the_tensor_comes_up_to_scale() {
+        let j = [
+            [2.1e-4, 1.2e-5, -0.8e-5],
+            [1.2e-5, 2.9e-4, 0.6e-5],
+            [-0.8e-5, 0.6e-5, 3.6e-4],
+        ];
+        let tr = j[0][0] + j[1][1] + j[2][2];
+        for rate in [100.0, 1000.0, 8000.0] {
+            let (ws, hs, _) = throw_with(rate, 2.0, j, [3.0, -2.0, 4.0], |_| 0.0);
+            let mut fit = TensorFit::<256>::new(f32::INFINITY, 0.1, 1e-3);
+            for (w, h) in ws.iter().zip(&hs) {
+                fit.step(*w, *h, (1.0 / rate) as f32);
+            }
+            // A first guess at another scale, 10 % off, products zero.
+            let init = [[1.0, 0.0, 0.0], [0.0, 1.5, 0.0], [0.0, 0.0, 1.6]];
+            let o = fit.close_normalized(&[init], true);
+            assert_eq!(o, StretchOutcome::Fitted, "{rate} Hz");
+            assert!(
+                fit.estimate().is_none(),
+                "no absolute tensor without rotor momentum"
+            );
+            let e = fit.estimate_normalized().unwrap();
+            let t = e.tensor[0][0] + e.tensor[1][1] + e.tensor[2][2];
+            assert!((t - 1.0).abs() < 1e-6, "trace {t}");
+            for r in 0..3 {
+                for c in 0..3 {
+                    let err = (e.tensor[r][c] as f64 - j[r][c] / tr).abs();
+                    assert!(err < 1e-5, "{rate} Hz: {:?} vs {j:?} / {tr}", e.tensor);
+                }
+            }
+            // The covariance keeps the trace: Jzz moves against Jxx and Jyy.
+            let var_tr: f32 = (0..3)
+                .flat_map(|a| (0..3).map(move |b| (a, b)))
+                .map(|(a, b)| e.cov[a][b])
+                .sum();
+            assert!(
+                var_tr.abs() < 1e-6 * e.cov[0][0].abs().max(1e-30),
+                "{var_tr}"
+            );
         }
     }
 }

@@ -5,7 +5,7 @@
 //! tensor) with their standard deviations.
 
 use super::{ekf::noise_from_data, Method};
-use identifier_core::{FlightPipeline, PipelineSettings, Ratios};
+use identifier_core::{FlightPipeline, PipelineSettings, Ratios, TensorEstimate};
 
 /// The pipeline's recommended ratios.
 #[derive(Default)]
@@ -30,6 +30,20 @@ fn run(t: &[f64], y: &[[f64; 3]], sigma: f64, checkpoints: &[usize]) -> Vec<Rati
         }
     }
     out
+}
+
+/// The pipeline's tensor estimate after feeding all of `y` and ending the flight (what
+/// `inertia identify` reports for a gyro-only log).
+pub fn normalized_tensor(t: &[f64], y: &[[f64; 3]], sigma: f64) -> Option<TensorEstimate> {
+    let dt = if t.len() > 1 { t[1] - t[0] } else { 1e-3 };
+    let settings = PipelineSettings::for_rate((1.0 / dt) as f32, sigma as f32);
+    let mut p = FlightPipeline::new(settings, false)?;
+    for (k, w) in y.iter().enumerate() {
+        let step = if k == 0 { dt } else { t[k] - t[k - 1] };
+        p.step(w.map(|x| x as f32), [0.0; 3], [0.0; 3], step as f32);
+    }
+    p.end_stretch();
+    Some(p.estimate())
 }
 
 fn a_of(r: &Ratios) -> [f64; 3] {
