@@ -544,24 +544,35 @@ fn normal<const P: usize>(
 }
 
 /// Fits one stretch from `th` (`P` parameters without the bias, `PB` with it, the first `M`
-/// of interest; see [`normal`]): the plain model by [`staged_fit`] (or, when `staged` is
-/// false, by [`levenberg`] on all the blocks at once), then, when `test_bias`, the bias model
-/// if the likelihood-ratio test asks for it.
+/// of interest; see [`normal`]): the plain model by [`staged_fit`] (when `direct_first`, by
+/// [`levenberg`] on all the blocks at once first, staged only if that does not fit to twice
+/// `noise_floor`, the lower cost taken), then, when `test_bias`, the bias model if the
+/// likelihood-ratio test asks for it.
 fn fit_model<const P: usize, const PB: usize, const M: usize>(
     blocks: &[Block<6>],
     th: [f32; P],
     trace: f32,
     noise_floor: f32,
-    staged: bool,
+    direct_first: bool,
     test_bias: bool,
 ) -> Option<StretchResult<M>> {
     let total = blocks.len();
-    let (th, cost0, f0) = if staged {
-        staged_fit(|p, limit| normal(blocks, limit, p, trace), th, total)?
+    let dof0 = (3 * total) as f32 - P as f32;
+    let staged = || staged_fit(|p, limit| normal(blocks, limit, p, trace), th, total);
+    let plain = if direct_first {
+        let direct = levenberg(|p| normal(blocks, total, p, trace), th, 30, dof0);
+        let fits = 4.0 * noise_floor * noise_floor * dof0;
+        match direct {
+            Some(d) if d.1 <= fits => Some(d),
+            d => match (d, staged()) {
+                (Some(d), Some(st)) => Some(if st.1 < d.1 { st } else { d }),
+                (d, st) => d.or(st),
+            },
+        }
     } else {
-        let dof = (3 * total) as f32 - P as f32;
-        levenberg(|p| normal(blocks, total, p, trace), th, 30, dof)?
+        staged()
     };
+    let (th, cost0, f0) = plain?;
     let cov0 = scaled_inverse(&f0)?;
     let mut th1 = [0.0f32; PB];
     for (dst, src) in th1.iter_mut().zip(th.iter()) {
@@ -644,16 +655,15 @@ fn fit_stretch_normalized(
             }
         }
     }
-    let (th, tr, cost) = best?;
-    // Growing prefixes keep a start whose trajectory drifts away from the data from being
-    // pulled into a wrong basin by the far blocks. A start that already follows all the data
-    // to twice the noise (the ratio fit's principal moments, usually) needs no such care, and
-    // the prefixes would throw it away: on a short noisy toss the first 16 blocks alone
-    // determine the eight parameters so poorly that the fit left the right basin.
-    let dof = (3 * blocks.len()) as f32 - (P0 - 1) as f32;
-    let follows = dof > 0.0 && cost <= 4.0 * noise_floor * noise_floor * dof;
+    let (th, tr, _) = best?;
+    // All the blocks at once first: growing prefixes keep a start whose trajectory drifts
+    // away from the data from being pulled into a wrong basin by the far blocks, but from a
+    // good start (the ratio fit's principal moments, with only the first block's noisy rate
+    // as the initial rate) they throw information away: on a short noisy toss the first 16
+    // blocks alone determine the eight parameters so poorly that the staged fit left the
+    // right basin and failed on about 1 flight in 25.
     let mut r =
-        fit_model::<{ P0 - 1 }, { P1 - 1 }, 5>(blocks, th, tr, noise_floor, !follows, test_bias)?;
+        fit_model::<{ P0 - 1 }, { P1 - 1 }, 5>(blocks, th, tr, noise_floor, true, test_bias)?;
     let k = 1.0 / tr;
     r.p = r.p.map(|x| x * k);
     r.cov = r.cov.map(|row| row.map(|x| x * k * k));

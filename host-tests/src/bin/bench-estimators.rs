@@ -1343,9 +1343,14 @@ fn goals(
                 }
             }
         }
+        let label = match prefix {
+            "tensor" => "tensor estimator's a (equation error: the on-line estimate during a flight; the final tensor is the output-error fit above)",
+            "pipeline" => "pipeline's a",
+            _ => "refined identifier's a (a peer)",
+        };
         let _ = writeln!(
             s,
-            "- Issue 11, {prefix}: within 1.1x of the {} on every axis of every scenario (inf: no estimate on some seeds): worst {:.2} ({}): **{}**; calibration RMS(error / std) within 0.8-1.25: range {:.2} to {:.2}: **{}**; noise-free error below 1e-5 (scenarios without gyro bias): worst {:.1e} ({}): **{}**.",
+            "- Issue 11, {label}: within 1.1x of the {} on every axis of every scenario (inf: no estimate on some seeds): worst {:.2} ({}): **{}**; calibration RMS(error / std) within 0.8-1.25: range {:.2} to {:.2}: **{}**; noise-free error below 1e-5 (scenarios without gyro bias): worst {:.1e} ({}): **{}**.",
             if prefix == "pipeline" {
                 "bound of its model (constrained; with the bias where there is one)"
             } else {
