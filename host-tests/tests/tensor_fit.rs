@@ -3,7 +3,9 @@
 //! from): with a constant gyro bias the fit's likelihood-ratio test takes the bias model and the
 //! tensor stays within its reported uncertainty; without one the plain model is kept.
 use host_tests::throw_sim::{board_throw_config, simulate};
-use identifier_core::{FlightPipeline, PipelineSettings, StretchOutcome, TensorStatus};
+use identifier_core::{
+    FlightPipeline, PipelineSettings, StretchOutcome, TensorMethod, TensorStatus,
+};
 
 const IDX: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
 
@@ -113,5 +115,60 @@ fn the_fits_of_an_ended_flight_run_outside_the_step_and_when_does_not_matter() {
             cfg.inertia[r][c],
             s[r][c]
         );
+    }
+}
+
+/// Without rotor momentum the scale of `J` is not determined: the pipeline fits `J / trace J`
+/// by output error at the end of each flight (`TensorFit::close_normalized`), products of
+/// inertia included, and reports it with an honest std (board throws with the flywheel's
+/// inertia set to zero: non-diagonal `J`, 0.5 s at 4 kHz, fed without an accelerometer).
+#[test]
+fn without_rotor_momentum_the_tensor_up_to_scale_comes_from_the_fit() {
+    let seeds = std::env::var("SEEDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(12u64);
+    let mut z2 = [0.0f64; 6];
+    for seed in 1..=seeds {
+        let mut cfg = board_throw_config(seed);
+        cfg.rotor.inertia = 0.0;
+        cfg.gyro.quantize = false;
+        let sim = simulate(&cfg);
+        let range = sim.free_flight().expect("a free flight");
+        let settings = PipelineSettings::for_rate(cfg.rate_hz as f32, cfg.gyro.noise_std as f32)
+            .with_full_scale(34.9);
+        let mut p = FlightPipeline::new(settings, false).expect("valid settings");
+        for k in range {
+            p.step(sim.gyro[k], [0.0; 3], [0.0; 3], sim.dt() as f32);
+        }
+        p.end_stretch();
+        assert_eq!(
+            p.tensor_fit().last_outcome(),
+            StretchOutcome::Fitted,
+            "seed {seed}"
+        );
+        let e = p.estimate();
+        assert_eq!(e.method, TensorMethod::OutputError, "seed {seed}");
+        assert!(
+            e.tensor.is_none(),
+            "no absolute tensor without rotor momentum"
+        );
+        let (n, s) = (
+            e.normalized.expect("J / tr"),
+            e.normalized_std.expect("std"),
+        );
+        let j = cfg.inertia;
+        let tr = j[0][0] + j[1][1] + j[2][2];
+        for (q, &(r, c)) in IDX.iter().enumerate() {
+            let z = (n[r][c] as f64 - j[r][c] / tr) / s[r][c] as f64;
+            z2[q] += z * z;
+        }
+    }
+    let calib = z2.map(|x| (x / seeds as f64).sqrt());
+    println!("RMS(error / std) of J / trace J over {seeds} seeds: {calib:.2?}");
+    // A std 2x too small or too large fails; the Monte Carlo spread of the RMS over 12 seeds
+    // is about 20 %.
+    for (q, c) in calib.iter().enumerate() {
+        assert!((0.5..1.6).contains(c), "entry {q}: {calib:?}");
     }
 }

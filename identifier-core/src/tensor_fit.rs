@@ -57,8 +57,10 @@
 //! fits.
 //!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 225 / 303
-//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 136 M / 155 M instructions, about
-//! 0.8-0.9 s at 168 MHz: far too long for one gyro period, which is why the pipeline runs it in
+//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 88 M / 100 M instructions, about
+//! 0.5-0.6 s at 168 MHz; up to scale, 20 s of a slow tumble at 1 kHz 199 M / 227 M (1.2-1.4 s)
+//! and a 0.85 s toss at 100 Hz 54 M / 61 M: far too long for one gyro period, which is why the
+//! pipeline runs it in
 //! [`crate::Pipeline::fit_ended_flight`], outside its per-sample step.
 #![allow(
     // Fixed-size loops over the 3 axes and the parameters read as the equations; the crate's
@@ -619,7 +621,9 @@ fn fit_model<const P: usize, const PB: usize, const M: usize>(
     })
 }
 
-/// The absolute fit (six entries in kg m^2) from `init`.
+/// The absolute fit (six entries in kg m^2) from `init`: all the blocks at once first, staged
+/// only when that does not fit to twice the noise (see [`fit_stretch_normalized`]; on the
+/// simulated flywheel throw the same accuracy as staged alone, at two thirds of the cost).
 fn fit_stretch(blocks: &[Block<6>], init: &Mat3, noise_floor: f32) -> Option<StretchResult<6>> {
     let w0 = rate_of(blocks.first()?);
     let th = [
