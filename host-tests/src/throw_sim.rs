@@ -262,6 +262,9 @@ pub struct ThrowConfig {
     pub accel: AccelSensor,
     /// Quantise the reported rotor speed to the `erpm[0]` resolution.
     pub quantize_rotor_speed: bool,
+    /// Air drag on the spinning rotor in free flight, `tau = -c |h| h` (1/(kg m^2); 0: none):
+    /// an external torque, unlike the motor's.
+    pub rotor_drag: f64,
     /// Seed of the noise and of the hand's motion.
     pub seed: u64,
 }
@@ -297,6 +300,7 @@ impl Default for ThrowConfig {
                 quantize: false,
             },
             quantize_rotor_speed: false,
+            rotor_drag: 0.0,
             seed: 1,
         }
     }
@@ -314,7 +318,16 @@ impl ThrowConfig {
         let jw = matvec(&self.inertia, w);
         let l = [jw[0] + h[0], jw[1] + h[1], jw[2] + h[2]];
         let lxw = cross(l, w);
-        matvec(jinv, [lxw[0] - dh[0], lxw[1] - dh[1], lxw[2] - dh[2]])
+        let n = (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt();
+        let tau = h.map(|x| -self.rotor_drag * n * x);
+        matvec(
+            jinv,
+            [
+                lxw[0] - dh[0] + tau[0],
+                lxw[1] - dh[1] + tau[1],
+                lxw[2] - dh[2] + tau[2],
+            ],
+        )
     }
 }
 

@@ -1,7 +1,8 @@
 //! `inertia close-loop` with the tensor as the base model, on simulated board throws with a
 //! flywheel spin-up: a delay put into the logged rotor speed must be found (the effect traced),
 //! the tensor with it must match the one without it, and no torque, damping, bias, axis or
-//! scale effect may be chosen where the simulation has none.
+//! scale effect may be chosen where the simulation has none; air drag on the rotor put into the
+//! simulation must be traced to `rotor_drag`.
 //!
 //! `cargo test --release -p host-tests --test close_loop_tensor -- --nocapture`
 
@@ -111,5 +112,50 @@ fn a_late_rotor_speed_is_traced_and_undone() {
                 clean.after.tensor_kg_m2
             );
         }
+    }
+}
+
+/// Air drag on the flywheel (`tau = -c |h| h`, an external torque the motor's does not cancel)
+/// put into the simulation is traced to the `rotor_drag` effect, its coefficient recovered and
+/// the tensor moved back to the drag-free log's.
+#[test]
+fn air_drag_on_the_rotor_is_traced() {
+    let clean_sim = board_throw(3);
+    let opts = options(&clean_sim);
+    let clean = analyse_tensor(&recording(&clean_sim, 0), &opts).expect("clean log");
+    let c = 100.0;
+    let mut cfg = clean_sim.config;
+    cfg.rotor_drag = c;
+    let sim = host_tests::throw_sim::simulate(&cfg);
+    let an = analyse_tensor(&recording(&sim, 0), &opts).expect("log with drag");
+    let drag = an
+        .after
+        .effect_params
+        .iter()
+        .find(|e| e.effect == TensorEffect::RotorDrag);
+    println!(
+        "drag c = {c}: residual {:.2}x -> {:.2}x the noise's share, effects {:?}, c found {:?}, tensor moved {:.2} %",
+        an.before.residual_over_noise,
+        an.after.residual_over_noise,
+        an.after.effects,
+        drag.map(|d| (d.values[0], d.std[0])),
+        100.0 * an.tensor_change
+    );
+    let d = drag.expect("rotor_drag chosen");
+    assert!(
+        (d.values[0] - c).abs() < 4.0 * d.std[0] && d.std[0] < 0.1 * c,
+        "c {} +- {} for {c}",
+        d.values[0],
+        d.std[0]
+    );
+    assert!(an.before.residual_rms > 1.5 * clean.after.residual_rms);
+    for (a, b) in an
+        .after
+        .tensor_kg_m2
+        .iter()
+        .flatten()
+        .zip(clean.after.tensor_kg_m2.iter().flatten())
+    {
+        assert!((a - b).abs() < 5e-8, "{a} vs {b}");
     }
 }

@@ -24,7 +24,12 @@
 //!   curvature of the residual sum of squares;
 //! * `rotor_axis` (`eps_1, eps_2`, rad): the rotor turns about `u + eps_1 p + eps_2 q` (`p, q`
 //!   perpendicular to the given axis `u`): two more momentum terms like `h`'s;
-//! * `gyro_scale` (`s_k`): the gyro reads `(1 + s_k) w_k`, linearised at the current `J`.
+//! * `gyro_scale` (`s_k`): the gyro reads `(1 + s_k) w_k`, linearised at the current `J`;
+//! * `rotor_drag` (`c`, 1/(kg m^2)): the air's drag on the spinning rotor, `tau = -c |h| h`
+//!   (quadratic in the rotor speed, along its axis; `c j_r^2` is the rotor's drag coefficient
+//!   in N m s^2). The motor's torque on the rotor is internal to the body and already in `h`;
+//!   the air's is not: it takes angular momentum out of the whole body, most at the
+//!   spin-up's peak. Column `integral |h| h dt`.
 //!
 //! Each round adds the candidate whose F statistic is largest when it is significant at
 //! `alpha / (candidates left)` (Bonferroni, family-wise `alpha` per round) and stops when none
@@ -57,23 +62,26 @@ pub enum TensorEffect {
     RotorAxis,
     /// Gyro scale factor per axis.
     GyroScale,
+    /// Aerodynamic drag on the rotor, `tau = -c |h| h`, 1/(kg m^2).
+    RotorDrag,
 }
 
 impl TensorEffect {
     /// Every candidate.
-    pub const ALL: [TensorEffect; 6] = [
+    pub const ALL: [TensorEffect; 7] = [
         TensorEffect::BodyTorque,
         TensorEffect::Damping,
         TensorEffect::GyroBias,
         TensorEffect::RotorLag,
         TensorEffect::RotorAxis,
         TensorEffect::GyroScale,
+        TensorEffect::RotorDrag,
     ];
 
     /// Parameters it adds.
     pub fn n_params(self) -> usize {
         match self {
-            TensorEffect::RotorLag => 1,
+            TensorEffect::RotorLag | TensorEffect::RotorDrag => 1,
             TensorEffect::RotorAxis => 2,
             _ => 3,
         }
@@ -88,6 +96,7 @@ impl TensorEffect {
             TensorEffect::RotorLag => &["delta_s"],
             TensorEffect::RotorAxis => &["eps_1", "eps_2"],
             TensorEffect::GyroScale => &["s_x", "s_y", "s_z"],
+            TensorEffect::RotorDrag => &["c_drag"],
         }
     }
 }
@@ -305,6 +314,14 @@ impl Block {
                 TensorEffect::RotorAxis => {
                     cols.push(self.momentum(&self.hp));
                     cols.push(self.momentum(&self.hq));
+                }
+                TensorEffect::RotorDrag => {
+                    // (TB)'s right-hand side gains integral tau dt = -c integral |h| h dt.
+                    cols.push(self.trap(|s| {
+                        let h = self.h[s];
+                        let n = (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt();
+                        [n * h[0], n * h[1], n * h[2]]
+                    }));
                 }
                 TensorEffect::GyroScale => {
                     for k in 0..3 {
