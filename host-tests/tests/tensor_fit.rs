@@ -4,8 +4,27 @@
 //! tensor stays within its reported uncertainty; without one the plain model is kept.
 use host_tests::throw_sim::{board_throw_config, simulate};
 use identifier_core::{
-    FlightPipeline, PipelineSettings, StretchOutcome, TensorMethod, TensorStatus,
+    FlightPipeline, PipelineSettings, RatioSource, StretchOutcome, TensorMethod, TensorStatus,
 };
+
+/// `a` of the principal moments of `j`, each assigned to the sensor axis its principal axis
+/// lies closest to (as the pipeline reports them).
+fn a_of_tensor(j: &[[f64; 3]; 3]) -> [f64; 3] {
+    let e = nalgebra::SymmetricEigen::new(nalgebra::Matrix3::from_fn(|r, c| j[r][c]));
+    let mut m = [f64::NAN; 3];
+    for k in 0..3 {
+        let v = e.eigenvectors.column(k);
+        let axis = (0..3)
+            .max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs()))
+            .unwrap_or(k);
+        m[axis] = e.eigenvalues[k];
+    }
+    [
+        (m[1] - m[2]) / m[0],
+        (m[2] - m[0]) / m[1],
+        (m[0] - m[1]) / m[2],
+    ]
+}
 
 const IDX: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
 
@@ -129,6 +148,7 @@ fn without_rotor_momentum_the_tensor_up_to_scale_comes_from_the_fit() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(12u64);
     let mut z2 = [0.0f64; 6];
+    let mut za2 = [0.0f64; 3];
     for seed in 1..=seeds {
         let mut cfg = board_throw_config(seed);
         cfg.rotor.inertia = 0.0;
@@ -163,9 +183,24 @@ fn without_rotor_momentum_the_tensor_up_to_scale_comes_from_the_fit() {
             let z = (n[r][c] as f64 - j[r][c] / tr) / s[r][c] as f64;
             z2[q] += z * z;
         }
+        // The sensor axes are not principal axes: the recommended ratios are this tensor's.
+        let ra = p.ratios_with(&e);
+        assert_eq!(ra.source, RatioSource::Tensor, "seed {seed}");
+        let (a, sa) = (ra.a.expect("a"), ra.std_a.expect("std_a"));
+        let want = a_of_tensor(&j);
+        for k in 0..3 {
+            let z = (a[k] as f64 - want[k]) / sa[k] as f64;
+            za2[k] += z * z;
+        }
     }
     let calib = z2.map(|x| (x / seeds as f64).sqrt());
-    println!("RMS(error / std) of J / trace J over {seeds} seeds: {calib:.2?}");
+    let calib_a = za2.map(|x| (x / seeds as f64).sqrt());
+    println!(
+        "RMS(error / std) of J / trace J over {seeds} seeds: {calib:.2?}; of a: {calib_a:.2?}"
+    );
+    for (k, c) in calib_a.iter().enumerate() {
+        assert!((0.5..1.6).contains(c), "a{k}: {calib_a:?}");
+    }
     // A std 2x too small or too large fails; the Monte Carlo spread of the RMS over 12 seeds
     // is about 20 %.
     for (q, c) in calib.iter().enumerate() {

@@ -466,7 +466,17 @@ fn replay(path: &str, uart: &mut Usart1) -> ! {
             firmware::app::log_tensor(&r, false);
             send_report(uart, &r, None);
         }
+        // A free flight ended: its output-error fits run here, between samples, as on the
+        // board.
+        if app.fits_pending() {
+            app.fit_ended_flight();
+        }
     }
+    // The log has ended: a flight still being fed ends with it and its fits run, as
+    // `inertia identify` does at the end of a log (before this, a flight that the gate had
+    // already closed was reported without its fits; no difference showed while the fits'
+    // results did not reach the report on the replayed logs).
+    app.end_flight();
     let r = app.report();
     firmware::app::log_report(&r);
     defmt::info!("final replay samples={=u32}", n);
