@@ -28,8 +28,8 @@ cargo test --release --doc -p identifier-core
 scripts/example-csv.sh
 
 # ---- reliability (robustness issue): no panic path on the MCU, faults under QEMU, fuzzing ----
-# The proptest properties (host-tests/tests/robustness*.rs, readers_robustness.rs) already ran
-# in `cargo test` above.
+# The proptest properties (host-tests/tests/robustness*.rs, inertia/tests/readers_robustness.rs)
+# already ran in `cargo test` above.
 log "reliability: no panic path in identifier-core's thumbv7em release build"
 scripts/check-no-panic.sh
 

@@ -8,7 +8,6 @@ pub mod crb;
 pub mod crb_tensor;
 pub mod estimators;
 pub mod gyro;
-pub mod log_input;
 pub mod paper;
 pub mod plot;
 pub mod reference;

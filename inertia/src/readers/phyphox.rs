@@ -1,8 +1,9 @@
 //! phyphox exports: `Raw Data.csv` (`"Time (s)","Gyroscope x (rad/s)",...`) in a folder that
 //! may also hold `meta/segments.csv` (hand-marked free-flight windows).
 //!
-//! Moved here from `host-tests`' `log_input` (same tolerance of real exports: quoted headers,
-//! `;` separators with decimal commas, a BOM, `\r\n`, leading spaces, no final newline).
+//! Moved here from `host-tests`' former `log_input` (same tolerance of real exports: quoted
+//! headers, `;` separators with decimal commas, a BOM, `\r\n`, leading spaces, no final
+//! newline).
 
 use std::path::{Path, PathBuf};
 
