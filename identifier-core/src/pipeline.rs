@@ -19,7 +19,9 @@ use crate::free_flight::{FreeFlightGate, GateSettings, WindowFit};
 use crate::refined::{Refined, RefinedSettings};
 use crate::refined_bias::RefinedBias;
 use crate::status::{physically_possible, precise, SampleStatus, Trust};
-use crate::tensor::{TensorEstimate, TensorEstimator, TensorModel, TensorSettings, TensorStatus};
+use crate::tensor::{
+    TensorEstimate, TensorEstimator, TensorMethod, TensorModel, TensorSettings, TensorStatus,
+};
 use crate::tensor_fit::{FlightTensorFit, TensorFit};
 use crate::trajectory::{FlightRatioFit, RatioFit, RatioFitEstimate};
 
@@ -384,14 +386,13 @@ impl<const N: usize> Pipeline<N> {
     ///   stays near the Cramer-Rao bound, and its standard deviation uses the noise seen in its
     ///   residuals. Its [`Trust`] is reported as the [`TensorStatus`] of the same meaning.
     pub fn ratios(&self) -> Ratios {
-        self.ratios_with(&self.estimator.estimate())
+        self.ratios_with(&self.estimate())
     }
 
     /// [`Pipeline::ratios`] given the tensor estimate `t` = [`Pipeline::estimate`] already
     /// computed (the estimate costs a few thousand operations: a report that needs both
     /// computes it once).
     pub fn ratios_with(&self, t: &TensorEstimate) -> Ratios {
-        let principal = t.model == TensorModel::Principal || t.normalized.is_none();
         if self.rotor_seen {
             return Ratios {
                 a: t.a,
@@ -400,6 +401,22 @@ impl<const N: usize> Pipeline<N> {
                 source: RatioSource::Tensor,
             };
         }
+        // Whether the sensor axes are principal axes is the equation error's Wald test on the
+        // products of inertia (`TensorSettings::products_chi2`). Once a flight has ended `t` is
+        // the output-error fit up to scale, which always estimates the products; its `a` is
+        // far less precise than the principal-axis ratio fit's where two moments are close
+        // (the principal axes are then barely defined: 125x the constrained bound on a1 of the
+        // near-symmetric body at 2 kHz, 2-8x on the tosses, when it was used for every body).
+        let principal = {
+            let raw;
+            let e = if t.method == TensorMethod::OutputError {
+                raw = self.estimator.estimate();
+                &raw
+            } else {
+                t
+            };
+            e.model == TensorModel::Principal || e.normalized.is_none()
+        };
         let trust = self.refined.trust();
         let status = match trust {
             Trust::NoInformation | Trust::TooFewSamples => TensorStatus::TooFewSamples,
