@@ -265,6 +265,8 @@ pub struct ThrowConfig {
     /// Air drag on the spinning rotor in free flight, `tau = -c |h| h` (1/(kg m^2); 0: none):
     /// an external torque, unlike the motor's.
     pub rotor_drag: f64,
+    /// Air drag on the tumbling body in free flight, `tau_k = -c_k |w| w_k` (kg m^2; 0: none).
+    pub aero_drag: [f64; 3],
     /// Seed of the noise and of the hand's motion.
     pub seed: u64,
 }
@@ -301,6 +303,7 @@ impl Default for ThrowConfig {
             },
             quantize_rotor_speed: false,
             rotor_drag: 0.0,
+            aero_drag: [0.0; 3],
             seed: 1,
         }
     }
@@ -319,7 +322,9 @@ impl ThrowConfig {
         let l = [jw[0] + h[0], jw[1] + h[1], jw[2] + h[2]];
         let lxw = cross(l, w);
         let n = (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt();
-        let tau = h.map(|x| -self.rotor_drag * n * x);
+        let wn = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+        let tau: [f64; 3] =
+            core::array::from_fn(|k| -self.rotor_drag * n * h[k] - self.aero_drag[k] * wn * w[k]);
         matvec(
             jinv,
             [

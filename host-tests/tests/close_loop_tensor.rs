@@ -159,3 +159,50 @@ fn air_drag_on_the_rotor_is_traced() {
         assert!((a - b).abs() < 5e-8, "{a} vs {b}");
     }
 }
+
+/// Quadratic air drag on the tumbling body (`tau_k = -c_k |w| w_k`) put into the simulation is
+/// traced to `aero_drag`, and the tensor returns to the drag-free log's.
+#[test]
+fn air_drag_on_the_body_is_traced() {
+    let clean_sim = board_throw(3);
+    let opts = options(&clean_sim);
+    let clean = analyse_tensor(&recording(&clean_sim, 0), &opts).expect("clean log");
+    let c = [2e-6, 2e-6, 2e-6];
+    let mut cfg = clean_sim.config;
+    cfg.aero_drag = c;
+    let sim = host_tests::throw_sim::simulate(&cfg);
+    let an = analyse_tensor(&recording(&sim, 0), &opts).expect("log with drag");
+    let drag = an
+        .after
+        .effect_params
+        .iter()
+        .find(|e| e.effect == TensorEffect::AeroDrag);
+    println!(
+        "aero drag c = {c:?}: residual {:.2}x -> {:.2}x the noise's share, effects {:?}, c found {:?}, tensor moved {:.2} %",
+        an.before.residual_over_noise,
+        an.after.residual_over_noise,
+        an.after.effects,
+        drag.map(|d| (d.values.clone(), d.std.clone())),
+        100.0 * an.tensor_change
+    );
+    let d = drag.expect("aero_drag chosen");
+    for (k, ((v, s), want)) in d.values.iter().zip(&d.std).zip(c).enumerate() {
+        assert!(
+            (v - want).abs() < 4.0 * s && *s < 0.3 * want,
+            "c_{k} {v} +- {s} for {want}"
+        );
+    }
+    // Back to the drag-free log's tensor within its uncertainty (the drag and the tensor share
+    // information: the reported std grows).
+    let sd = an.after.tensor_std_kg_m2;
+    for ((a, b), s) in an
+        .after
+        .tensor_kg_m2
+        .iter()
+        .flatten()
+        .zip(clean.after.tensor_kg_m2.iter().flatten())
+        .zip(sd.iter().flatten())
+    {
+        assert!((a - b).abs() < 4.0 * s, "{a} vs {b} (std {s})");
+    }
+}

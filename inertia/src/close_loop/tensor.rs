@@ -29,7 +29,11 @@
 //!   (quadratic in the rotor speed, along its axis; `c j_r^2` is the rotor's drag coefficient
 //!   in N m s^2). The motor's torque on the rotor is internal to the body and already in `h`;
 //!   the air's is not: it takes angular momentum out of the whole body, most at the
-//!   spin-up's peak. Column `integral |h| h dt`.
+//!   spin-up's peak. Column `integral |h| h dt`;
+//! * `aero_drag` (`c_k`, kg m^2): the air's drag on the tumbling body, quadratic in its rate,
+//!   `tau_k = -c_k |w| w_k` (per body axis: the body is not round). Column `integral |w| w_k dt`
+//!   on axis `k`. It takes angular momentum out of the body in proportion to the square of the
+//!   rate, so left out it biases the scale of `J` more on a fast, large body.
 //!
 //! Each round adds the candidate whose F statistic is largest when it is significant at
 //! `alpha / (candidates left)` (Bonferroni, family-wise `alpha` per round) and stops when none
@@ -64,11 +68,13 @@ pub enum TensorEffect {
     GyroScale,
     /// Aerodynamic drag on the rotor, `tau = -c |h| h`, 1/(kg m^2).
     RotorDrag,
+    /// Aerodynamic drag on the body, `tau_k = -c_k |w| w_k`, kg m^2.
+    AeroDrag,
 }
 
 impl TensorEffect {
     /// Every candidate.
-    pub const ALL: [TensorEffect; 7] = [
+    pub const ALL: [TensorEffect; 8] = [
         TensorEffect::BodyTorque,
         TensorEffect::Damping,
         TensorEffect::GyroBias,
@@ -76,6 +82,7 @@ impl TensorEffect {
         TensorEffect::RotorAxis,
         TensorEffect::GyroScale,
         TensorEffect::RotorDrag,
+        TensorEffect::AeroDrag,
     ];
 
     /// Parameters it adds.
@@ -97,6 +104,7 @@ impl TensorEffect {
             TensorEffect::RotorAxis => &["eps_1", "eps_2"],
             TensorEffect::GyroScale => &["s_x", "s_y", "s_z"],
             TensorEffect::RotorDrag => &["c_drag"],
+            TensorEffect::AeroDrag => &["c_x", "c_y", "c_z"],
         }
     }
 }
@@ -164,6 +172,8 @@ pub struct TensorCandidate {
     pub residual_rms: f64,
     /// Its parameters fitted with the model so far ([`TensorEffect::param_names`]).
     pub params: Vec<f64>,
+    /// The tensor fitted with it, kg m^2 (what `J` would be were it added).
+    pub tensor_kg_m2: [[f64; 3]; 3],
 }
 
 /// One selection round.
@@ -322,6 +332,18 @@ impl Block {
                         let n = (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt();
                         [n * h[0], n * h[1], n * h[2]]
                     }));
+                }
+                TensorEffect::AeroDrag => {
+                    let i = self.trap(|s| {
+                        let w = self.w[s];
+                        let n = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+                        [n * w[0], n * w[1], n * w[2]]
+                    });
+                    for k in 0..3 {
+                        let mut c = [0.0; 3];
+                        c[k] = i[k];
+                        cols.push(c);
+                    }
                 }
                 TensorEffect::GyroScale => {
                     for k in 0..3 {
@@ -672,6 +694,7 @@ pub fn analyse_tensor(
                 p: pv,
                 residual_rms: (ls.rss / ls.n as f64).sqrt(),
                 params,
+                tensor_kg_m2: [[j[0], j[3], j[4]], [j[3], j[1], j[5]], [j[4], j[5], j[2]]],
             });
             if pv < level && best.as_ref().is_none_or(|b| f > b.0) {
                 best = Some((f, e, ls, j, new_lag));
