@@ -1115,6 +1115,18 @@ fn flywheel_method(seeds: u64, output_error: bool) -> String {
         .iter()
         .filter(|r| r.err.is_some() && r.crb.is_some())
         .collect();
+    // Each seed throws the board differently (release rates drawn per seed), so each has its
+    // own bound: the error over that seed's bound, RMS over seeds, is the efficiency measure
+    // with the least Monte Carlo spread (a ratio of RMS over seeds is dominated by the few
+    // weakest throws, whose bounds are largest).
+    let own = rms6(
+        ok.iter()
+            .filter_map(|r| match (r.err, r.crb) {
+                (Some(e), Some(c)) => Some(std::array::from_fn(|q| e[q] / c[q])),
+                _ => None,
+            })
+            .collect(),
+    );
     let err = rms6(ok.iter().filter_map(|r| r.err).collect());
     let z = rms6(ok.iter().filter_map(|r| r.z).collect());
     let crb = rms6(ok.iter().filter_map(|r| r.crb).collect());
@@ -1136,31 +1148,36 @@ fn flywheel_method(seeds: u64, output_error: bool) -> String {
     );
     let _ = writeln!(
         s,
-        "| entry | CRB, kg m^2 | RMS error, kg m^2 | ratio to CRB | calibration RMS(error / reported std) | noise-free error (RMS over seeds), kg m^2 | noise-free / CRB |\n|---|---|---|---|---|---|---|"
+        "| entry | CRB, kg m^2 | RMS error, kg m^2 | ratio to CRB | RMS(error / own seed's CRB) | calibration RMS(error / reported std) | noise-free error (RMS over seeds), kg m^2 | noise-free / CRB |\n|---|---|---|---|---|---|---|---|"
     );
     for q in 0..6 {
         let _ = writeln!(
             s,
-            "| {} | {:.3e} | {:.3e} | {:.2} | {:.2} | {:.2e} | {:.3} |",
+            "| {} | {:.3e} | {:.3e} | {:.2} | {:.2} | {:.2} | {:.2e} | {:.3} |",
             ENTRY_NAMES[q],
             crb[q],
             err[q],
             err[q] / crb[q],
+            own[q],
             z[q],
             clean[q],
             clean[q] / crb[q]
         );
     }
     let worst_ratio = (0..6).map(|q| err[q] / crb[q]).fold(0.0f64, f64::max);
+    let worst_own = own.iter().copied().fold(0.0f64, f64::max);
     let (zlo, zhi) = z
         .iter()
         .fold((f64::INFINITY, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
     let _ = writeln!(
         s,
-        "\nWorst ratio to the bound {:.2}: issue 9's target (1.2x) **{}**, issue 11's (1.1x) **{}**; calibration {:.2} to {:.2} (target 0.8-1.25) **{}** (Monte Carlo: about 7 % relative on each ratio at 100 seeds).",
+        "\nWorst ratio to the bound (RMS error over RMS bound) {:.2}: issue 9's target (1.2x) **{}**, issue 11's (1.1x) **{}**; per seed (RMS of error over the seed's own bound) worst {:.2}: 1.2x **{}**, 1.1x **{}**; calibration {:.2} to {:.2} (target 0.8-1.25) **{}** (Monte Carlo: about 7 % relative on each ratio at 100 seeds).",
         worst_ratio,
         if worst_ratio <= 1.2 { "met" } else { "NOT met" },
         if worst_ratio <= 1.1 { "met" } else { "NOT met" },
+        worst_own,
+        if worst_own <= 1.2 { "met" } else { "NOT met" },
+        if worst_own <= 1.1 { "met" } else { "NOT met" },
         zlo,
         zhi,
         if zlo >= 0.8 && zhi <= 1.25 { "met" } else { "NOT met" }

@@ -31,6 +31,7 @@ fn main() {
     let mut crb_fed = [0.0f64; 6];
     let mut n_fed = 0usize;
     let mut z2 = [[0.0f64; 6]; 3];
+    let mut own2 = [[0.0f64; 6]; 3];
     let mut n = [0usize; 3];
     for seed in 1..=seeds {
         let mut cfg = board_throw_config(seed);
@@ -162,6 +163,7 @@ fn main() {
                 let err = t[r][c] as f64 - sim.config.inertia[r][c];
                 sq[path][q] += err * err;
                 z2[path][q] += (err / s[r][c] as f64).powi(2);
+                own2[path][q] += (err / b.std_j[r][c]).powi(2);
                 if path == 0 {
                     crb[q] += b.std_j[r][c].powi(2);
                 }
@@ -208,6 +210,20 @@ fn main() {
         );
         let cf = (crb_fed[q] / n_fed.max(1) as f64).sqrt();
         fed_ratios.push(format!("{} {:.2} (bound {:.3e})", names[q], r1 / cf, cf));
+    }
+    // Each seed throws differently and has its own bound: the error over the seed's own bound,
+    // RMS over seeds (less Monte Carlo spread than the ratio of the RMS above).
+    for (path, label) in [(1usize, "pipeline"), (2, "OE fit")] {
+        let v: Vec<String> = (0..6)
+            .map(|q| {
+                format!(
+                    "{} {:.2}",
+                    names[q],
+                    (own2[path][q] / n[path].max(1) as f64).sqrt()
+                )
+            })
+            .collect();
+        println!("{label}, RMS(error / own seed's CRB): {}", v.join(", "));
     }
     println!(
         "pipeline against the bound of the samples it fed ({} seeds): {}",
