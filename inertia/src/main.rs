@@ -189,8 +189,44 @@ fn parse_time_unit(s: &str) -> Result<TimeUnit, String> {
     }
 }
 
+/// The free-flight windows of `--segments`: either `start_s,end_s` per line, or a table with
+/// named `start` and `end` columns (and optional `segment`, `keep`, `comment`), the format of a
+/// phyphox export's `meta/segments.csv` that `close-loop` reads (rows with `keep` false
+/// skipped). Overlapping windows are refused (a sample would be fed twice).
 fn parse_segments(path: &PathBuf) -> Result<Vec<(f64, f64)>, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let header = text
+        .lines()
+        .map(str::trim)
+        .find(|l| !l.is_empty() && !l.starts_with('#'));
+    let named = header.is_some_and(|h| {
+        let cols: Vec<String> = h
+            .split([',', ';', '\t'])
+            .map(|c| c.trim().trim_matches('"').to_ascii_lowercase())
+            .collect();
+        cols.iter().any(|c| c == "start") && cols.iter().any(|c| c == "end")
+    });
+    if named {
+        let segs = inertia::readers::phyphox::read_segments(path).map_err(|e| e.to_string())?;
+        for w in segs.windows(2) {
+            if w[1].start < w[0].end {
+                return Err(format!(
+                    "{}: segment {} ({}..{} s) overlaps segment {} ({}..{} s)",
+                    path.display(),
+                    w[1].label,
+                    w[1].start,
+                    w[1].end,
+                    w[0].label,
+                    w[0].start,
+                    w[0].end
+                ));
+            }
+        }
+        if segs.is_empty() {
+            return Err(format!("{}: no segment kept", path.display()));
+        }
+        return Ok(segs.iter().map(|s| (s.start, s.end)).collect());
+    }
     let mut out = Vec::new();
     for (ln, line) in text.lines().enumerate() {
         let l = line.trim();
@@ -422,16 +458,8 @@ fn run_close_loop_tensor(
     for w in &rec.warnings {
         eprintln!("warning: {w}");
     }
-    let segments = match &args.segments {
-        Some(p) => Some(
-            inertia::readers::phyphox::read_segments(p)
-                .map_err(|e| e.to_string())?
-                .into_iter()
-                .map(|s| (s.start, s.end))
-                .collect(),
-        ),
-        None => None,
-    };
+    // Both segment formats, as `identify` takes them (the flights are identify's).
+    let segments = args.segments.as_ref().map(parse_segments).transpose()?;
     let opts = tensor::TensorOptions {
         rotor,
         alpha: args.alpha,

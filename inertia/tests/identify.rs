@@ -135,6 +135,76 @@ fn csv_toss_converges_to_the_truth() {
     }
 }
 
+/// `--segments` takes a phyphox export's `meta/segments.csv` (named `start`, `end`, `keep`
+/// columns, as `close-loop` reads it: rows with `keep` false skipped even where they overlap a
+/// kept one) as well as plain `start_s,end_s` lines; kept windows that overlap are refused.
+#[test]
+fn segments_in_the_phyphox_table_format() {
+    let d = out_dir();
+    let rows = toss(MOM, [1.0, 1.0, 1.0], 200.0, 10.0, 2e-3, 2);
+    let csv = d.join("seg_toss.csv");
+    write_csv(&csv, &rows, 1.0, 1.0);
+    let table = d.join("segments_table.csv");
+    std::fs::write(
+        &table,
+        "segment,start,end,keep,comment\n0,0.5,4.0,,first\n1, 4.5,9.5,,second\n2,9.0,9.9,false,not a trial\n",
+    )
+    .unwrap();
+    let (code, v, err) = run(
+        &[
+            "--input",
+            csv.to_str().unwrap(),
+            "--segments",
+            table.to_str().unwrap(),
+        ],
+        &d.join("seg_table.json"),
+    );
+    assert_eq!(code, 0, "{err}");
+    let throws = v["throws"].as_array().expect("throws");
+    assert_eq!(throws.len(), 2, "{v}");
+    let starts: Vec<f64> = throws
+        .iter()
+        .map(|t| t["start_s"].as_f64().unwrap())
+        .collect();
+    assert!(
+        (starts[0] - 0.5).abs() < 0.01 && (starts[1] - 4.5).abs() < 0.01,
+        "{starts:?}"
+    );
+    let plain = d.join("segments_plain.csv");
+    std::fs::write(&plain, "0.5,4.0\n4.5,9.5\n").unwrap();
+    let (code2, v2, err2) = run(
+        &[
+            "--input",
+            csv.to_str().unwrap(),
+            "--segments",
+            plain.to_str().unwrap(),
+        ],
+        &d.join("seg_plain.json"),
+    );
+    assert_eq!(code2, 0, "{err2}");
+    assert_eq!(
+        v2["pooled"]["a"], v["pooled"]["a"],
+        "the two formats give the same windows"
+    );
+    // Kept rows that overlap: refused, naming the file and both segments.
+    let bad = d.join("segments_overlap.csv");
+    std::fs::write(&bad, "segment,start,end,keep\n0,0.5,4.0,\n1,3.5,9.5,\n").unwrap();
+    let (code3, _, err3) = run(
+        &[
+            "--input",
+            csv.to_str().unwrap(),
+            "--segments",
+            bad.to_str().unwrap(),
+        ],
+        &d.join("seg_bad.json"),
+    );
+    assert_ne!(code3, 0);
+    assert!(
+        err3.contains("segments_overlap.csv") && err3.contains("overlaps"),
+        "{err3}"
+    );
+}
+
 #[test]
 fn declared_units_are_honoured_and_undeclared_mistakes_are_not_trusted() {
     let d = out_dir();
