@@ -407,7 +407,8 @@ pub(crate) fn levenberg<const P: usize>(
         let per = if dof > 0.0 { cost / dof } else { cost };
         // Only a (nearly) undamped step says the optimum is reached: a damped one is short
         // because of the damping.
-        if pred < 1e-4 * per && mu <= 1e-2 {
+        let tol = 1e-4 * per;
+        if pred < tol && mu <= 1e-2 {
             break;
         }
         let mut cand = theta;
@@ -423,6 +424,18 @@ pub(crate) fn levenberg<const P: usize>(
                 mu = if mu > 1e-6 { mu * 0.1 } else { 1e-7 };
             }
             _ => {
+                // A refused, (nearly) undamped step that was to gain under 0.025 of a unit of
+                // log-likelihood (`pred < 0.05 cost / dof`): the optimum is reached as far as
+                // the cost can tell (a damped step may be short only because of the damping). The trajectory is integrated in `f32`, and the cost moves by about 1e-4
+                // of itself from one evaluation to the next with no real change: steps
+                // predicted to gain less are refused on that noise, and the loop used to go on
+                // refusing and taking them (the damping never back below 1e-2) to its iteration
+                // limit, 23 evaluations where 4 had reached the optimum on the paper's 20 s
+                // flight. What is left is at most about 0.2 standard deviations along the
+                // worst direction, 0.02 typically.
+                if pred < 0.05 * per && mu <= 1e-2 {
+                    break;
+                }
                 mu *= 10.0;
                 if mu > 1e6 {
                     break;
