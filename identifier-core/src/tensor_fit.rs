@@ -57,9 +57,9 @@
 //! fits.
 //!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 225 / 303
-//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 88 M / 100 M instructions, about
-//! 0.5-0.6 s at 168 MHz; up to scale, 20 s of a slow tumble at 1 kHz 199 M / 227 M (1.2-1.4 s)
-//! and a 0.85 s toss at 100 Hz 54 M / 61 M: far too long for one gyro period, which is why the
+//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 34 M / 38 M instructions, about
+//! 0.2 s at 168 MHz; up to scale, 20 s of a slow tumble at 1 kHz 51 M / 59 M (0.3-0.35 s) and a
+//! 0.85 s toss at 100 Hz 54 M / 61 M: far too long for one gyro period, which is why the
 //! pipeline runs it in
 //! [`crate::Pipeline::fit_ended_flight`], outside its per-sample step.
 #![allow(

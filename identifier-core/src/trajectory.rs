@@ -76,7 +76,7 @@
 //!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 137 / 180
 //! instructions per sample (a block sum; a merge of the 256 blocks once in a while costs up to
-//! 14 k); one fit 43 M instructions after 20 s at 1 kHz, 3 M after an 85-sample toss.
+//! 14 k); one fit 24 M instructions after 20 s at 1 kHz, 3 M after an 85-sample toss.
 #![allow(
     // Fixed-size loops over the 3 axes and the P <= 8 parameters read as the equations; the
     // crate's link-time no-panic check proves no bounds check survives.
