@@ -449,6 +449,26 @@ pub struct RatioBound {
     pub cov_a: SMatrix<f64, 3, 3>,
 }
 
+/// The paper's `a` of a tensor `j`: its principal moments, each assigned to the sensor axis its
+/// principal axis lies closest to (as the on-board estimators report them),
+/// `a1 = (A2 - A3) / A1` and cyclic.
+pub fn a_of_tensor(j: &[[f64; 3]; 3]) -> [f64; 3] {
+    let e = nalgebra::SymmetricEigen::new(nalgebra::Matrix3::from_fn(|r, c| j[r][c]));
+    let mut m = [f64::NAN; 3];
+    for k in 0..3 {
+        let v = e.eigenvectors.column(k);
+        let axis = (0..3)
+            .max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs()))
+            .unwrap_or(k);
+        m[axis] = e.eigenvalues[k];
+    }
+    [
+        (m[1] - m[2]) / m[0],
+        (m[2] - m[0]) / m[1],
+        (m[0] - m[1]) / m[2],
+    ]
+}
+
 /// `d a / d (J1, J2, J3)` at the principal moments `m`.
 pub fn ratio_jacobian(m: [f64; 3]) -> SMatrix<f64, 3, 3> {
     let [j1, j2, j3] = m;

@@ -1,30 +1,15 @@
 //! The pipeline's tensor with the flywheel, from the output-error fit (`TensorFit`), on
 //! simulated board throws fed without an accelerometer (no still stretch to learn a gyro bias
 //! from): with a constant gyro bias the fit's likelihood-ratio test takes the bias model and the
-//! tensor stays within its reported uncertainty; without one the plain model is kept.
+//! tensor stays within its reported uncertainty; without one the plain model is kept. Without
+//! rotor momentum the fit up to scale gives `J / trace J` and, for sensor axes that are not
+//! principal axes, the ratios, with an honest std; for principal axes the ratios stay the
+//! principal-axis ratio fit's.
+use host_tests::crb_tensor::a_of_tensor;
 use host_tests::throw_sim::{board_throw_config, simulate};
 use identifier_core::{
     FlightPipeline, PipelineSettings, RatioSource, StretchOutcome, TensorMethod, TensorStatus,
 };
-
-/// `a` of the principal moments of `j`, each assigned to the sensor axis its principal axis
-/// lies closest to (as the pipeline reports them).
-fn a_of_tensor(j: &[[f64; 3]; 3]) -> [f64; 3] {
-    let e = nalgebra::SymmetricEigen::new(nalgebra::Matrix3::from_fn(|r, c| j[r][c]));
-    let mut m = [f64::NAN; 3];
-    for k in 0..3 {
-        let v = e.eigenvectors.column(k);
-        let axis = (0..3)
-            .max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs()))
-            .unwrap_or(k);
-        m[axis] = e.eigenvalues[k];
-    }
-    [
-        (m[1] - m[2]) / m[0],
-        (m[2] - m[0]) / m[1],
-        (m[0] - m[1]) / m[2],
-    ]
-}
 
 const IDX: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
 

@@ -880,19 +880,10 @@ impl TensorEstimator {
         cov: Sym<6>,
         residual_ratio: f32,
     ) -> TensorEstimate {
-        if matches!(
-            base.status,
-            TensorStatus::TooFewSamples | TensorStatus::NoExcitation | TensorStatus::UnitsLookWrong
-        ) {
+        if base.status == TensorStatus::NoExcitation {
             return base;
         }
-        let mut out = base;
-        out.method = TensorMethod::OutputError;
-        out.model = TensorModel::Full;
-        out.residual_ratio = residual_ratio;
-        out.tensor = None;
-        out.tensor_std = None;
-        self.describe(out, j, cov, Some((j, cov)))
+        self.with_fit(base, j, cov, residual_ratio, Some((j, cov)))
     }
 
     /// `base` with the tensor up to scale replaced by `nj` (entries xx, yy, zz, xy, xz, yz of
@@ -911,6 +902,20 @@ impl TensorEstimator {
         cov_n: Sym<6>,
         residual_ratio: f32,
     ) -> TensorEstimate {
+        self.with_fit(base, nj, cov_n, residual_ratio, None)
+    }
+
+    /// What [`TensorEstimator::with_tensor`] and [`TensorEstimator::with_normalized`] share:
+    /// `base` unchanged with too few samples or units that look wrong, else the fit's tensor
+    /// (full model, output error) described and judged as the estimator's own.
+    fn with_fit(
+        &self,
+        base: TensorEstimate,
+        nj: [f32; 6],
+        cov_n: Sym<6>,
+        residual_ratio: f32,
+        absolute: Option<([f32; 6], Sym<6>)>,
+    ) -> TensorEstimate {
         if matches!(
             base.status,
             TensorStatus::TooFewSamples | TensorStatus::UnitsLookWrong
@@ -923,7 +928,7 @@ impl TensorEstimator {
         out.residual_ratio = residual_ratio;
         out.tensor = None;
         out.tensor_std = None;
-        self.describe(out, nj, cov_n, None)
+        self.describe(out, nj, cov_n, absolute)
     }
 
     /// The estimate's description from the normalised tensor `nj` (entries xx, yy, zz, xy,

@@ -14,8 +14,8 @@
 use anyhow::{Context, Result};
 use host_tests::crb;
 use host_tests::crb_tensor::{
-    absolute_bound, ratio_bound, ratio_bound_constrained_from_crb, ratio_bound_with_bias,
-    scale_free_bound, FreeFlight, ENTRIES, ENTRY_NAMES,
+    a_of_tensor, absolute_bound, ratio_bound, ratio_bound_constrained_from_crb,
+    ratio_bound_with_bias, scale_free_bound, FreeFlight, ENTRIES, ENTRY_NAMES,
 };
 use host_tests::estimators::{all_methods, batch_ls, onboard, pipeline, tensor, Method, Scenario};
 use host_tests::plot::{write_svg, Chart, Series};
@@ -1048,26 +1048,6 @@ fn fly_estimate(
     ((ent, ra, ns, principal), sim)
 }
 
-/// `a` of the principal moments of `j`, each assigned to the sensor axis its principal axis
-/// lies closest to (as the estimator reports them).
-fn a_of_tensor(j: &[[f64; 3]; 3]) -> [f64; 3] {
-    let m = nalgebra::Matrix3::from_fn(|r, c| j[r][c]);
-    let e = nalgebra::SymmetricEigen::new(m);
-    let mut m = [f64::NAN; 3];
-    for k in 0..3 {
-        let v = e.eigenvectors.column(k);
-        let axis = (0..3)
-            .max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs()))
-            .unwrap_or(k);
-        m[axis] = e.eigenvalues[k];
-    }
-    [
-        (m[1] - m[2]) / m[0],
-        (m[2] - m[0]) / m[1],
-        (m[0] - m[1]) / m[2],
-    ]
-}
-
 fn flywheel(seeds: u64) -> String {
     let mut s = String::new();
     s.push_str("\n## Flywheel throw: the absolute tensor with a known rotor momentum\n\n");
@@ -1214,6 +1194,78 @@ fn flywheel_method(seeds: u64, output_error: bool) -> String {
     s
 }
 
+/// The goal line's verdict.
+fn verdict(ok: bool) -> &'static str {
+    if ok {
+        "met"
+    } else {
+        "NOT met"
+    }
+}
+
+/// Issue 11's three checks of one estimator over the scenarios: the worst ratio to the bound,
+/// the range of the calibration RMS(error / std), the worst noise-free error (scenarios
+/// without a gyro bias).
+struct Issue11 {
+    worst: (f64, &'static str),
+    calib: (f64, f64),
+    noise_free: (f64, &'static str),
+}
+
+impl Default for Issue11 {
+    fn default() -> Self {
+        Issue11 {
+            worst: (0.0, ""),
+            calib: (f64::INFINITY, f64::NEG_INFINITY),
+            noise_free: (0.0, ""),
+        }
+    }
+}
+
+impl Issue11 {
+    fn add(
+        &mut self,
+        scenario: &'static str,
+        ratio: f64,
+        calib: Option<&[f64]>,
+        noise_free: Option<&[f64]>,
+    ) {
+        if ratio > self.worst.0 {
+            self.worst = (ratio, scenario);
+        }
+        for &x in calib.unwrap_or(&[]) {
+            self.calib = (self.calib.0.min(x), self.calib.1.max(x));
+        }
+        let nf = noise_free.map_or(0.0, |v| {
+            v.iter().fold(0.0f64, |a, b| {
+                if b.is_finite() {
+                    a.max(b.abs())
+                } else {
+                    f64::INFINITY
+                }
+            })
+        });
+        if nf > self.noise_free.0 {
+            self.noise_free = (nf, scenario);
+        }
+    }
+
+    fn line(&self, what: &str, bound: &str) -> String {
+        format!(
+            "- Issue 11, {what}: within 1.1x of the {bound} on every axis of every scenario (inf: no estimate on some seeds): worst {:.2} ({}): **{}**; calibration RMS(error / std) within 0.8-1.25: range {:.2} to {:.2}: **{}**; noise-free error below 1e-5 (scenarios without gyro bias): worst {:.1e} ({}): **{}**.\n",
+            self.worst.0,
+            self.worst.1,
+            verdict(self.worst.0 <= 1.1),
+            self.calib.0,
+            self.calib.1,
+            verdict(self.calib.0 >= 0.8 && self.calib.1 <= 1.25),
+            self.noise_free.0,
+            self.noise_free.1,
+            verdict(self.noise_free.0 < 1e-5)
+        )
+    }
+}
+
 /// The issue's goals, checked on this run's numbers.
 fn goals(
     results: &[ScenarioResult],
@@ -1221,7 +1273,6 @@ fn goals(
     spreads: &[Spread],
 ) -> String {
     let mut s = String::from("\n## Goals, checked on this run\n\n");
-    let verdict = |ok: bool| if ok { "met" } else { "NOT met" };
     let find = |r: &ScenarioResult, prefix: &str| {
         r.methods
             .iter()
@@ -1275,56 +1326,28 @@ fn goals(
     // refined identifier. The pipeline's ratios use the rigid-body constraint, so they are
     // judged against the constrained bound (with the bias in the bias scenario); the others
     // against the tables' bound.
-    {
-        let mut worst_ratio = (0.0f64, "");
-        let mut calib = (f64::INFINITY, f64::NEG_INFINITY);
-        let mut bias = (0.0f64, "");
-        for r in results {
-            let f = &r.scale_free;
-            let w = if f.failed > 0 {
-                f64::INFINITY
-            } else {
-                (0..6).map(|i| f.rms[i] / f.bound[i]).fold(0.0, f64::max)
-            };
-            if w > worst_ratio.0 {
-                worst_ratio = (w, r.scenario.name);
-            }
-            if f.failed == 0 {
-                for x in f.calib {
-                    calib = (calib.0.min(x), calib.1.max(x));
-                }
-            }
-            if r.scenario.bias.iter().all(|b| *b == 0.0) {
-                let nf = f.noise_free.iter().fold(0.0f64, |a, b| {
-                    if b.is_finite() {
-                        a.max(b.abs())
-                    } else {
-                        f64::INFINITY
-                    }
-                });
-                if nf > bias.0 {
-                    bias = (nf, r.scenario.name);
-                }
-            }
-        }
-        let _ = writeln!(
-            s,
-            "- Issue 11, the pipeline's tensor up to scale (J / trace J, every entry): within 1.1x of the bound of J / trace J (with the bias where there is one) on every scenario (inf: no estimate on some seeds): worst {:.2} ({}): **{}**; calibration RMS(error / std) within 0.8-1.25: range {:.2} to {:.2}: **{}**; noise-free error below 1e-5 (scenarios without gyro bias): worst {:.1e} ({}): **{}**.",
-            worst_ratio.0,
-            worst_ratio.1,
-            verdict(worst_ratio.0 <= 1.1),
-            calib.0,
-            calib.1,
-            verdict(calib.0 >= 0.8 && calib.1 <= 1.25),
-            bias.0,
-            bias.1,
-            verdict(bias.0 < 1e-5)
+    let mut tensor = Issue11::default();
+    for r in results {
+        let f = &r.scale_free;
+        let ratio = if f.failed > 0 {
+            f64::INFINITY
+        } else {
+            (0..6).map(|i| f.rms[i] / f.bound[i]).fold(0.0, f64::max)
+        };
+        let unbiased = r.scenario.bias.iter().all(|b| *b == 0.0);
+        tensor.add(
+            r.scenario.name,
+            ratio,
+            (f.failed == 0).then_some(&f.calib[..]),
+            unbiased.then_some(&f.noise_free[..]),
         );
     }
+    s.push_str(&tensor.line(
+        "the pipeline's tensor up to scale (J / trace J, every entry)",
+        "bound of J / trace J (with the bias where there is one)",
+    ));
     for prefix in ["pipeline", "tensor", "refined"] {
-        let mut worst_ratio = (0.0f64, "");
-        let mut calib = (f64::INFINITY, f64::NEG_INFINITY);
-        let mut bias = (0.0f64, "");
+        let mut goal = Issue11::default();
         for r in results {
             let Some(m) = r.methods.iter().find(|m| m.name.starts_with(prefix)) else {
                 continue;
@@ -1334,55 +1357,26 @@ fn goals(
             } else {
                 &r.crb
             };
-            let w = if m.failed > 0 {
+            let ratio = if m.failed > 0 {
                 f64::INFINITY
             } else {
                 worst(&m.rms, bound)
             };
-            if w > worst_ratio.0 {
-                worst_ratio = (w, r.scenario.name);
-            }
-            if let Some(c) = m.calib.filter(|_| m.failed == 0) {
-                for x in c {
-                    calib = (calib.0.min(x), calib.1.max(x));
-                }
-            }
-            if r.scenario.bias.iter().all(|b| *b == 0.0) {
-                let nf = m.noise_free.iter().fold(0.0f64, |a, b| {
-                    if b.is_finite() {
-                        a.max(b.abs())
-                    } else {
-                        f64::INFINITY
-                    }
-                });
-                if nf > bias.0 {
-                    bias = (nf, r.scenario.name);
-                }
-            }
+            let calib = m.calib.filter(|_| m.failed == 0);
+            let unbiased = r.scenario.bias.iter().all(|b| *b == 0.0);
+            goal.add(
+                r.scenario.name,
+                ratio,
+                calib.as_ref().map(|c| &c[..]),
+                unbiased.then_some(&m.noise_free[..]),
+            );
         }
-        let label = match prefix {
-            "tensor" => "tensor estimator's a (equation error: the on-line estimate during a flight; the final tensor is the output-error fit above)",
-            "pipeline" => "pipeline's a",
-            _ => "refined identifier's a (a peer)",
+        let (label, bound) = match prefix {
+            "tensor" => ("tensor estimator's a (equation error: the on-line estimate during a flight; the final tensor is the output-error fit above)", "bound"),
+            "pipeline" => ("pipeline's a", "bound of its model (constrained; with the bias where there is one)"),
+            _ => ("refined identifier's a (a peer)", "bound"),
         };
-        let _ = writeln!(
-            s,
-            "- Issue 11, {label}: within 1.1x of the {} on every axis of every scenario (inf: no estimate on some seeds): worst {:.2} ({}): **{}**; calibration RMS(error / std) within 0.8-1.25: range {:.2} to {:.2}: **{}**; noise-free error below 1e-5 (scenarios without gyro bias): worst {:.1e} ({}): **{}**.",
-            if prefix == "pipeline" {
-                "bound of its model (constrained; with the bias where there is one)"
-            } else {
-                "bound"
-            },
-            worst_ratio.0,
-            worst_ratio.1,
-            verdict(worst_ratio.0 <= 1.1),
-            calib.0,
-            calib.1,
-            verdict(calib.0 >= 0.8 && calib.1 <= 1.25),
-            bias.0,
-            bias.1,
-            verdict(bias.0 < 1e-5)
-        );
+        s.push_str(&goal.line(label, bound));
     }
     let mut all = true;
     let mut parts = Vec::new();
