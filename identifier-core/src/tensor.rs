@@ -891,10 +891,10 @@ impl TensorEstimator {
     /// without rotor momentum ([`crate::TensorFit::close_normalized`]) whose residual is
     /// `residual_ratio` times the gyro noise: the full model, described and judged as the
     /// estimator's own. `base` is returned unchanged when there are too few samples or the
-    /// units look wrong. `NoExcitation` from the equation error's own measure is not kept: a
-    /// body spinning near a principal axis gives the equation error too little to go on
-    /// while the trajectory still determines `J / trace J` (the fit's covariance, which is
-    /// singular without excitation and then no fit is given, says how well).
+    /// units look wrong. `NoExcitation` from the equation error's own measure is kept unless
+    /// the fit is `Converged`: a body spinning near a principal axis gives the equation error
+    /// too little to go on while the trajectory still determines `J / trace J` to its
+    /// tolerance (the fit's own covariance says how well).
     pub fn with_normalized(
         &self,
         base: TensorEstimate,
@@ -902,7 +902,13 @@ impl TensorEstimator {
         cov_n: Sym<6>,
         residual_ratio: f32,
     ) -> TensorEstimate {
-        self.with_fit(base, nj, cov_n, residual_ratio, None)
+        let out = self.with_fit(base, nj, cov_n, residual_ratio, None);
+        // Lifted from `NoExcitation` only as far as `Converged`: a still gyro's noise still
+        // gives the fit a finite covariance, and "converging" would say more than it knows.
+        if base.status == TensorStatus::NoExcitation && out.status != TensorStatus::Converged {
+            return base;
+        }
+        out
     }
 
     /// What [`TensorEstimator::with_tensor`] and [`TensorEstimator::with_normalized`] share:
