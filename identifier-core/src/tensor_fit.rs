@@ -730,6 +730,42 @@ impl<const N: usize> TensorFit<N> {
     /// moving `J` by tens of its standard deviations. The pipeline tests it only when the
     /// principal-axis fit of the same blocks ([`crate::RatioFit`]) found a bias or did not fit
     /// to the noise.
+    ///
+    /// ```
+    /// use identifier_core::{StretchOutcome, TensorFit};
+    ///
+    /// // A body of inertia (2, 3, 4)e-4 kg m^2 tumbling freely for 2 s at 1 kHz, no rotor.
+    /// let j = [2e-4f64, 3e-4, 4e-4];
+    /// let mut w = [3.0f64, -2.0, 4.0];
+    /// let mut fit = TensorFit::<256>::new(f32::INFINITY, 0.1, 1e-3);
+    /// for _ in 0..2000 {
+    ///     fit.step(w.map(|x| x as f32), [0.0; 3], 1e-3);
+    ///     for _ in 0..100 {
+    ///         // J w' = (J w) x w, midpoint steps of 10 us (an example, not a reference).
+    ///         let f = |w: [f64; 3]| {
+    ///             [
+    ///                 (j[1] - j[2]) / j[0] * w[1] * w[2],
+    ///                 (j[2] - j[0]) / j[1] * w[2] * w[0],
+    ///                 (j[0] - j[1]) / j[2] * w[0] * w[1],
+    ///             ]
+    ///         };
+    ///         let d = f(w);
+    ///         let mid = [w[0] + 5e-6 * d[0], w[1] + 5e-6 * d[1], w[2] + 5e-6 * d[2]];
+    ///         let d = f(mid);
+    ///         for k in 0..3 {
+    ///             w[k] += 1e-5 * d[k];
+    ///         }
+    ///     }
+    /// }
+    /// // First guesses at any scale: the better one is taken.
+    /// let guesses = [[[1.0, 0.0, 0.0], [0.0, 1.6, 0.0], [0.0, 0.0, 2.1]]];
+    /// assert_eq!(fit.close_normalized(&guesses, true), StretchOutcome::Fitted);
+    /// let e = fit.estimate_normalized().unwrap();
+    /// let tr = j[0] + j[1] + j[2];
+    /// for k in 0..3 {
+    ///     assert!((e.tensor[k][k] as f64 - j[k] / tr).abs() < 1e-3, "{:?}", e.tensor);
+    /// }
+    /// ```
     pub fn close_normalized(&mut self, inits: &[[[f32; 3]; 3]], test_bias: bool) -> StretchOutcome {
         let noise = self.noise_std;
         self.state.close_into(&mut self.normalized, |blocks| {
