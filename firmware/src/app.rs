@@ -731,7 +731,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
         self.pipeline.fits_pending()
     }
 
-    /// Runs the output-error fits of the flight that ended (up to about 0.5 s at 168 MHz: call
+    /// Runs the output-error fits of the flight that ended (up to about 0.3 s at 168 MHz: call
     /// it between samples, with the watchdog stretched). True when they ran.
     pub fn fit_ended_flight(&mut self) -> bool {
         self.pipeline.fit_ended_flight()

@@ -34,7 +34,7 @@
 //! Sigma_c(t_0) = E_c w(t_0) (entries of J),  J e_k (initial rate k)
 //! ```
 //!
-//! integrated with (F1) by RK4 between block means (steps of at most `0.05 / (|J^-1|_F |L|)`
+//! integrated with (F1) by RK4 between block means (steps of at most `0.1 / (|J^-1|_F |L|)`
 //! s: the rates turn at up to `|J^-1| |L|`, several times `|w|` when the moments differ), `h(t)`
 //! quadratic between block means (through the block means corrected by (B1), with their second
 //! differences as curvature). A block's mean rate is predicted by (B1) of the block buffer
@@ -57,9 +57,9 @@
 //! fits.
 //!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 225 / 303
-//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 34 M / 38 M instructions, about
-//! 0.2 s at 168 MHz; up to scale, 20 s of a slow tumble at 1 kHz 51 M / 59 M (0.3-0.35 s) and a
-//! 0.85 s toss at 100 Hz 54 M / 61 M: far too long for one gyro period, which is why the
+//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 32 M / 37 M instructions, about
+//! 0.2 s at 168 MHz; up to scale, 20 s of a slow tumble at 1 kHz 35 M / 40 M (0.2-0.25 s) and a
+//! 0.85 s toss at 100 Hz 24 M / 28 M: far too long for one gyro period, which is why the
 //! pipeline runs it in
 //! [`crate::Pipeline::fit_ended_flight`], outside its per-sample step.
 #![allow(

@@ -43,8 +43,8 @@
 //! # The fit
 //!
 //! `w` and the sensitivities `S = dw/dtheta` are integrated from `tbar_0` with classical RK4,
-//! steps of at most `0.05 / (max|a_i| |w|)` seconds (the local error is then about 1e-9 of the
-//! rate), along
+//! steps of at most `0.1 / (max|a_i| |w|)` seconds (the local error is then about 1e-7 of the
+//! rate, the `f32` rounding of the rate itself), along
 //!
 //! ```text
 //! S' = (df/dw) S + (df/da)(da/dp),   S(tbar_0) = [0 | I | 0]                       (T3)
@@ -76,7 +76,7 @@
 //!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 137 / 180
 //! instructions per sample (a block sum; a merge of the 256 blocks once in a while costs up to
-//! 14 k); one fit 24 M instructions after 20 s at 1 kHz, 3 M after an 85-sample toss.
+//! 14 k); one fit 7.8 M instructions after 20 s at 1 kHz, 1.9 M after an 85-sample toss.
 #![allow(
     // Fixed-size loops over the 3 axes and the P <= 8 parameters read as the equations; the
     // crate's link-time no-panic check proves no bounds check survives.
