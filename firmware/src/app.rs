@@ -788,8 +788,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
 
     /// The free-flight pipeline's estimate as reported.
     pub fn tensor_report(&self) -> TensorReport {
-        let e = self.pipeline.estimate();
-        let r = self.pipeline.ratios_with(&e);
+        let (e, r) = self.pipeline.estimate_and_ratios();
         TensorReport {
             status: r.status,
             a: r.a,

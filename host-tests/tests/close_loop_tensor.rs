@@ -6,8 +6,10 @@
 //!
 //! `cargo test --release -p host-tests --test close_loop_tensor -- --nocapture`
 
-use host_tests::throw_sim::{board_throw, SimThrow};
-use inertia::close_loop::tensor::{analyse_tensor, TensorEffect, TensorOptions};
+use host_tests::throw_sim::{board_throw, simulate, SimThrow, ThrowConfig};
+use inertia::close_loop::tensor::{
+    analyse_tensor, EffectParams, TensorAnalysis, TensorEffect, TensorOptions,
+};
 use inertia::identify::Rotor;
 use inertia::{Recording, RotorSpeed};
 
@@ -115,30 +117,42 @@ fn a_late_rotor_speed_is_traced_and_undone() {
     }
 }
 
+/// The close-loop analysis of the clean board throw (seed 3) and of the same throw simulated
+/// with `change` made to its configuration, with the effect `effect`'s fitted parameters when
+/// it was chosen.
+fn clean_and_changed(
+    change: impl FnOnce(&mut ThrowConfig),
+    effect: TensorEffect,
+) -> (TensorAnalysis, TensorAnalysis, Option<EffectParams>) {
+    let clean_sim = board_throw(3);
+    let opts = options(&clean_sim);
+    let clean = analyse_tensor(&recording(&clean_sim, 0), &opts).expect("clean log");
+    let mut cfg = clean_sim.config;
+    change(&mut cfg);
+    let sim = simulate(&cfg);
+    let an = analyse_tensor(&recording(&sim, 0), &opts).expect("changed log");
+    let params = an
+        .after
+        .effect_params
+        .iter()
+        .find(|e| e.effect == effect)
+        .cloned();
+    (clean, an, params)
+}
+
 /// Air drag on the flywheel (`tau = -c |h| h`, an external torque the motor's does not cancel)
 /// put into the simulation is traced to the `rotor_drag` effect, its coefficient recovered and
 /// the tensor moved back to the drag-free log's.
 #[test]
 fn air_drag_on_the_rotor_is_traced() {
-    let clean_sim = board_throw(3);
-    let opts = options(&clean_sim);
-    let clean = analyse_tensor(&recording(&clean_sim, 0), &opts).expect("clean log");
     let c = 100.0;
-    let mut cfg = clean_sim.config;
-    cfg.rotor_drag = c;
-    let sim = host_tests::throw_sim::simulate(&cfg);
-    let an = analyse_tensor(&recording(&sim, 0), &opts).expect("log with drag");
-    let drag = an
-        .after
-        .effect_params
-        .iter()
-        .find(|e| e.effect == TensorEffect::RotorDrag);
+    let (clean, an, drag) = clean_and_changed(|cfg| cfg.rotor_drag = c, TensorEffect::RotorDrag);
     println!(
         "drag c = {c}: residual {:.2}x -> {:.2}x the noise's share, effects {:?}, c found {:?}, tensor moved {:.2} %",
         an.before.residual_over_noise,
         an.after.residual_over_noise,
         an.after.effects,
-        drag.map(|d| (d.values[0], d.std[0])),
+        drag.as_ref().map(|d| (d.values[0], d.std[0])),
         100.0 * an.tensor_change
     );
     let d = drag.expect("rotor_drag chosen");
@@ -164,25 +178,14 @@ fn air_drag_on_the_rotor_is_traced() {
 /// traced to `aero_drag`, and the tensor returns to the drag-free log's.
 #[test]
 fn air_drag_on_the_body_is_traced() {
-    let clean_sim = board_throw(3);
-    let opts = options(&clean_sim);
-    let clean = analyse_tensor(&recording(&clean_sim, 0), &opts).expect("clean log");
     let c = [2e-6, 2e-6, 2e-6];
-    let mut cfg = clean_sim.config;
-    cfg.aero_drag = c;
-    let sim = host_tests::throw_sim::simulate(&cfg);
-    let an = analyse_tensor(&recording(&sim, 0), &opts).expect("log with drag");
-    let drag = an
-        .after
-        .effect_params
-        .iter()
-        .find(|e| e.effect == TensorEffect::AeroDrag);
+    let (clean, an, drag) = clean_and_changed(|cfg| cfg.aero_drag = c, TensorEffect::AeroDrag);
     println!(
         "aero drag c = {c:?}: residual {:.2}x -> {:.2}x the noise's share, effects {:?}, c found {:?}, tensor moved {:.2} %",
         an.before.residual_over_noise,
         an.after.residual_over_noise,
         an.after.effects,
-        drag.map(|d| (d.values.clone(), d.std.clone())),
+        drag.as_ref().map(|d| (&d.values, &d.std)),
         100.0 * an.tensor_change
     );
     let d = drag.expect("aero_drag chosen");

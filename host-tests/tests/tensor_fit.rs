@@ -152,7 +152,8 @@ fn without_rotor_momentum_the_tensor_up_to_scale_comes_from_the_fit() {
             StretchOutcome::Fitted,
             "seed {seed}"
         );
-        let e = p.estimate();
+        let (e, ra) = p.estimate_and_ratios();
+        assert_eq!(e, p.estimate(), "seed {seed}");
         assert_eq!(e.method, TensorMethod::OutputError, "seed {seed}");
         assert!(
             e.tensor.is_none(),
@@ -169,7 +170,6 @@ fn without_rotor_momentum_the_tensor_up_to_scale_comes_from_the_fit() {
             z2[q] += z * z;
         }
         // The sensor axes are not principal axes: the recommended ratios are this tensor's.
-        let ra = p.ratios_with(&e);
         assert_eq!(ra.source, RatioSource::Tensor, "seed {seed}");
         let (a, sa) = (ra.a.expect("a"), ra.std_a.expect("std_a"));
         let want = a_of_tensor(&j);
@@ -197,7 +197,7 @@ fn without_rotor_momentum_the_tensor_up_to_scale_comes_from_the_fit() {
 /// principal-axis ratio fit's once the tensor's fit up to scale has run (which always estimates
 /// the products): with two moments 5 % apart the principal axes are barely defined and the full
 /// model's `a` is far less precise (a1 125x the constrained bound when it was used). `ratios()`
-/// and `ratios_with(&estimate())` (what `inertia identify` and the firmware report) agree.
+/// and `estimate_and_ratios()` (what `inertia identify` and the firmware report) agree.
 #[test]
 fn principal_bodies_keep_the_ratio_fits_a_after_the_tensor_fit() {
     let sc = host_tests::estimators::Scenario::issue11()
@@ -214,13 +214,12 @@ fn principal_bodies_keep_the_ratio_fits_a_after_the_tensor_fit() {
             p.step(w.map(|x| x as f32), [0.0; 3], [0.0; 3], dt);
         }
         p.end_stretch();
-        let e = p.estimate();
+        let (e, r) = p.estimate_and_ratios();
         assert_eq!(
             e.method,
             TensorMethod::OutputError,
             "seed {seed}: the fit up to scale"
         );
-        let r = p.ratios_with(&e);
         assert_eq!(r, p.ratios(), "seed {seed}");
         assert_eq!(r.source, RatioSource::Trajectory, "seed {seed}: {r:?}");
         let (ra, rs) = (r.a.expect("a"), r.std_a.expect("std"));

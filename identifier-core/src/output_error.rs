@@ -409,8 +409,7 @@ pub(crate) fn levenberg<const P: usize>(
         let per = if dof > 0.0 { cost / dof } else { cost };
         // Only a (nearly) undamped step says the optimum is reached: a damped one is short
         // because of the damping.
-        let tol = 1e-4 * per;
-        if pred < tol && mu <= 1e-2 {
+        if pred < 1e-4 * per && mu <= 1e-2 {
             break;
         }
         let mut cand = theta;
@@ -428,7 +427,8 @@ pub(crate) fn levenberg<const P: usize>(
             _ => {
                 // A refused, (nearly) undamped step that was to gain under 0.025 of a unit of
                 // log-likelihood (`pred < 0.05 cost / dof`): the optimum is reached as far as
-                // the cost can tell (a damped step may be short only because of the damping). The trajectory is integrated in `f32`, and the cost moves by about 1e-4
+                // the cost can tell (a damped step may be short only because of the damping).
+                // The trajectory is integrated in `f32`, and the cost moves by about 1e-4
                 // of itself from one evaluation to the next with no real change: steps
                 // predicted to gain less are refused on that noise, and the loop used to go on
                 // refusing and taking them (the damping never back below 1e-2) to its iteration

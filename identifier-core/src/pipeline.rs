@@ -19,9 +19,7 @@ use crate::free_flight::{FreeFlightGate, GateSettings, WindowFit};
 use crate::refined::{Refined, RefinedSettings};
 use crate::refined_bias::RefinedBias;
 use crate::status::{physically_possible, precise, SampleStatus, Trust};
-use crate::tensor::{
-    TensorEstimate, TensorEstimator, TensorMethod, TensorModel, TensorSettings, TensorStatus,
-};
+use crate::tensor::{TensorEstimate, TensorEstimator, TensorModel, TensorSettings, TensorStatus};
 use crate::tensor_fit::{FlightTensorFit, TensorFit};
 use crate::trajectory::{FlightRatioFit, RatioFit, RatioFitEstimate};
 
@@ -330,31 +328,37 @@ impl<const N: usize> Pipeline<N> {
 
     /// The estimate from every sample fed so far.
     ///
-    /// With rotor momentum, once a free flight has ended and the output-error fit of the
-    /// tensor ([`TensorFit`]) fits to the noise (residual at most [`TRAJECTORY_FIT_RATIO`]
-    /// times the configured gyro noise), the tensor is that fit's (efficient for white gyro
-    /// noise), described and judged by the tensor estimator; otherwise the tensor
-    /// estimator's own.
+    /// Once a free flight has ended and the output-error fit of the tensor ([`TensorFit`]:
+    /// in kg m^2 with rotor momentum, else up to scale) fits to the noise (residual at most
+    /// [`TRAJECTORY_FIT_RATIO`] times the configured gyro noise), the tensor is that fit's
+    /// (efficient for white gyro noise), described and judged by the tensor estimator;
+    /// otherwise the tensor estimator's own.
     pub fn estimate(&self) -> TensorEstimate {
-        let e = self.estimator.estimate();
+        self.reported(self.estimator.estimate())
+    }
+
+    /// [`Pipeline::estimate`] from the estimator's own estimate `own`: the output-error fit's
+    /// tensor (in kg m^2 with a rotor, else up to scale) when there is one that fits to the
+    /// noise, else `own`.
+    fn reported(&self, own: TensorEstimate) -> TensorEstimate {
         let noise = self.settings.tensor.noise_std;
-        if !self.rotor_seen {
-            return match self.tensor_fit.estimate_normalized() {
-                Some(f) if f.noise <= TRAJECTORY_FIT_RATIO * noise => {
-                    let t = &f.tensor;
-                    let j = [t[0][0], t[1][1], t[2][2], t[0][1], t[0][2], t[1][2]];
-                    self.estimator.with_normalized(e, j, f.cov, f.noise / noise)
-                }
-                _ => e,
-            };
-        }
-        match self.tensor_fit.estimate() {
+        let fit = if self.rotor_seen {
+            self.tensor_fit.estimate()
+        } else {
+            self.tensor_fit.estimate_normalized()
+        };
+        match fit {
             Some(f) if f.noise <= TRAJECTORY_FIT_RATIO * noise => {
                 let t = &f.tensor;
                 let j = [t[0][0], t[1][1], t[2][2], t[0][1], t[0][2], t[1][2]];
-                self.estimator.with_tensor(e, j, f.cov, f.noise / noise)
+                let ratio = f.noise / noise;
+                if self.rotor_seen {
+                    self.estimator.with_tensor(own, j, f.cov, ratio)
+                } else {
+                    self.estimator.with_normalized(own, j, f.cov, ratio)
+                }
             }
-            _ => e,
+            _ => own,
         }
     }
 
@@ -386,13 +390,20 @@ impl<const N: usize> Pipeline<N> {
     ///   stays near the Cramer-Rao bound, and its standard deviation uses the noise seen in its
     ///   residuals. Its [`Trust`] is reported as the [`TensorStatus`] of the same meaning.
     pub fn ratios(&self) -> Ratios {
-        self.ratios_with(&self.estimate())
+        self.estimate_and_ratios().1
     }
 
-    /// [`Pipeline::ratios`] given the tensor estimate `t` = [`Pipeline::estimate`] already
-    /// computed (the estimate costs a few thousand operations: a report that needs both
-    /// computes it once).
-    pub fn ratios_with(&self, t: &TensorEstimate) -> Ratios {
+    /// [`Pipeline::estimate`] and [`Pipeline::ratios`] together, the estimator's own estimate
+    /// (a few thousand operations) computed once for both: what a report needs.
+    pub fn estimate_and_ratios(&self) -> (TensorEstimate, Ratios) {
+        let own = self.estimator.estimate();
+        let t = self.reported(own);
+        let r = self.ratios_from(&t, &own);
+        (t, r)
+    }
+
+    /// The ratios given the reported tensor estimate `t` and the estimator's own `own`.
+    fn ratios_from(&self, t: &TensorEstimate, own: &TensorEstimate) -> Ratios {
         if self.rotor_seen {
             return Ratios {
                 a: t.a,
@@ -402,21 +413,13 @@ impl<const N: usize> Pipeline<N> {
             };
         }
         // Whether the sensor axes are principal axes is the equation error's Wald test on the
-        // products of inertia (`TensorSettings::products_chi2`). Once a flight has ended `t` is
-        // the output-error fit up to scale, which always estimates the products; its `a` is
-        // far less precise than the principal-axis ratio fit's where two moments are close
-        // (the principal axes are then barely defined: 125x the constrained bound on a1 of the
-        // near-symmetric body at 2 kHz, 2-8x on the tosses, when it was used for every body).
-        let principal = {
-            let raw;
-            let e = if t.method == TensorMethod::OutputError {
-                raw = self.estimator.estimate();
-                &raw
-            } else {
-                t
-            };
-            e.model == TensorModel::Principal || e.normalized.is_none()
-        };
+        // products of inertia (`TensorSettings::products_chi2`), `own`'s model. Once a flight
+        // has ended `t` is the output-error fit up to scale, which always estimates the
+        // products; its `a` is far less precise than the principal-axis ratio fit's where two
+        // moments are close (the principal axes are then barely defined: 125x the constrained
+        // bound on a1 of the near-symmetric body at 2 kHz, 2-8x on the tosses, when it was
+        // used for every body).
+        let principal = own.model == TensorModel::Principal || own.normalized.is_none();
         let trust = self.refined.trust();
         let status = match trust {
             Trust::NoInformation | Trust::TooFewSamples => TensorStatus::TooFewSamples,
@@ -438,7 +441,7 @@ impl<const N: usize> Pipeline<N> {
             // residual is well above the gyro's noise (unmodelled torque, as on real tosses
             // through air) the error it leaves accumulates along the trajectory and biases it,
             // and the refined identifier, which trusts (1) only locally, is the safer choice.
-            let fits = fe.noise <= TRAJECTORY_FIT_RATIO * self.settings.refined.noise_std;
+            let fits = self.fits_to_the_noise(&fe);
             if fits && (principal || fe.biased) {
                 // With a gyro bias the tensor estimator (which has no bias model) takes the
                 // bias for products of inertia; the fit that explains the data to the noise is
@@ -609,7 +612,7 @@ impl<const N: usize> Pipeline<N> {
         }
         self.fits_pending = false;
         if self.rotor_seen {
-            // With a rotor the ratios are the tensor's (`ratios_with`): the ratio fit's result
+            // With a rotor the ratios are the tensor's (`ratios_from`): the ratio fit's result
             // would never be used, and it is most of the cost of a flight's end.
             self.trajectory.discard();
         } else {
@@ -640,11 +643,7 @@ impl<const N: usize> Pipeline<N> {
             });
             // A bias is looked for when the principal-axis fit found one or does not explain
             // the data (see `TensorFit::close_normalized`).
-            let fits = TRAJECTORY_FIT_RATIO * self.settings.refined.noise_std;
-            let test_bias = fe.is_none_or(|f| {
-                let explained = f.noise <= fits;
-                f.biased || !explained
-            });
+            let test_bias = fe.is_none_or(|f| f.biased || !self.fits_to_the_noise(&f));
             let mut inits = [[[0.0f32; 3]; 3]; 2];
             let mut n = 0;
             for j in [e.normalized, principal].into_iter().flatten() {
@@ -656,6 +655,12 @@ impl<const N: usize> Pipeline<N> {
             self.tensor_fit
                 .close_normalized(inits.get(..n).unwrap_or(&[]), test_bias);
         }
+    }
+
+    /// True when the ratio fit's residual is at most [`TRAJECTORY_FIT_RATIO`] times the
+    /// configured gyro noise: the torque-free principal-axis model explains the data.
+    fn fits_to_the_noise(&self, fe: &RatioFitEstimate) -> bool {
+        fe.noise <= TRAJECTORY_FIT_RATIO * self.settings.refined.noise_std
     }
 
     /// The refined identifier fed the same samples (until a rotor momentum is seen: from then
@@ -864,7 +869,7 @@ impl<const N: usize> Pipeline<N> {
         self.fed_inputs = self.fed_inputs.saturating_add(u32::from(p.inputs));
         let status = self.estimator.step(p.omega, p.h, p.dt);
         self.rotor_seen |= p.h.iter().any(|x| *x != 0.0);
-        // Once a rotor has been seen the ratios are the tensor's (`ratios_with`): the
+        // Once a rotor has been seen the ratios are the tensor's (`ratios_from`): the
         // torque-free ratio estimators' model no longer holds and their results are never
         // used, so they are not fed (the ratio fit's blocks are discarded unfitted by
         // `fit_ended_flight`). On a flywheel throw at 8 kHz this is about a third of the

@@ -43,7 +43,8 @@
 //! stretches are pooled by the information on the six entries (see `output_error`).
 //!
 //! The fit starts from an estimate of `J` the caller gives (the pipeline gives
-//! [`crate::TensorEstimator`]'s) and the first block's rate, on growing prefixes of the blocks.
+//! [`crate::TensorEstimator`]'s) and the first block's rate, on all the blocks at once, and on
+//! growing prefixes of them only when that does not fit to twice the noise.
 //!
 //! # Up to scale
 //!
@@ -60,8 +61,7 @@
 //! instructions per sample; one fit of a 0.6 s throw at 2 kHz 32 M / 37 M instructions, about
 //! 0.2 s at 168 MHz; up to scale, 20 s of a slow tumble at 1 kHz 35 M / 40 M (0.2-0.25 s) and a
 //! 0.85 s toss at 100 Hz 24 M / 28 M: far too long for one gyro period, which is why the
-//! pipeline runs it in
-//! [`crate::Pipeline::fit_ended_flight`], outside its per-sample step.
+//! pipeline runs it in [`crate::Pipeline::fit_ended_flight`], outside its per-sample step.
 #![allow(
     // Fixed-size loops over the 3 axes and the parameters read as the equations; the crate's
     // link-time no-panic check proves no bounds check survives.
@@ -545,43 +545,54 @@ fn normal<const P: usize>(
     sums.finish()
 }
 
+/// The first `M` entries of `v` (zeros past its end).
+fn leading<const M: usize>(v: &[f32]) -> [f32; M] {
+    core::array::from_fn(|i| v.get(i).copied().unwrap_or(0.0))
+}
+
+/// The leading `M x M` block of the `A x A` matrix `c`.
+fn leading_block<const A: usize, const M: usize>(c: &[[f32; A]; A]) -> Sym<M> {
+    core::array::from_fn(|i| c.get(i).map_or([0.0; M], |row| leading(row)))
+}
+
 /// Fits one stretch from `th` (`P` parameters without the bias, `PB` with it, the first `M`
-/// of interest; see [`normal`]): the plain model by [`staged_fit`] (when `direct_first`, by
-/// [`levenberg`] on all the blocks at once first, staged only if that does not fit to twice
-/// `noise_floor`, the lower cost taken), then, when `test_bias`, the bias model if the
-/// likelihood-ratio test asks for it.
+/// of interest; see [`normal`]): the plain model by [`levenberg`] on all the blocks at once,
+/// and by [`staged_fit`] (growing prefixes) only if that does not fit to twice `noise_floor`,
+/// the lower cost taken; then, when `test_bias`, the bias model if the likelihood-ratio test
+/// asks for it.
+///
+/// Why all the blocks first: growing prefixes keep a start whose trajectory drifts away from
+/// the data from being pulled into a wrong basin by the far blocks, but from a good start
+/// (with only the first block's noisy rate as the initial rate) they throw information away:
+/// on a short noisy toss the first 16 blocks alone determined the eight parameters of the fit
+/// up to scale so poorly that the staged fit left the right basin on about 1 flight in 25.
+/// On the simulated flywheel throw the absolute fit is as accurate as staged alone, at two
+/// thirds of the cost.
 fn fit_model<const P: usize, const PB: usize, const M: usize>(
     blocks: &[Block<6>],
     th: [f32; P],
     trace: f32,
     noise_floor: f32,
-    direct_first: bool,
     test_bias: bool,
 ) -> Option<StretchResult<M>> {
     let total = blocks.len();
     let dof0 = (3 * total) as f32 - P as f32;
-    let staged = || staged_fit(|p, limit| normal(blocks, limit, p, trace), th, total);
-    let plain = if direct_first {
-        let direct = levenberg(|p| normal(blocks, total, p, trace), th, 30, dof0);
-        let fits = 4.0 * noise_floor * noise_floor * dof0;
-        match direct {
-            Some(d) if d.1 <= fits => Some(d),
-            d => match (d, staged()) {
+    let direct = levenberg(|p| normal(blocks, total, p, trace), th, 30, dof0);
+    let fits = 4.0 * noise_floor * noise_floor * dof0;
+    let plain = match direct {
+        Some(d) if d.1 <= fits => Some(d),
+        d => {
+            let staged = staged_fit(|p, limit| normal(blocks, limit, p, trace), th, total);
+            match (d, staged) {
                 (Some(d), Some(st)) => Some(if st.1 < d.1 { st } else { d }),
                 (d, st) => d.or(st),
-            },
+            }
         }
-    } else {
-        staged()
     };
     let (th, cost0, f0) = plain?;
     let cov0 = scaled_inverse(&f0)?;
-    let mut th1 = [0.0f32; PB];
-    for (dst, src) in th1.iter_mut().zip(th.iter()) {
-        *dst = *src;
-    }
+    let th1: [f32; PB] = leading(&th);
     let dof1 = (3 * total) as f32 - PB as f32;
-    let dof0 = (3 * total) as f32 - P as f32;
     // One evaluation decides whether the bias model is worth its fit.
     let worth = test_bias
         && normal(blocks, total, &th1, trace)
@@ -592,18 +603,13 @@ fn fit_model<const P: usize, const PB: usize, const M: usize>(
     } else {
         None
     };
-    let first =
-        |v: &[f32]| -> [f32; M] { core::array::from_fn(|i| v.get(i).copied().unwrap_or(0.0)) };
-    let block = |c: &[[f32; PB]]| -> Sym<M> {
-        core::array::from_fn(|i| c.get(i).map_or([0.0; M], |row| first(row)))
-    };
     if let Some((t1, cost1, f1)) = with_bias {
         if bias_found(cost0, cost1, dof1, noise_floor) {
             if let Some(c1) = scaled_inverse(&f1) {
                 let g = |i: usize| t1.get(i).copied().unwrap_or(0.0);
                 return Some(StretchResult {
-                    p: first(&t1),
-                    cov: block(&c1),
+                    p: leading(&t1),
+                    cov: leading_block(&c1),
                     cost: cost1,
                     params: PB,
                     bias: Some([g(M + 3), g(M + 4), g(M + 5)]),
@@ -611,25 +617,22 @@ fn fit_model<const P: usize, const PB: usize, const M: usize>(
             }
         }
     }
-    let block0: Sym<M> = core::array::from_fn(|i| cov0.get(i).map_or([0.0; M], |row| first(row)));
     Some(StretchResult {
-        p: first(&th),
-        cov: block0,
+        p: leading(&th),
+        cov: leading_block(&cov0),
         cost: cost0,
         params: P,
         bias: None,
     })
 }
 
-/// The absolute fit (six entries in kg m^2) from `init`: all the blocks at once first, staged
-/// only when that does not fit to twice the noise (see [`fit_stretch_normalized`]; on the
-/// simulated flywheel throw the same accuracy as staged alone, at two thirds of the cost).
+/// The absolute fit (six entries in kg m^2) from `init`.
 fn fit_stretch(blocks: &[Block<6>], init: &Mat3, noise_floor: f32) -> Option<StretchResult<6>> {
     let w0 = rate_of(blocks.first()?);
     let th = [
         init[0][0], init[1][1], init[2][2], init[0][1], init[0][2], init[1][2], w0[0], w0[1], w0[2],
     ];
-    fit_model::<P0, P1, 6>(blocks, th, 0.0, noise_floor, true, true)
+    fit_model::<P0, P1, 6>(blocks, th, 0.0, noise_floor, true)
 }
 
 /// The fit up to scale from the best of the first guesses `inits` (any scale each): the one
@@ -660,14 +663,7 @@ fn fit_stretch_normalized(
         }
     }
     let (th, tr, _) = best?;
-    // All the blocks at once first: growing prefixes keep a start whose trajectory drifts
-    // away from the data from being pulled into a wrong basin by the far blocks, but from a
-    // good start (the ratio fit's principal moments, with only the first block's noisy rate
-    // as the initial rate) they throw information away: on a short noisy toss the first 16
-    // blocks alone determine the eight parameters so poorly that the staged fit left the
-    // right basin and failed on about 1 flight in 25.
-    let mut r =
-        fit_model::<{ P0 - 1 }, { P1 - 1 }, 5>(blocks, th, tr, noise_floor, true, test_bias)?;
+    let mut r = fit_model::<{ P0 - 1 }, { P1 - 1 }, 5>(blocks, th, tr, noise_floor, test_bias)?;
     let k = 1.0 / tr;
     r.p = r.p.map(|x| x * k);
     r.cov = r.cov.map(|row| row.map(|x| x * k * k));
@@ -719,10 +715,10 @@ impl<const N: usize> TensorFit<N> {
     /// Ends the open stretch of a flight whose rotor momentum does not fix the scale of `J`
     /// (none, or constant along the rate): fits `J / trace J` from whichever of the first
     /// guesses `inits` (positive definite, any scale) fits the blocks best as it stands (one
-    /// evaluation each; none: the stretch fails), the trace held (five free entries and the initial
-    /// rate, and, when `test_bias`, the bias if its likelihood-ratio test asks for it), pools
-    /// it apart from the absolute fits ([`TensorFit::estimate_normalized`]) and starts a new
-    /// stretch.
+    /// evaluation each; none: the stretch fails), the trace held (five free entries and the
+    /// initial rate, and, when `test_bias`, the bias if its likelihood-ratio test asks for it),
+    /// pools it apart from the absolute fits ([`TensorFit::estimate_normalized`]) and starts a
+    /// new stretch.
     ///
     /// Why the bias test can be switched off: on a short noisy toss the bias and the products
     /// of inertia are nearly interchangeable, and the likelihood has far-apart minima that the

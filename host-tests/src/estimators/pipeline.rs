@@ -11,7 +11,14 @@ use identifier_core::{FlightPipeline, PipelineSettings, Ratios, TensorEstimate};
 #[derive(Default)]
 pub struct PipelineRatios;
 
-fn run(t: &[f64], y: &[[f64; 3]], sigma: f64, checkpoints: &[usize]) -> Vec<Ratios> {
+/// The pipeline fed `y`, ended at each checkpoint as a log that stops there: its tensor
+/// estimate and recommended ratios there.
+fn run(
+    t: &[f64],
+    y: &[[f64; 3]],
+    sigma: f64,
+    checkpoints: &[usize],
+) -> Vec<(TensorEstimate, Ratios)> {
     let dt = if t.len() > 1 { t[1] - t[0] } else { 1e-3 };
     let settings = PipelineSettings::for_rate((1.0 / dt) as f32, sigma as f32);
     let Some(mut p) = FlightPipeline::new(settings, false) else {
@@ -25,7 +32,7 @@ fn run(t: &[f64], y: &[[f64; 3]], sigma: f64, checkpoints: &[usize]) -> Vec<Rati
         while next.peek().is_some_and(|&&c| c == k) {
             let mut q = p;
             q.end_stretch();
-            out.push(q.ratios());
+            out.push(q.estimate_and_ratios());
             next.next();
         }
     }
@@ -35,15 +42,8 @@ fn run(t: &[f64], y: &[[f64; 3]], sigma: f64, checkpoints: &[usize]) -> Vec<Rati
 /// The pipeline's tensor estimate after feeding all of `y` and ending the flight (what
 /// `inertia identify` reports for a gyro-only log).
 pub fn normalized_tensor(t: &[f64], y: &[[f64; 3]], sigma: f64) -> Option<TensorEstimate> {
-    let dt = if t.len() > 1 { t[1] - t[0] } else { 1e-3 };
-    let settings = PipelineSettings::for_rate((1.0 / dt) as f32, sigma as f32);
-    let mut p = FlightPipeline::new(settings, false)?;
-    for (k, w) in y.iter().enumerate() {
-        let step = if k == 0 { dt } else { t[k] - t[k - 1] };
-        p.step(w.map(|x| x as f32), [0.0; 3], [0.0; 3], step as f32);
-    }
-    p.end_stretch();
-    Some(p.estimate())
+    let last = y.len().checked_sub(1)?;
+    run(t, y, sigma, &[last]).first().map(|(e, _)| *e)
 }
 
 fn a_of(r: &Ratios) -> [f64; 3] {
@@ -66,7 +66,7 @@ impl Method for PipelineRatios {
         y: &[[f64; 3]],
         sigma: f64,
     ) -> ([f64; 3], Option<[f64; 3]>) {
-        match run(t, y, sigma, &[t.len() - 1]).first() {
+        match run(t, y, sigma, &[t.len() - 1]).first().map(|(_, r)| r) {
             Some(r) => (
                 a_of(r),
                 Some(r.std_a.map_or([f64::NAN; 3], |s| s.map(f64::from))),
@@ -76,7 +76,10 @@ impl Method for PipelineRatios {
     }
     fn curve(&self, t: &[f64], y: &[[f64; 3]], checkpoints: &[usize]) -> Vec<[f64; 3]> {
         let sigma = noise_from_data(y);
-        let mut out: Vec<[f64; 3]> = run(t, y, sigma, checkpoints).iter().map(a_of).collect();
+        let mut out: Vec<[f64; 3]> = run(t, y, sigma, checkpoints)
+            .iter()
+            .map(|(_, r)| a_of(r))
+            .collect();
         out.resize(checkpoints.len(), [f64::NAN; 3]);
         out
     }

@@ -70,9 +70,9 @@ pub(crate) struct Pooled {
 
 impl Pooled {
     fn of(p: &FlightPipeline, bias: [f32; 3]) -> Self {
-        let estimate = p.estimate();
+        let (estimate, ratios) = p.estimate_and_ratios();
         Pooled {
-            ratios: p.ratios_with(&estimate),
+            ratios,
             estimate,
             fed_inputs: p.fed_inputs(),
             bias,

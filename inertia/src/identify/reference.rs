@@ -104,8 +104,7 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
             fed_runs.push(idx);
         }
         progress(n);
-        pooled_est = pooled.estimate();
-        pooled_ratios = pooled.ratios_with(&pooled_est);
+        (pooled_est, pooled_ratios) = pooled.estimate_and_ratios();
         pooled_inputs = pooled.fed_inputs();
     } else {
         let accel = rec.accel.as_ref();
@@ -139,8 +138,7 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
         // The log ends: a free flight still open is fitted now (the trajectory fit runs at
         // each stretch's end, as the firmware's does at the catch).
         p.end_stretch();
-        pooled_est = p.estimate();
-        pooled_ratios = p.ratios_with(&pooled_est);
+        (pooled_est, pooled_ratios) = p.estimate_and_ratios();
         pooled_inputs = p.fed_inputs();
         bias = p.bias();
     }
@@ -165,8 +163,8 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
             }
             e.end_stretch();
             let (a, b) = (run[0], run[run.len() - 1]);
-            let est = e.estimate();
-            let mut j = EstimateJson::from(&est, &e.ratios_with(&est), rec.t[a], rec.t[b]);
+            let (est, ratios) = e.estimate_and_ratios();
+            let mut j = EstimateJson::from(&est, &ratios, rec.t[a], rec.t[b]);
             j.samples = e.fed_inputs();
             j
         })

@@ -77,8 +77,8 @@ fn work(settings: PipelineSettings, rx: Receiver<Msg>) -> Result<Results, String
             Msg::Finish { span } => {
                 let (ordinal, mut e, _, _) = cur.take().ok_or("a throw ended before it started")?;
                 e.end_stretch();
-                let est = e.estimate();
-                let mut j = EstimateJson::from(&est, &e.ratios_with(&est), span.0, span.1);
+                let (est, ratios) = e.estimate_and_ratios();
+                let mut j = EstimateJson::from(&est, &ratios, span.0, span.1);
                 j.samples = e.fed_inputs();
                 out.push((ordinal, j));
             }
