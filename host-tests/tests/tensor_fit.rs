@@ -122,6 +122,86 @@ fn the_fits_of_an_ended_flight_run_outside_the_step_and_when_does_not_matter() {
     }
 }
 
+/// The whole gated log (bench, hand, free flight, catch) through the pipeline with the rotor
+/// speed the vehicle logged, `logged`: the reported tensor, its status, and how the flight's
+/// fit ended.
+fn gated(
+    cfg: &host_tests::throw_sim::ThrowConfig,
+    sim: &host_tests::throw_sim::SimThrow,
+    logged: &[f32],
+) -> (identifier_core::TensorEstimate, StretchOutcome) {
+    let settings = PipelineSettings::for_rate(cfg.rate_hz as f32, cfg.gyro.noise_std as f32)
+        .with_full_scale(34.9);
+    let mut p = FlightPipeline::new(settings, true).expect("valid settings");
+    let j_r = cfg.rotor.inertia as f32;
+    let axis = cfg.rotor.unit_axis().map(|x| x as f32);
+    for ((&w, &f), &speed) in sim.gyro.iter().zip(&sim.accel).zip(logged) {
+        let h = axis.map(|a| a * j_r * speed);
+        p.step(w, f, h, sim.dt() as f32);
+    }
+    p.end_stretch();
+    (p.estimate(), p.tensor_fit().last_outcome())
+}
+
+/// Relative Frobenius distance of `t` from `truth`.
+fn rel_frobenius(t: &[[f32; 3]; 3], truth: &[[f64; 3]; 3]) -> f64 {
+    let (mut d, mut n) = (0.0, 0.0);
+    for r in 0..3 {
+        for c in 0..3 {
+            d += (t[r][c] as f64 - truth[r][c]).powi(2);
+            n += truth[r][c].powi(2);
+        }
+    }
+    (d / n).sqrt()
+}
+
+/// A rotor whose speed telemetry is wrong while it idles (here 20 % low until the spin-up,
+/// as a sensorless ESC's can be after a start from rest): the fit of the whole flight does not
+/// fit to the noise, and the pipeline fits the flight from the rotor's spin-up instead
+/// (`TensorFit::close`), where the momentum that fixes the scale is large against the error.
+/// The status says `ModelMismatch`; the tensor is still within 1.5 % of the truth (the whole
+/// flight's fit: 1.6-10 % off, checked by disabling the refit). With the bias measured on the
+/// bench and a constant gyro bias, no bias is fitted (`close_without_bias`).
+#[test]
+fn a_rotor_telemetry_wrong_before_the_spin_up_is_left_out_of_the_fit() {
+    let mut worst: f64 = 0.0;
+    for seed in 1..=4 {
+        let mut cfg = board_throw_config(seed);
+        cfg.gyro.bias = [0.01, -0.007, 0.015];
+        let sim = simulate(&cfg);
+        let (clean, clean_outcome) = gated(&cfg, &sim, &sim.rotor_rad_s);
+        assert_eq!(clean_outcome, StretchOutcome::Fitted, "seed {seed}");
+        assert_ne!(clean.status, TensorStatus::ModelMismatch, "seed {seed}");
+        let peak = sim.rotor_rad_s.iter().fold(0.0f32, |a, &v| a.max(v));
+        let spin_up = sim
+            .rotor_rad_s
+            .iter()
+            .position(|&v| v > 0.5 * peak)
+            .expect("a spin-up");
+        let wrong: Vec<f32> = sim
+            .rotor_rad_s
+            .iter()
+            .enumerate()
+            .map(|(k, &v)| if k < spin_up { 0.8 * v } else { v })
+            .collect();
+        let (e, outcome) = gated(&cfg, &sim, &wrong);
+        let err = rel_frobenius(&e.tensor.expect("absolute"), &cfg.inertia);
+        println!(
+            "seed {seed}: telemetry 20 % low before the spin-up: J off by {err:.4}, {:?}, \
+             residual {:.1}x the noise",
+            e.status, e.residual_ratio
+        );
+        assert_eq!(
+            outcome,
+            StretchOutcome::Fitted,
+            "seed {seed}: no bias fitted"
+        );
+        assert_eq!(e.status, TensorStatus::ModelMismatch, "seed {seed}");
+        worst = worst.max(err);
+    }
+    assert!(worst < 0.015, "J off by {worst:.4}");
+}
+
 /// Without rotor momentum the scale of `J` is not determined: the pipeline fits `J / trace J`
 /// by output error at the end of each flight (`TensorFit::close_normalized`), products of
 /// inertia included, and reports it with an honest std (board throws with the flywheel's

@@ -347,8 +347,12 @@ impl<const N: usize> Pipeline<N> {
         } else {
             self.tensor_fit.estimate_normalized()
         };
+        // With a rotor the fit is reported even when it does not fit to the noise (its status
+        // then says `ModelMismatch`): the equation error it would fall back on has the same
+        // model error and, on real throws, spread more from throw to throw than the fit from
+        // the rotor's spin-up (`TensorFit::close`).
         match fit {
-            Some(f) if f.noise <= TRAJECTORY_FIT_RATIO * noise => {
+            Some(f) if self.rotor_seen || f.noise <= TRAJECTORY_FIT_RATIO * noise => {
                 let t = &f.tensor;
                 let j = [t[0][0], t[1][1], t[2][2], t[0][1], t[0][2], t[1][2]];
                 let ratio = f.noise / noise;
@@ -634,7 +638,12 @@ impl<const N: usize> Pipeline<N> {
     fn close_tensor_fit(&mut self) {
         let e = self.estimator.estimate();
         if self.rotor_seen {
-            self.tensor_fit.close(e.tensor);
+            // A bias measured on the bench was removed from every sample: none is looked for.
+            if self.gate.bias().is_some() {
+                self.tensor_fit.close_without_bias(e.tensor);
+            } else {
+                self.tensor_fit.close(e.tensor);
+            }
         } else {
             let fe = self.trajectory.estimate();
             let principal = fe.map(|f| {

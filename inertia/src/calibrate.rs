@@ -69,7 +69,8 @@ pub fn unit_throw(
         }),
         segments: None,
         noise_std: None,
-        rotor_raw: std::env::var_os("INERTIA_ROTOR_RAW").is_some(),
+        // As logged unless `INERTIA_ROTOR_UNHOLD` is set (see `inertia identify --rotor-unhold`).
+        rotor_raw: std::env::var_os("INERTIA_ROTOR_UNHOLD").is_none(),
         trace: false,
     };
     let rep = identify(rec, &opts).map_err(|e| format!("{}: {e}", rec.source))?;

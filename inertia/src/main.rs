@@ -107,10 +107,14 @@ struct RotorArgs {
     /// Motor poles, to turn eRPM into mechanical speed.
     #[arg(long)]
     rotor_poles: Option<u32>,
-    /// Use the rotor speed exactly as logged (sample and hold) instead of interpolating the
-    /// telemetry's held steps.
-    #[arg(long)]
+    /// Use the rotor speed exactly as logged (sample and hold): the default since the fit from
+    /// the rotor's spin-up; kept so that older command lines still run.
+    #[arg(long, conflicts_with = "rotor_unhold")]
     rotor_raw: bool,
+    /// Interpolate the telemetry's held steps (each new value taken as the speed at the middle
+    /// of the hold it ends) instead of using the rotor speed as logged.
+    #[arg(long)]
+    rotor_unhold: bool,
 }
 
 impl RotorArgs {
@@ -336,7 +340,7 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
         rotor,
         segments,
         noise_std: args.noise_std,
-        rotor_raw: args.rotor.rotor_raw,
+        rotor_raw: !args.rotor.rotor_unhold,
         trace: args.plots.is_some(),
     };
     let mut bar = Bar::new(&args.input);
@@ -386,9 +390,10 @@ fn run_close_loop(args: CloseLoopArgs) -> Result<ExitCode, String> {
     if let Some(rotor) = args.rotor.rotor()? {
         return run_close_loop_tensor(&args, rotor, &units);
     }
-    if args.rotor.rotor_poles.is_some() || args.rotor.rotor_raw {
+    if args.rotor.rotor_poles.is_some() || args.rotor.rotor_raw || args.rotor.rotor_unhold {
         return Err(
-            "--rotor-poles and --rotor-raw go with --rotor-inertia and --rotor-axis".into(),
+            "--rotor-poles, --rotor-raw and --rotor-unhold go with --rotor-inertia and --rotor-axis"
+                .into(),
         );
     }
     let (log, warnings) =
@@ -465,7 +470,7 @@ fn run_close_loop_tensor(
         alpha: args.alpha,
         block_s: 0.01,
         segments,
-        rotor_raw: args.rotor.rotor_raw,
+        rotor_raw: !args.rotor.rotor_unhold,
     };
     let an = match tensor::analyse_tensor(&rec, &opts) {
         Ok(an) => an,
@@ -541,7 +546,13 @@ fn run_export_replay(args: ExportReplayArgs) -> Result<ExitCode, String> {
         time_unit: args.time_unit,
     };
     let rec = read(&args.input, &opts).map_err(|e| e.to_string())?;
-    let e = replay::export(&rec, rotor, args.noise_std, args.rotor.rotor_raw, &args.out)?;
+    let e = replay::export(
+        &rec,
+        rotor,
+        args.noise_std,
+        !args.rotor.rotor_unhold,
+        &args.out,
+    )?;
     eprintln!(
         "{}: {} samples at {} Hz, noise {} rad/s, accelerometer {}",
         args.out.display(),

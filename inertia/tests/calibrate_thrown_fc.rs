@@ -74,6 +74,7 @@ fn calibrate_on_thrown_fc() {
     // Two readings of the proof body's axes in the log's frame: as the data README lists them
     // (x, y as logged) and with x and y exchanged (the anchor's frame turned 90 deg about z, as
     // the board's products of inertia suggest).
+    let (mut loo_moment, mut loo_axis) = (0.0f64, 0.0f64);
     for (name, known) in [("as listed", diag(c)), ("x<->y", diag([c[1], c[0], c[2]]))] {
         let (jt, rt) = mean(&proof);
         let (d, m, c_o) = difference((&jb, rb), (&jt, rt), m_b, m_o);
@@ -110,6 +111,24 @@ fn calibrate_on_thrown_fc() {
                 cmp.axis_errors_deg[0], cmp.axis_errors_deg[1], cmp.axis_errors_deg[2]
             );
             assert!(j_k.is_finite() && j_k > 0.0);
+            if name == "x<->y" {
+                loo_moment = cmp
+                    .moment_errors
+                    .iter()
+                    .fold(loo_moment, |a, e| a.max(e.abs()));
+                loo_axis = cmp.axis_errors_deg.iter().fold(loo_axis, |a, &e| a.max(e));
+            }
         }
     }
+    // Guards against the regressions the README's figures were measured past: the fit of the
+    // whole flight with a bias re-estimated under model mismatch gave a spread up to 2.5 %,
+    // leave-one-out errors up to 8 % and axes up to 4.3 deg (targets: 1 %, 1 %, 1.5 deg, not
+    // all met; see the README).
+    let worst_spread = spread.iter().fold(0.0f64, |a, &x| a.max(x));
+    assert!(worst_spread < 0.015, "board spread {worst_spread:.4}");
+    assert!(
+        loo_moment < 0.035,
+        "leave-one-out moment error {loo_moment:.4}"
+    );
+    assert!(loo_axis < 2.0, "leave-one-out axis error {loo_axis:.2} deg");
 }
