@@ -228,6 +228,8 @@ pub struct Pipeline<const N: usize> {
     fits_pending: bool,
     /// A non-zero rotor momentum reached the estimator.
     rotor_seen: bool,
+    /// The caller removed a measured gyro bias from the samples ([`Pipeline::set_bias_removed`]).
+    bias_removed: bool,
     line: [Pending; N],
     head: usize,
     len: usize,
@@ -299,6 +301,7 @@ impl<const N: usize> Pipeline<N> {
             tensor_fit,
             fits_pending: false,
             rotor_seen: false,
+            bias_removed: false,
             line: [Pending {
                 index: 0,
                 first_input: 0,
@@ -639,7 +642,7 @@ impl<const N: usize> Pipeline<N> {
         let e = self.estimator.estimate();
         if self.rotor_seen {
             // A bias measured on the bench was removed from every sample: none is looked for.
-            if self.gate.bias().is_some() {
+            if self.gate.bias().is_some() || self.bias_removed {
                 self.tensor_fit.close_without_bias(e.tensor);
             } else {
                 self.tensor_fit.close(e.tensor);
@@ -691,6 +694,20 @@ impl<const N: usize> Pipeline<N> {
     /// Gyro bias in use (from the latest still window), rad/s.
     pub fn bias(&self) -> [f32; 3] {
         self.gate.bias().unwrap_or([0.0; 3])
+    }
+
+    /// The gyro bias measured on a still stretch and removed from every sample fed, `None`
+    /// while no still stretch was seen.
+    pub fn measured_bias(&self) -> Option<[f32; 3]> {
+        self.gate.bias()
+    }
+
+    /// Says that the samples this pipeline is fed had a gyro bias measured elsewhere removed
+    /// (the host tool's per-throw pipelines get the pooled pipeline's bench bias so): like a
+    /// bias its own gate measured, the output-error fit with a rotor then looks for none
+    /// ([`TensorFit::close_without_bias`]).
+    pub fn set_bias_removed(&mut self, removed: bool) {
+        self.bias_removed = removed;
     }
 
     /// Free flights that reached the estimator so far.

@@ -422,7 +422,7 @@ pub fn identify_source(
     // Throws begun with another bias than the final one are fed again with the final one.
     let again: Vec<&passes::Run> = runs
         .iter()
-        .filter(|r| bits(r.bias) != bits(pooled.bias))
+        .filter(|r| r.bias.map(bits) != pooled.bias.map(bits))
         .collect();
     if !again.is_empty() {
         progress.stage("re-running");
@@ -452,7 +452,7 @@ pub fn identify_source(
         log_samples: n,
         rate_hz: rate,
         noise_std: noise,
-        gyro_bias: pooled.bias,
+        gyro_bias: pooled.bias.unwrap_or([0.0; 3]),
         free_flight_detection: detection,
         throws: throws.into_iter().map(|(_, j)| j).collect(),
         pooled: pooled_json,

@@ -31,12 +31,12 @@ pub(crate) struct Run {
     pub ranges: Vec<Range<usize>>,
     /// Time of the first and last sample, s.
     pub span: (f64, f64),
-    /// The bias its per-throw pipeline subtracted.
-    pub bias: [f32; 3],
+    /// The bias its per-throw pipeline subtracted, measured on the bench when `Some`.
+    pub bias: Option<[f32; 3]>,
 }
 
 impl Run {
-    fn new(ordinal: usize, bias: [f32; 3]) -> Self {
+    fn new(ordinal: usize, bias: Option<[f32; 3]>) -> Self {
         Run {
             ordinal,
             ranges: Vec::new(),
@@ -65,11 +65,12 @@ pub(crate) struct Pooled {
     pub estimate: TensorEstimate,
     pub ratios: Ratios,
     pub fed_inputs: u32,
-    pub bias: [f32; 3],
+    /// The bias removed, measured on the bench when `Some`.
+    pub bias: Option<[f32; 3]>,
 }
 
 impl Pooled {
-    fn of(p: &FlightPipeline, bias: [f32; 3]) -> Self {
+    fn of(p: &FlightPipeline, bias: Option<[f32; 3]>) -> Self {
         let (estimate, ratios) = p.estimate_and_ratios();
         Pooled {
             ratios,
@@ -164,7 +165,7 @@ pub(crate) fn gate(
                 if let Some(r) = runs.last() {
                     pool.finish(r.ordinal, r.span)?;
                 }
-                let r = Run::new(runs.len(), p.bias());
+                let r = Run::new(runs.len(), p.measured_bias());
                 pool.start(r.ordinal, r.bias)?;
                 runs.push(r);
             }
@@ -188,7 +189,7 @@ pub(crate) fn gate(
         if let Some(r) = runs.last() {
             pool.finish(r.ordinal, r.span)?;
         }
-        let pooled = Pooled::of(&p, p.bias());
+        let pooled = Pooled::of(&p, p.measured_bias());
         Ok((pooled, runs, pool.join()?))
     })
 }
@@ -199,7 +200,7 @@ pub(crate) fn rerun(
     inputs: &Inputs<'_>,
     settings: PipelineSettings,
     runs: &[&Run],
-    bias: [f32; 3],
+    bias: Option<[f32; 3]>,
     progress: &mut dyn Progress,
 ) -> Result<Throws, IdentifyError> {
     let Some(end) = runs.last().and_then(|r| r.ranges.last()).map(|r| r.end) else {
@@ -307,7 +308,7 @@ pub(crate) fn segments(
                     }
                     if !held[cur] {
                         held[cur] = true;
-                        let r = Run::new(runs.len(), [0.0; 3]);
+                        let r = Run::new(runs.len(), None);
                         pool.start(r.ordinal, r.bias)?;
                         runs.push(r);
                     }
@@ -336,7 +337,7 @@ pub(crate) fn segments(
                 t.done = true;
             }
         }
-        let p = Pooled::of(&pooled, [0.0; 3]);
+        let p = Pooled::of(&pooled, None);
         Ok((p, runs, pool.join()?, held))
     })
 }

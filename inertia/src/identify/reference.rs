@@ -85,10 +85,12 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
     let pooled_ratios;
     let pooled_inputs;
     let bias;
+    let bias_measured;
     let detection;
     if let Some(segs) = &opts.segments {
         detection = false;
         bias = [0.0; 3];
+        bias_measured = false;
         let mut pooled = FlightPipeline::new(settings, false)
             .ok_or_else(|| IdentifyError::Settings("invalid estimator settings".into()))?;
         for &(s, e) in segs {
@@ -141,6 +143,7 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
         (pooled_est, pooled_ratios) = p.estimate_and_ratios();
         pooled_inputs = p.fed_inputs();
         bias = p.bias();
+        bias_measured = p.measured_bias().is_some();
     }
     if fed_runs.iter().all(|r| r.is_empty()) {
         return Err(IdentifyError::NoFreeFlight);
@@ -150,6 +153,7 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
         .filter(|r| !r.is_empty())
         .map(|run| {
             let mut e = FlightPipeline::new(settings, false).expect("settings validated above");
+            e.set_bias_removed(bias_measured);
             let mut prev: Option<usize> = None;
             for &i in run {
                 // Stretches of a throw separated by held-back samples: no integral across.

@@ -33,9 +33,15 @@ pub(crate) struct Fed {
 }
 
 enum Msg {
-    Start { ordinal: usize, bias: [f32; 3] },
+    /// A throw starts; its rates have `bias` removed, measured on the bench when `Some`.
+    Start {
+        ordinal: usize,
+        bias: Option<[f32; 3]>,
+    },
     Fed(Vec<Fed>),
-    Finish { span: (f64, f64) },
+    Finish {
+        span: (f64, f64),
+    },
 }
 
 type Results = Vec<(usize, EstimateJson)>;
@@ -58,9 +64,10 @@ fn work(settings: PipelineSettings, rx: Receiver<Msg>) -> Result<Results, String
     for msg in rx {
         match msg {
             Msg::Start { ordinal, bias } => {
-                let e = FlightPipeline::new(settings, false)
+                let mut e = FlightPipeline::new(settings, false)
                     .ok_or("invalid estimator settings for a throw")?;
-                cur = Some((ordinal, e, bias, None));
+                e.set_bias_removed(bias.is_some());
+                cur = Some((ordinal, e, bias.unwrap_or([0.0; 3]), None));
             }
             Msg::Fed(batch) => {
                 let (_, e, b, prev) = cur.as_mut().ok_or("samples before a throw started")?;
@@ -130,8 +137,13 @@ impl<'s> Pool<'s> {
         Self::send(w, Msg::Fed(batch))
     }
 
-    /// Throw `ordinal` starts; its rates will have `bias` removed.
-    pub(crate) fn start(&mut self, ordinal: usize, bias: [f32; 3]) -> Result<(), IdentifyError> {
+    /// Throw `ordinal` starts; its rates will have `bias` removed (measured on the bench when
+    /// `Some`, none otherwise).
+    pub(crate) fn start(
+        &mut self,
+        ordinal: usize,
+        bias: Option<[f32; 3]>,
+    ) -> Result<(), IdentifyError> {
         let w = self.worker(ordinal);
         Self::flush(w)?;
         Self::send(w, Msg::Start { ordinal, bias })
