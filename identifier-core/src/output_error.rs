@@ -592,14 +592,16 @@ impl<const M: usize> Pooled<M> {
 }
 
 /// One stretch's fit as the pooling takes it: the `M` parameters of interest, their
-/// unit-noise covariance block, the cost, the number of parameters fitted, and the bias when
-/// the bias model was taken.
+/// unit-noise covariance block, the cost, the number of parameters fitted, the bias when
+/// the bias model was taken, and the lag-1 autocorrelation of its block residuals when it was
+/// measured (a fit that does not fit to the noise; 0 otherwise).
 pub(crate) struct StretchResult<const M: usize> {
     pub(crate) p: [f32; M],
     pub(crate) cov: Sym<M>,
     pub(crate) cost: f32,
     pub(crate) params: usize,
     pub(crate) bias: Option<[f32; 3]>,
+    pub(crate) lag1: f32,
 }
 
 /// What both fits keep between samples: the open stretch's blocks (`K` channels), the

@@ -417,6 +417,17 @@ fn normal<const P: usize>(
     theta: &[f32; P],
     trace: f32,
 ) -> Option<Normal<P>> {
+    normal_visit(blocks, limit, theta, trace, &mut |_, _| {})
+}
+
+/// [`normal`], calling `visit(axis, r)` with each block's residual on each axis in turn.
+fn normal_visit<const P: usize>(
+    blocks: &[Block<6>],
+    limit: usize,
+    theta: &[f32; P],
+    trace: f32,
+    visit: &mut impl FnMut(usize, f32),
+) -> Option<Normal<P>> {
     let m = entries_of(P);
     let e6 = six(theta, trace);
     let j = tensor_of(&e6);
@@ -512,6 +523,7 @@ fn normal<const P: usize>(
         let y = rate_of(b);
         for i in 0..3 {
             let r = y[i] - w[i] - half_v * w2[i] - bias[i];
+            visit(i, r);
             let mut row = [0.0f32; P];
             let ui = &u[i];
             if m == 6 {
@@ -607,23 +619,70 @@ fn fit_model<const P: usize, const PB: usize, const M: usize>(
         if bias_found(cost0, cost1, dof1, noise_floor) {
             if let Some(c1) = scaled_inverse(&f1) {
                 let g = |i: usize| t1.get(i).copied().unwrap_or(0.0);
+                let lag1 = if cost1 > 4.0 * noise_floor * noise_floor * dof1 {
+                    residual_lag1(blocks, &t1, trace)
+                } else {
+                    0.0
+                };
                 return Some(StretchResult {
                     p: leading(&t1),
                     cov: leading_block(&c1),
                     cost: cost1,
                     params: PB,
                     bias: Some([g(M + 3), g(M + 4), g(M + 5)]),
+                    lag1,
                 });
             }
         }
     }
+    let lag1 = if cost0 > fits {
+        residual_lag1(blocks, &th, trace)
+    } else {
+        0.0
+    };
     Some(StretchResult {
         p: leading(&th),
         cov: leading_block(&cov0),
         cost: cost0,
         params: P,
         bias: None,
+        lag1,
     })
+}
+
+/// Lag-1 autocorrelation of the block residuals at `theta` over the three axes: the sum of
+/// each block's residual times the previous block's on the same axis, over the sum of
+/// squares; 0 when the residuals cannot be computed.
+fn residual_lag1<const P: usize>(blocks: &[Block<6>], theta: &[f32; P], trace: f32) -> f32 {
+    let mut prev: [Option<f32>; 3] = [None; 3];
+    let (mut num, mut den) = (0.0f32, 0.0f32);
+    let ok = normal_visit(blocks, blocks.len(), theta, trace, &mut |i, r| {
+        if let Some(slot) = prev.get_mut(i) {
+            if let Some(p) = *slot {
+                num += p * r;
+            }
+            *slot = Some(r);
+        }
+        den += r * r;
+    })
+    .is_some();
+    if ok && den > 0.0 && num.is_finite() {
+        num / den
+    } else {
+        0.0
+    }
+}
+
+/// How much a residual of lag-1 autocorrelation `rho` inflates the variance of what is fitted
+/// to it, against white noise of the same variance: `(1 + rho) / (1 - rho)`, the variance of the
+/// mean of a first-order autoregressive series over that of a white one (`rho` taken in
+/// `[0, 0.98]`: at most 99). The blocks' residuals are independent for white gyro noise; a model
+/// error is not white (on the thrown-FC logs it is low-frequency, `rho` about 0.9), and the
+/// covariance scaled by the residual variance alone then claims several times the information
+/// the flight holds.
+fn ar1_inflation(rho: f32) -> f32 {
+    let r = rho.clamp(0.0, 0.98);
+    (1.0 + r) / (1.0 - r)
 }
 
 /// The absolute fit (six entries in kg m^2) from `init`: of all the blocks, and, when that
@@ -662,8 +721,14 @@ fn fit_stretch(
     if whole_noise <= 4.0 * noise_floor * noise_floor {
         return Some(whole);
     }
+    // The model does not hold: the covariance is inflated for the residual's correlation.
+    let inflate = |mut r: StretchResult<6>| {
+        let f = ar1_inflation(r.lag1);
+        r.cov = r.cov.map(|row| row.map(|x| x * f));
+        r
+    };
     let Some(later) = spin_up(blocks).and_then(|s| blocks.get(s..)) else {
-        return Some(whole);
+        return Some(inflate(whole));
     };
     let start = tensor_of(&whole.p);
     match from(later, &start) {
@@ -672,9 +737,9 @@ fn fit_stretch(
             // (status `ModelMismatch`, the covariance scaled to it), as the cost over the
             // whole stretch's degrees of freedom, which the pooling divides by.
             r.cost = whole_noise * ((3 * blocks.len()) as f32 - r.params as f32);
-            Some(r)
+            Some(inflate(r))
         }
-        _ => Some(whole),
+        _ => Some(inflate(whole)),
     }
 }
 

@@ -505,6 +505,7 @@ impl<const N: usize> RatioFit<N> {
                 cost: fit.cost,
                 params,
                 bias: biased.then_some([fit.theta[5], fit.theta[6], fit.theta[7]]),
+                lag1: 0.0,
             })
         })
     }
