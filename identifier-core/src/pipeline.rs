@@ -19,7 +19,9 @@ use crate::free_flight::{FreeFlightGate, GateSettings, WindowFit};
 use crate::refined::{Refined, RefinedSettings};
 use crate::refined_bias::RefinedBias;
 use crate::status::{physically_possible, precise, SampleStatus, Trust};
-use crate::tensor::{TensorEstimate, TensorEstimator, TensorModel, TensorSettings, TensorStatus};
+use crate::tensor::{
+    TensorEstimate, TensorEstimator, TensorMethod, TensorModel, TensorSettings, TensorStatus,
+};
 use crate::tensor_fit::{FlightTensorFit, TensorFit};
 use crate::trajectory::{FlightRatioFit, RatioFit, RatioFitEstimate};
 
@@ -335,9 +337,13 @@ impl<const N: usize> Pipeline<N> {
     /// in kg m^2 with rotor momentum, else up to scale) fits to the noise (residual at most
     /// [`TRAJECTORY_FIT_RATIO`] times the configured gyro noise), the tensor is that fit's
     /// (efficient for white gyro noise), described and judged by the tensor estimator;
-    /// otherwise the tensor estimator's own.
+    /// otherwise the tensor estimator's own, `ModelMismatch` instead of `Converged` or
+    /// `Converging` when a gyro bias was detected ([`Pipeline::ratios`] from
+    /// [`RatioSource::RefinedBias`]): the equation error has no bias model and takes a bias for
+    /// products of inertia (during a gyro-only flight with a bias of 2e-3 rad/s it said
+    /// `Converged`, with products of inertia on a body that has none).
     pub fn estimate(&self) -> TensorEstimate {
-        self.reported(self.estimator.estimate())
+        self.estimate_and_ratios().0
     }
 
     /// [`Pipeline::estimate`] from the estimator's own estimate `own`: the output-error fit's
@@ -404,8 +410,14 @@ impl<const N: usize> Pipeline<N> {
     /// (a few thousand operations) computed once for both: what a report needs.
     pub fn estimate_and_ratios(&self) -> (TensorEstimate, Ratios) {
         let own = self.estimator.estimate();
-        let t = self.reported(own);
+        let mut t = self.reported(own);
         let r = self.ratios_from(&t, &own);
+        let unmodelled_bias =
+            r.source == RatioSource::RefinedBias && t.method == TensorMethod::EquationError;
+        if unmodelled_bias && matches!(t.status, TensorStatus::Converged | TensorStatus::Converging)
+        {
+            t.status = TensorStatus::ModelMismatch;
+        }
         (t, r)
     }
 
