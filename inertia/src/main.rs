@@ -500,9 +500,21 @@ fn run_calibrate(args: inertia::calibrate::CalibrateArgs) -> Result<ExitCode, St
     let text = serde_json::to_string_pretty(&rep).map_err(|e| e.to_string())?;
     std::fs::write(&args.json, text).map_err(|e| format!("{}: {e}", args.json.display()))?;
     eprintln!(
-        "rotor inertia {:.4e} kg m^2; board tensor {:?} kg m^2; board throws' spread {:?}",
-        rep.rotor_inertia_kg_m2, rep.board_tensor_kg_m2, rep.board_spread
+        "rotor inertia {:.4e} +- {:.1e} kg m^2; board tensor {:?} kg m^2; board throws' spread {:?}",
+        rep.rotor_inertia_kg_m2,
+        rep.rotor_inertia_std_kg_m2.unwrap_or(f64::NAN),
+        rep.board_tensor_kg_m2,
+        rep.board_spread
     );
+    if let (Some(l), Some(s)) = (
+        rep.object_principal_moments_kg_m2,
+        rep.object_principal_moments_std_kg_m2,
+    ) {
+        eprintln!(
+            "object principal moments {:.4e} +- {:.1e}, {:.4e} +- {:.1e}, {:.4e} +- {:.1e} kg m^2",
+            l[0], s[0], l[1], s[1], l[2], s[2]
+        );
+    }
     Ok(ExitCode::SUCCESS)
 }
 
