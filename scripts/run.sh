@@ -3,7 +3,7 @@
 # stream decoded on the host.
 #
 #   scripts/run.sh [gen-log options, e.g. --duration 30 --noise 2e-3 --seed 3 --bus-error-every 50] [--json OUT.json]
-#   scripts/run.sh --log FILE [--rotor-inertia KG_M2 --rotor-axis x|y|z|-x|-y|-z [--rotor-poles N] [--rotor-unhold]]
+#   scripts/run.sh --log FILE [--rotor-inertia KG_M2 --rotor-axis x|y|z|-x|-y|-z [--rotor-poles N] [--rotor-raw | --rotor-unhold]]
 #                  [--noise-std RAD_S] [--gyro-unit rad/s|deg/s] [--time-unit s|ms|us] [--json OUT.json]
 #   scripts/run.sh --help
 #
@@ -38,7 +38,7 @@ usage() { sed -n '2,/^set -euo/p' "${BASH_SOURCE[0]}" | sed '$d; s/^# \{0,1\}//'
 
 die() { echo "run.sh: $*" >&2; echo "run.sh: see scripts/run.sh --help" >&2; exit 2; }
 
-log_file="" json="" rotor_inertia="" rotor_axis="" rotor_poles="" rotor_unhold=0 noise_std=""
+log_file="" json="" rotor_inertia="" rotor_axis="" rotor_poles="" rotor_hold="" noise_std=""
 gyro_unit="" time_unit=""
 gen_args=()
 bus_every=0
@@ -60,8 +60,7 @@ while [ $# -gt 0 ]; do
         --rotor-inertia) need "$@"; rotor_inertia="$2"; shift 2 ;;
         --rotor-axis) need "$@"; rotor_axis="$2"; shift 2 ;;
         --rotor-poles) need "$@"; rotor_poles="$2"; shift 2 ;;
-        --rotor-raw) shift ;;  # the default now (kept for older command lines)
-        --rotor-unhold) rotor_unhold=1; shift ;;
+        --rotor-raw|--rotor-unhold) rotor_hold="$1"; shift ;;
         --noise-std) need "$@"; noise_std="$2"; shift 2 ;;
         --gyro-unit) need "$@"; gyro_unit="$2"; shift 2 ;;
         --time-unit) need "$@"; time_unit="$2"; shift 2 ;;
@@ -77,12 +76,12 @@ if [ -z "$log_file" ]; then
     for o in rotor_inertia rotor_axis rotor_poles noise_std gyro_unit time_unit; do
         [ -z "${!o}" ] || die "--${o//_/-} applies to a replayed log: give --log FILE"
     done
-    [ "$rotor_unhold" = 0 ] || die "--rotor-unhold applies to a replayed log: give --log FILE"
+    [ -z "$rotor_hold" ] || die "$rotor_hold applies to a replayed log: give --log FILE"
 else
     [ ${#gen_args[@]} -eq 0 ] || die "${gen_args[0]} applies to the simulated run, not to --log"
     [ -f "$log_file" ] && [ -r "$log_file" ] || die "--log $log_file: no such readable file"
-    if [ -n "$rotor_axis$rotor_poles" ] || [ "$rotor_unhold" = 1 ]; then
-        [ -n "$rotor_inertia" ] || die "--rotor-axis, --rotor-poles and --rotor-unhold need --rotor-inertia"
+    if [ -n "$rotor_axis$rotor_poles$rotor_hold" ]; then
+        [ -n "$rotor_inertia" ] || die "--rotor-axis, --rotor-poles, --rotor-raw and --rotor-unhold need --rotor-inertia"
     fi
     if [ -n "$rotor_inertia" ]; then
         is_num "$rotor_inertia" && awk -v j="$rotor_inertia" 'BEGIN { exit !(j > 0) }' ||
@@ -138,7 +137,7 @@ if [ -n "$log_file" ]; then
     ex=(--input "$log_file" --out "$OUT/replay.bin")
     [ -z "$rotor_inertia" ] || ex+=(--rotor-inertia "$rotor_inertia" --rotor-axis="$rotor_axis")
     [ -z "$rotor_poles" ] || ex+=(--rotor-poles "$rotor_poles")
-    [ "$rotor_unhold" = 0 ] || ex+=(--rotor-unhold)
+    [ -z "$rotor_hold" ] || ex+=("$rotor_hold")
     [ -z "$noise_std" ] || ex+=(--noise-std "$noise_std")
     [ -z "$gyro_unit" ] || ex+=(--gyro-unit "$gyro_unit")
     [ -z "$time_unit" ] || ex+=(--time-unit "$time_unit")

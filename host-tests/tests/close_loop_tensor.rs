@@ -42,7 +42,7 @@ fn options(sim: &SimThrow) -> TensorOptions {
         alpha: 1e-3,
         block_s: 0.01,
         segments: None,
-        rotor_raw: false,
+        rotor_hold: inertia::identify::RotorHold::Unhold,
     }
 }
 

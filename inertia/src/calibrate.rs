@@ -71,8 +71,12 @@ pub fn unit_throw(
         }),
         segments: None,
         noise_std: None,
-        // As logged unless `INERTIA_ROTOR_UNHOLD` is set (see `inertia identify --rotor-unhold`).
-        rotor_raw: std::env::var_os("INERTIA_ROTOR_UNHOLD").is_none(),
+        // Decided from the log unless `INERTIA_ROTOR_UNHOLD` is set (`identify --rotor-unhold`).
+        rotor_hold: if std::env::var_os("INERTIA_ROTOR_UNHOLD").is_some() {
+            crate::identify::RotorHold::Unhold
+        } else {
+            crate::identify::RotorHold::Auto
+        },
         trace: false,
     };
     let rep = identify(rec, &opts).map_err(|e| format!("{}: {e}", rec.source))?;

@@ -38,7 +38,7 @@ use crate::readers::ReadError;
 use crate::recording::Recording;
 use crate::source::{RecordingSource, Source};
 use crate::survey::{survey, Wanted};
-pub use crate::unhold::unhold;
+pub use crate::unhold::{slow_telemetry, unhold, RotorHold};
 
 use inputs::{Inputs, RotorInput};
 
@@ -291,8 +291,9 @@ pub struct IdentifyOptions {
     pub segments: Option<Vec<(f64, f64)>>,
     /// Gyro noise, rad/s; estimated from the data when `None`.
     pub noise_std: Option<f32>,
-    /// Use the rotor speed exactly as logged (sample and hold) instead of [`unhold`].
-    pub rotor_raw: bool,
+    /// The rotor speed as logged, interpolated ([`unhold`]), or decided from the log's update
+    /// intervals ([`RotorHold`]).
+    pub rotor_hold: RotorHold,
     /// Keep the rates to plot ([`Report::trace`]).
     pub trace: bool,
 }
@@ -334,10 +335,22 @@ pub fn identify_source(
     };
     let wanted = Wanted {
         noise: opts.noise_std.is_none(),
-        unhold: if opts.rotor_raw { None } else { factor },
+        unhold: if opts.rotor_hold == RotorHold::Raw {
+            None
+        } else {
+            factor
+        },
     };
     progress.stage("checking");
-    let sv = survey(src, wanted, &mut |f| progress.update(f))?;
+    let mut sv = survey(src, wanted, &mut |f| progress.update(f))?;
+    // Fast telemetry is taken as logged (`RotorHold::Auto`): no interpolation plan then.
+    if sv
+        .unhold
+        .as_ref()
+        .is_some_and(|p| !opts.rotor_hold.interpolates(p.holds.is_slow()))
+    {
+        sv.unhold = None;
+    }
     let n = sv.samples;
     if n < 10 {
         return Err(IdentifyError::TooShort);

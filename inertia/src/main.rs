@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use inertia::close_loop::{analysis, report};
-use inertia::identify::{identify_source, parse_axis, IdentifyOptions, Progress, Rotor};
+use inertia::identify::{identify_source, parse_axis, IdentifyOptions, Progress, Rotor, RotorHold};
 use inertia::{read, Format, GyroUnit, ReadOptions, TimeUnit};
 
 mod replay;
@@ -107,14 +107,27 @@ struct RotorArgs {
     /// Motor poles, to turn eRPM into mechanical speed.
     #[arg(long)]
     rotor_poles: Option<u32>,
-    /// Use the rotor speed exactly as logged (sample and hold): the default since the fit from
-    /// the rotor's spin-up; kept so that older command lines still run.
+    /// Use the rotor speed exactly as logged (sample and hold). Default: as logged when the
+    /// telemetry updates fast (most changes within 5 ms), interpolated when it is slow.
     #[arg(long, conflicts_with = "rotor_unhold")]
     rotor_raw: bool,
     /// Interpolate the telemetry's held steps (each new value taken as the speed at the middle
-    /// of the hold it ends) instead of using the rotor speed as logged.
+    /// of the hold it ends), whatever its update rate.
     #[arg(long)]
     rotor_unhold: bool,
+}
+
+impl RotorArgs {
+    /// `--rotor-raw`, `--rotor-unhold` or the automatic choice.
+    fn hold(&self) -> RotorHold {
+        if self.rotor_raw {
+            RotorHold::Raw
+        } else if self.rotor_unhold {
+            RotorHold::Unhold
+        } else {
+            RotorHold::Auto
+        }
+    }
 }
 
 impl RotorArgs {
@@ -340,7 +353,7 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
         rotor,
         segments,
         noise_std: args.noise_std,
-        rotor_raw: !args.rotor.rotor_unhold,
+        rotor_hold: args.rotor.hold(),
         trace: args.plots.is_some(),
     };
     let mut bar = Bar::new(&args.input);
@@ -470,7 +483,7 @@ fn run_close_loop_tensor(
         alpha: args.alpha,
         block_s: 0.01,
         segments,
-        rotor_raw: !args.rotor.rotor_unhold,
+        rotor_hold: args.rotor.hold(),
     };
     let an = match tensor::analyse_tensor(&rec, &opts) {
         Ok(an) => an,
@@ -558,13 +571,7 @@ fn run_export_replay(args: ExportReplayArgs) -> Result<ExitCode, String> {
         time_unit: args.time_unit,
     };
     let rec = read(&args.input, &opts).map_err(|e| e.to_string())?;
-    let e = replay::export(
-        &rec,
-        rotor,
-        args.noise_std,
-        !args.rotor.rotor_unhold,
-        &args.out,
-    )?;
+    let e = replay::export(&rec, rotor, args.noise_std, args.rotor.hold(), &args.out)?;
     eprintln!(
         "{}: {} samples at {} Hz, noise {} rad/s, accelerometer {}",
         args.out.display(),

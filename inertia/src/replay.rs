@@ -13,7 +13,7 @@
 use std::io::Write;
 use std::path::Path;
 
-use inertia::identify::{estimate_noise, median_dt, unhold, Rotor};
+use inertia::identify::{estimate_noise, median_dt, slow_telemetry, unhold, Rotor, RotorHold};
 use inertia::Recording;
 
 /// What was written.
@@ -33,7 +33,7 @@ pub fn export(
     rec: &Recording,
     rotor: Option<Rotor>,
     noise_std: Option<f32>,
-    rotor_raw: bool,
+    hold: RotorHold,
     out: &Path,
 ) -> Result<Exported, String> {
     let n = rec.len();
@@ -58,7 +58,11 @@ pub fn export(
                 return Err("the log gives rotor speed as eRPM: --rotor-poles is needed".into());
             };
             // As identify: the sample-and-hold channel interpolated unless asked raw.
-            Some(if rotor_raw { s } else { unhold(&rec.t, &s) })
+            Some(if hold.interpolates(slow_telemetry(&rec.t, &s)) {
+                unhold(&rec.t, &s)
+            } else {
+                s
+            })
         }
     };
     let dt_of = |i: usize| -> f32 {

@@ -168,7 +168,10 @@ fn an_object_by_difference_comes_with_an_honest_uncertainty() {
         };
         let rep = inertia::calibrate::run(&args).unwrap();
         let sj = rep.rotor_inertia_std_kg_m2.unwrap();
-        assert!(sj > 0.0 && sj < 0.05 * rep.rotor_inertia_kg_m2, "j std {sj:e}");
+        assert!(
+            sj > 0.0 && sj < 0.05 * rep.rotor_inertia_kg_m2,
+            "j std {sj:e}"
+        );
         let l = rep.object_principal_moments_kg_m2.unwrap();
         let s = rep.object_principal_moments_std_kg_m2.unwrap();
         for i in 0..3 {

@@ -47,7 +47,7 @@
 use serde::Serialize;
 
 use super::model::cross;
-use crate::identify::{identify, unhold, IdentifyOptions, Rotor};
+use crate::identify::{identify, slow_telemetry, unhold, IdentifyOptions, Rotor, RotorHold};
 use crate::Recording;
 
 /// The effects (TB) can take, in a fixed order.
@@ -121,8 +121,8 @@ pub struct TensorOptions {
     pub block_s: f64,
     /// Hand-chosen free flights `(start_s, end_s)`; `None`: the gate's.
     pub segments: Option<Vec<(f64, f64)>>,
-    /// The rotor speed as logged (sample and hold), not interpolated.
-    pub rotor_raw: bool,
+    /// The rotor speed as logged, interpolated, or decided from the log ([`RotorHold`]).
+    pub rotor_hold: RotorHold,
 }
 
 /// One model's fit.
@@ -548,7 +548,7 @@ pub fn analyse_tensor(
             rotor: Some(opts.rotor),
             segments: opts.segments.clone(),
             noise_std: None,
-            rotor_raw: opts.rotor_raw,
+            rotor_hold: opts.rotor_hold,
             trace: false,
         },
     )
@@ -560,10 +560,10 @@ pub fn analyse_tensor(
     let speed = ch.rad_per_sec(opts.rotor.poles).ok_or_else(|| {
         Input("the log gives rotor speed as eRPM: --rotor-poles is needed".into())
     })?;
-    let speed = if opts.rotor_raw {
-        speed
-    } else {
+    let speed = if opts.rotor_hold.interpolates(slow_telemetry(&rec.t, &speed)) {
         unhold(&rec.t, &speed)
+    } else {
+        speed
     };
     let u = opts.rotor.axis.map(f64::from);
     let (p, q) = perpendiculars(u);

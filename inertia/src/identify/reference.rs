@@ -6,7 +6,8 @@ use std::ops::Range;
 use identifier_core::{FlightPipeline, PipelineSettings, TensorStatus};
 
 use super::{
-    estimate_noise, median_dt, unhold, EstimateJson, IdentifyError, IdentifyOptions, Report,
+    estimate_noise, median_dt, slow_telemetry, unhold, EstimateJson, IdentifyError,
+    IdentifyOptions, Report,
 };
 use crate::recording::Recording;
 
@@ -52,10 +53,10 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
                     "the log gives rotor speed as eRPM: --rotor-poles is needed".into(),
                 ));
             };
-            let speed = if opts.rotor_raw {
-                speed
-            } else {
+            let speed = if opts.rotor_hold.interpolates(slow_telemetry(&rec.t, &speed)) {
                 unhold(&rec.t, &speed)
+            } else {
+                speed
             };
             speed
                 .iter()

@@ -142,7 +142,7 @@ fn streaming_is_the_whole_log_bit_for_bit() {
         &p,
         &IdentifyOptions {
             rotor: rotor(),
-            rotor_raw: true,
+            rotor_hold: crate::identify::RotorHold::Raw,
             ..Default::default()
         },
     );
