@@ -411,6 +411,10 @@ pub struct CalibrateArgs {
     /// Where to write the JSON report.
     #[arg(long)]
     pub json: std::path::PathBuf,
+    /// Directory for `throws.svg`: each throw's moments against its group's mean, with the
+    /// standard deviations the throw reported.
+    #[arg(long)]
+    pub plots: Option<std::path::PathBuf>,
 }
 
 /// What the calibration computes from its three groups of throws: the rotor inertia, the

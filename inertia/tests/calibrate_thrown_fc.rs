@@ -165,6 +165,7 @@ fn an_object_by_difference_comes_with_an_honest_uncertainty() {
             rotor_axis: [0.0, 0.0, -1.0],
             rotor_poles: Some(12),
             json: std::env::temp_dir().join("unused.json"),
+            plots: None,
         };
         let rep = inertia::calibrate::run(&args).unwrap();
         let sj = rep.rotor_inertia_std_kg_m2.unwrap();
