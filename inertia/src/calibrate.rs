@@ -51,10 +51,34 @@ pub struct UnitThrow {
     pub imu_from_com: [f64; 3],
     /// RMS residual of the offset fit, m/s^2.
     pub offset_fit_rms: f64,
-    /// Status of the tensor estimate.
+    /// Status of the ratios (`pooled.status` of `inertia identify`).
     pub status: String,
+    /// Status of the tensor estimate (`pooled.tensor_status`): what decides whether the
+    /// throw can be used ([`usable`]).
+    pub tensor_status: String,
     /// Samples used.
     pub samples: u32,
+}
+
+/// A throw the calibration left out, and why.
+#[derive(Clone, Debug, Serialize)]
+pub struct SkippedThrow {
+    /// The log.
+    pub source: String,
+    /// `board`, `assembly` or `object`.
+    pub group: &'static str,
+    /// Why: the reader's or the identification's error, or the tensor's status.
+    pub reason: String,
+}
+
+/// Whether a throw's tensor may enter the calibration, from its status. Left out: a throw the
+/// estimator says it cannot determine (`TooFewSamples`, `NoExcitation`), one whose data are
+/// suspect (`UnitsLookWrong`, `Saturated`: the clipped stretch is lost and with it much of the
+/// spin-up that fixes the scale) or whose tensor is not a body's (`PhysicallyImpossible`).
+/// Kept: `Converged`, `Converging` and `ModelMismatch` (every thrown-FC throw is the last: its
+/// residual is a model error, and its reported standard deviation is scaled to it).
+pub fn usable(tensor_status: &str) -> bool {
+    matches!(tensor_status, "Converged" | "Converging" | "ModelMismatch")
 }
 
 /// Identifies one recording with the unit rotor inertia and fits the IMU offset.
@@ -103,6 +127,7 @@ pub fn unit_throw(
         imu_from_com,
         offset_fit_rms: rms,
         status: rep.pooled.status,
+        tensor_status: rep.pooled.tensor_status,
         samples: rep.pooled.samples,
     })
 }
@@ -581,8 +606,13 @@ pub struct CalibrationReport {
     pub object_principal_axes: Option<[[f64; 3]; 3]>,
     /// Its centre of mass from the IMU, m.
     pub object_com_from_imu_m: Option<[f64; 3]>,
-    /// Every throw identified with the unit rotor inertia.
+    /// Every throw used, identified with the unit rotor inertia: the board's, then the
+    /// assembly's, then the object's.
     pub throws: Vec<UnitThrow>,
+    /// How many of `throws` each group (board, assembly, object) contributed.
+    pub throws_per_group: [usize; 3],
+    /// The throws left out ([`usable`]), with the reason.
+    pub skipped: Vec<SkippedThrow>,
 }
 
 /// Runs `inertia calibrate`.
@@ -603,18 +633,52 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
     if !args.object.is_empty() && args.object_mass.is_none() {
         return Err("--object needs --object-mass".into());
     }
-    let unit_all = |paths: &[std::path::PathBuf]| -> Result<Vec<UnitThrow>, String> {
-        paths
-            .iter()
-            .map(|p| {
-                let rec = crate::read(p, &Default::default()).map_err(|e| e.to_string())?;
-                unit_throw(&rec, args.rotor_axis, args.rotor_poles)
-            })
-            .collect()
+    // A throw that cannot be read or identified, or whose tensor is not usable, is left out
+    // with its reason (a saturated or truncated log among good ones should not stop the
+    // calibration); a group left without a throw is an error.
+    let mut skipped = Vec::new();
+    let mut unit_all =
+        |paths: &[std::path::PathBuf], group: &'static str| -> Result<Vec<UnitThrow>, String> {
+            let mut used = Vec::new();
+            for p in paths {
+                let source = p.display().to_string();
+                let throw = crate::read(p, &Default::default())
+                    .map_err(|e| e.to_string())
+                    .and_then(|rec| unit_throw(&rec, args.rotor_axis, args.rotor_poles));
+                match throw {
+                    Ok(t) if usable(&t.tensor_status) => used.push(t),
+                    Ok(t) => skipped.push(SkippedThrow {
+                        source,
+                        group,
+                        reason: format!("tensor status {}", t.tensor_status),
+                    }),
+                    Err(reason) => skipped.push(SkippedThrow {
+                        source,
+                        group,
+                        reason,
+                    }),
+                }
+            }
+            if used.is_empty() && !paths.is_empty() {
+                return Err(format!("no usable {group} throw (every one was left out)"));
+            }
+            Ok(used)
+        };
+    let board = unit_all(&args.board, "board");
+    let assembly = unit_all(&args.assembly, "assembly");
+    let objects = unit_all(&args.object, "object");
+    let (board, assembly, objects) = match (board, assembly, objects) {
+        (Ok(b), Ok(a), Ok(o)) => (b, a, o),
+        (b, a, o) => {
+            let mut why: Vec<String> = [b.err(), a.err(), o.err()].into_iter().flatten().collect();
+            why.extend(
+                skipped
+                    .iter()
+                    .map(|s| format!("{} ({}): {}", s.source, s.group, s.reason)),
+            );
+            return Err(why.join("; "));
+        }
     };
-    let board = unit_all(&args.board)?;
-    let assembly = unit_all(&args.assembly)?;
-    let objects = unit_all(&args.object)?;
     let m = Masses {
         board: args.board_mass,
         proof: args.proof_mass,
@@ -670,6 +734,8 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
         object_principal_moments_std_kg_m2: eig.map(|_| u.moments.map(f64::sqrt)),
         object_principal_axes: eig.map(|e| e.1),
         object_com_from_imu_m: object_com,
+        throws_per_group: [board.len(), assembly.len(), objects.len()],
         throws: board.into_iter().chain(assembly).chain(objects).collect(),
+        skipped,
     })
 }

@@ -510,9 +510,11 @@ fn run_close_loop_tensor(
 
 fn run_calibrate(args: inertia::calibrate::CalibrateArgs) -> Result<ExitCode, String> {
     let rep = inertia::calibrate::run(&args)?;
+    for s in &rep.skipped {
+        eprintln!("warning: {} ({}) left out: {}", s.source, s.group, s.reason);
+    }
     if let Some(dir) = &args.plots {
-        let groups = [args.board.len(), args.assembly.len(), args.object.len()];
-        inertia::plots::calibrate_plot(&rep, groups, dir).map_err(|e| e.to_string())?;
+        inertia::plots::calibrate_plot(&rep, dir).map_err(|e| e.to_string())?;
     }
     let text = serde_json::to_string_pretty(&rep).map_err(|e| e.to_string())?;
     std::fs::write(&args.json, text).map_err(|e| format!("{}: {e}", args.json.display()))?;

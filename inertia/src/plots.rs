@@ -57,11 +57,8 @@ pub fn identify_plots(trace: &Trace, report: &Report, dir: &Path) -> anyhow::Res
 /// with the throw's reported standard deviation as an error bar. Where the bars cover the
 /// scatter, the reported uncertainty is honest; the board and assembly groups are the
 /// calibration's evidence.
-pub fn calibrate_plot(
-    rep: &CalibrationReport,
-    groups: [usize; 3],
-    dir: &Path,
-) -> anyhow::Result<()> {
+pub fn calibrate_plot(rep: &CalibrationReport, dir: &Path) -> anyhow::Result<()> {
+    let groups = rep.throws_per_group;
     std::fs::create_dir_all(dir)?;
     let path = dir.join("throws.svg");
     let root = SVGBackend::new(&path, (1100, 450)).into_drawing_area();

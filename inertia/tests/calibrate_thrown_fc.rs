@@ -187,3 +187,61 @@ fn an_object_by_difference_comes_with_an_honest_uncertainty() {
         }
     }
 }
+
+/// A log that cannot be identified among good ones (a truncated copy that stops before the
+/// throw, a file that is no log at all) is left out with its reason, and the calibration is
+/// the one without it, to the last bit; a group with nothing usable is an error that names
+/// every throw and why.
+#[test]
+fn a_bad_log_among_good_ones_is_left_out_with_its_reason() {
+    let (Some(board), Some(proof)) = (logs("device_only"), logs("proof_body")) else {
+        eprintln!("../shared/data/thrown-fc absent: skipped");
+        return;
+    };
+    let c = cuboid();
+    let dir = std::env::temp_dir().join(format!("calibrate-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bytes = std::fs::read(&board[0]).unwrap();
+    let truncated = dir.join("truncated.BFL");
+    std::fs::write(&truncated, &bytes[..bytes.len() / 3]).unwrap();
+    let garbage = dir.join("notes.txt");
+    std::fs::write(&garbage, "not a flight log\n").unwrap();
+    let args = |board: Vec<PathBuf>, assembly: Vec<PathBuf>| inertia::calibrate::CalibrateArgs {
+        board,
+        assembly,
+        proof_inertia: vec![c[1], c[0], c[2]],
+        board_mass: 0.10067,
+        proof_mass: 0.346,
+        object: vec![],
+        object_mass: None,
+        rotor_axis: [0.0, 0.0, -1.0],
+        rotor_poles: Some(12),
+        json: dir.join("unused.json"),
+        plots: None,
+    };
+    let clean = inertia::calibrate::run(&args(board[..3].to_vec(), proof[..3].to_vec())).unwrap();
+    assert!(clean.skipped.is_empty());
+    let mut with_bad = board[..3].to_vec();
+    with_bad.insert(1, truncated.clone());
+    with_bad.push(garbage.clone());
+    let rep = inertia::calibrate::run(&args(with_bad, proof[..3].to_vec())).unwrap();
+    for s in &rep.skipped {
+        println!("left out: {} ({}): {}", s.source, s.group, s.reason);
+    }
+    assert_eq!(rep.skipped.len(), 2);
+    assert!(rep
+        .skipped
+        .iter()
+        .all(|s| s.group == "board" && !s.reason.is_empty()));
+    assert_eq!(rep.throws_per_group, [3, 3, 0]);
+    assert_eq!(
+        rep.rotor_inertia_kg_m2.to_bits(),
+        clean.rotor_inertia_kg_m2.to_bits()
+    );
+    assert_eq!(rep.board_tensor_kg_m2, clean.board_tensor_kg_m2);
+    let err =
+        inertia::calibrate::run(&args(vec![truncated, garbage], proof[..3].to_vec())).unwrap_err();
+    println!("all bad: {err}");
+    assert!(err.contains("no usable board throw") && err.contains("notes.txt"));
+    std::fs::remove_dir_all(&dir).ok();
+}
