@@ -96,6 +96,9 @@ pub mod tensor;
 pub mod tensor_fit;
 pub mod trajectory;
 
+#[cfg(test)]
+mod test_motion;
+
 pub use convergence::{Convergence, ConvergenceMonitor};
 pub use extended::{
     ExtendedEstimate, ExtendedIdentifier, ExtendedSettings, ExtendedStatus, ExtraEffect,
