@@ -1,5 +1,6 @@
 //! Plots written by `inertia identify --plots DIR`: the gyro rates over the log with the free
-//! flights that reached the estimator shaded. The rates come from [`Trace`]: every `step`-th
+//! flights that reached the estimator shaded, and the pooled tensor's principal axes and
+//! equimomental ellipsoid. The rates come from [`Trace`]: every `step`-th
 //! sample, kept while the log was read (the log is never held whole). And by `inertia
 //! calibrate --plots DIR`: each throw's diagonal of the tensor against its group's mean, with
 //! the standard deviations the throws reported ([`calibrate_plot`]).
@@ -10,7 +11,8 @@ use plotters::prelude::*;
 use crate::calibrate::CalibrationReport;
 use crate::identify::{Report, Trace};
 
-/// Writes `DIR/rates.svg`.
+/// Writes `DIR/rates.svg` and, when the pooled estimate has principal axes, `DIR/axes.svg`
+/// ([`tensor_axes_plot`]).
 pub fn identify_plots(trace: &Trace, report: &Report, dir: &Path) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir)?;
     let path = dir.join("rates.svg");
@@ -49,6 +51,24 @@ pub fn identify_plots(trace: &Trace, report: &Report, dir: &Path) -> anyhow::Res
     }
     chart.configure_series_labels().border_style(BLACK).draw()?;
     root.present()?;
+    let p = &report.pooled;
+    if let (Some(m), Some(ax)) = (p.principal_moments, p.principal_axes) {
+        let unit = if p.tensor_kg_m2.is_some() {
+            "kg m^2"
+        } else {
+            "(J / trace J)"
+        };
+        tensor_axes_plot(
+            m.map(f64::from),
+            ax.map(|r| r.map(f64::from)),
+            unit,
+            &format!(
+                "pooled tensor ({}, {}): equimomental ellipsoid, principal axes",
+                p.tensor_status, p.tensor_method
+            ),
+            &dir.join("axes.svg"),
+        )?;
+    }
     Ok(())
 }
 
@@ -57,7 +77,30 @@ pub fn identify_plots(trace: &Trace, report: &Report, dir: &Path) -> anyhow::Res
 /// with the throw's reported standard deviation as an error bar. Where the bars cover the
 /// scatter, the reported uncertainty is honest; the board and assembly groups are the
 /// calibration's evidence.
+///
+/// Also `DIR/board_axes.svg` and, with an object, `DIR/object_axes.svg`: their tensors as
+/// [`tensor_axes_plot`] draws them.
 pub fn calibrate_plot(rep: &CalibrationReport, dir: &Path) -> anyhow::Result<()> {
+    let (m, ax) = crate::calibrate::eigen(&rep.board_tensor_kg_m2);
+    tensor_axes_plot(
+        m,
+        ax,
+        "kg m^2",
+        "the board (calibrated): equimomental ellipsoid, principal axes",
+        &dir.join("board_axes.svg"),
+    )?;
+    if let (Some(m), Some(ax)) = (
+        rep.object_principal_moments_kg_m2,
+        rep.object_principal_axes,
+    ) {
+        tensor_axes_plot(
+            m,
+            ax,
+            "kg m^2",
+            "the object (by difference): equimomental ellipsoid, principal axes",
+            &dir.join("object_axes.svg"),
+        )?;
+    }
     let groups = rep.throws_per_group;
     std::fs::create_dir_all(dir)?;
     let path = dir.join("throws.svg");
@@ -145,6 +188,134 @@ pub fn calibrate_plot(rep: &CalibrationReport, dir: &Path) -> anyhow::Result<()>
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
+
+/// Writes `path`: a rigid body's tensor as a picture, in the log's gyro axes. Drawn: the
+/// equimomental ellipsoid (the uniform solid ellipsoid with the same principal moments and
+/// axes, so the shape a reader would expect of the body: semi-axis along principal axis `i`
+/// proportional to `sqrt(I_j + I_k - I_i)`), scaled so its longest semi-axis is 1; each
+/// principal axis `v_i` in its colour, labelled with its moment; the gyro's x, y, z in grey.
+/// `moments` ascending, `axes` one unit vector (row) per moment. The picture is up to scale
+/// (the moments are in the labels): it shows which way the body is long and how its
+/// principal axes sit against the sensor's.
+pub fn tensor_axes_plot(
+    moments: [f64; 3],
+    axes: [[f64; 3]; 3],
+    unit: &str,
+    title: &str,
+    path: &Path,
+) -> anyhow::Result<()> {
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir)?;
+    }
+    let root = SVGBackend::new(path, (800, 700)).into_drawing_area();
+    root.fill(&WHITE)?;
+    // Semi-axes of the equimomental ellipsoid (a physically impossible tensor, which has a
+    // negative one, is drawn flat along that axis).
+    let sum: f64 = moments.iter().sum();
+    let mut semi = moments.map(|m| (sum - 2.0 * m).max(0.0).sqrt());
+    let longest = semi.iter().cloned().fold(0.0f64, f64::max);
+    if !(longest.is_finite() && longest > 0.0) {
+        anyhow::bail!("no tensor to draw (principal moments {moments:?})");
+    }
+    semi = semi.map(|s| s / longest);
+    // Sensor (x, y, z) drawn as plot (x, z, y): the sensor's z up.
+    let to_plot = |p: [f64; 3]| (p[0], p[2], p[1]);
+    let point = |u: f64, v: f64| {
+        // Unit sphere at longitude u, latitude v, stretched along the principal axes.
+        let e = [v.cos() * u.cos(), v.cos() * u.sin(), v.sin()];
+        let mut p = [0.0; 3];
+        for (k, ax) in axes.iter().enumerate() {
+            for c in 0..3 {
+                p[c] += semi[k] * e[k] * ax[c];
+            }
+        }
+        to_plot(p)
+    };
+    let lim = 1.45;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 17))
+        .margin(10)
+        .build_cartesian_3d(-lim..lim, -lim..lim, -lim..lim)?;
+    chart.with_projection(|mut p| {
+        p.yaw = 0.6;
+        p.pitch = 0.35;
+        p.scale = 1.0;
+        p.into_matrix()
+    });
+    let grey = RGBColor(150, 150, 150);
+    let n = 48;
+    let tau = std::f64::consts::TAU;
+    // Parallels and meridians of the ellipsoid.
+    for i in 1..8 {
+        let v = -std::f64::consts::FRAC_PI_2 + std::f64::consts::PI * i as f64 / 8.0;
+        chart.draw_series(LineSeries::new(
+            (0..=n).map(|k| point(tau * k as f64 / n as f64, v)),
+            RGBColor(120, 120, 200).mix(0.5),
+        ))?;
+    }
+    for i in 0..12 {
+        let u = tau * i as f64 / 12.0;
+        chart.draw_series(LineSeries::new(
+            (0..=n).map(|k| {
+                point(
+                    u,
+                    -std::f64::consts::FRAC_PI_2 + std::f64::consts::PI * k as f64 / n as f64,
+                )
+            }),
+            RGBColor(120, 120, 200).mix(0.5),
+        ))?;
+    }
+    // The gyro's axes.
+    for (c, name) in ["x", "y", "z"].iter().enumerate() {
+        let mut e = [0.0; 3];
+        e[c] = 1.35;
+        chart.draw_series(LineSeries::new(
+            [to_plot([0.0; 3]), to_plot(e)],
+            grey.stroke_width(1),
+        ))?;
+        chart.draw_series(std::iter::once(Text::new(
+            format!("gyro {name}"),
+            to_plot(e),
+            ("sans-serif", 14).into_font().color(&grey),
+        )))?;
+    }
+    // The principal axes, both ways, labelled with their moments.
+    for (k, color) in [(0usize, RED), (1, GREEN), (2, BLUE)] {
+        let a = axes[k];
+        let len = 1.2;
+        let tip = [a[0] * len, a[1] * len, a[2] * len];
+        let tail = tip.map(|x| -x);
+        chart
+            .draw_series(LineSeries::new(
+                [to_plot(tail), to_plot(tip)],
+                color.stroke_width(3),
+            ))?
+            .label(format!(
+                "I{} = {:.4e} {unit} along ({:+.3}, {:+.3}, {:+.3})",
+                k + 1,
+                moments[k],
+                a[0],
+                a[1],
+                a[2]
+            ))
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 15, y)], color.stroke_width(3))
+            });
+        chart.draw_series(std::iter::once(Text::new(
+            format!("I{}", k + 1),
+            to_plot(tip),
+            ("sans-serif", 15).into_font().color(&color),
+        )))?;
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerLeft)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()?;
