@@ -203,27 +203,36 @@ pub fn calibrate_plot(rep: &CalibrationReport, dir: &Path) -> anyhow::Result<()>
 /// `moments` ascending, `axes` one unit vector (row) per moment. The picture is up to scale
 /// (the moments are in the labels): it shows which way the body is long and how its
 /// principal axes sit against the sensor's.
+///
+/// Returns `Ok(false)` and writes nothing when there is no shape to draw (non-finite moments, or
+/// a tensor whose equimomental ellipsoid has no positive semi-axis): the JSON still says what
+/// was estimated, and the other plots are still written.
 pub fn tensor_axes_plot(
     moments: [f64; 3],
     axes: [[f64; 3]; 3],
     unit: &str,
     title: &str,
     path: &Path,
-) -> anyhow::Result<()> {
-    if let Some(dir) = path.parent() {
-        std::fs::create_dir_all(dir)?;
-    }
-    let root = SVGBackend::new(path, (800, 700)).into_drawing_area();
-    root.fill(&WHITE)?;
+) -> anyhow::Result<bool> {
     // Semi-axes of the equimomental ellipsoid (a physically impossible tensor, which has a
     // negative one, is drawn flat along that axis).
     let sum: f64 = moments.iter().sum();
     let mut semi = moments.map(|m| (sum - 2.0 * m).max(0.0).sqrt());
     let longest = semi.iter().cloned().fold(0.0f64, f64::max);
-    if !(longest.is_finite() && longest > 0.0) {
-        anyhow::bail!("no tensor to draw (principal moments {moments:?})");
+    let finite = moments
+        .iter()
+        .chain(axes.iter().flatten())
+        .all(|x| x.is_finite());
+    if !(finite && longest.is_finite() && longest > 0.0) {
+        return Ok(false);
     }
     semi = semi.map(|s| s / longest);
+    // The backend writes its file when dropped, so it is made only once there is a shape.
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir)?;
+    }
+    let root = SVGBackend::new(path, (800, 700)).into_drawing_area();
+    root.fill(&WHITE)?;
     // Sensor (x, y, z) drawn as plot (x, z, y): the sensor's z up.
     let to_plot = |p: [f64; 3]| (p[0], p[2], p[1]);
     let point = |u: f64, v: f64| {
@@ -320,5 +329,27 @@ pub fn tensor_axes_plot(
         .border_style(BLACK)
         .draw()?;
     root.present()?;
-    Ok(())
+    Ok(true)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const E: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+
+    /// A body is drawn; nothing to draw is not an error (the JSON says what was estimated).
+    #[test]
+    fn a_tensor_is_drawn_and_a_degenerate_one_skipped() {
+        let dir = std::env::temp_dir().join(format!("axes-plot-{}", std::process::id()));
+        let path = dir.join("axes.svg");
+        let drawn = tensor_axes_plot([1.0, 2.0, 2.5], E, "kg m^2", "t", &path).unwrap();
+        assert!(drawn && std::fs::metadata(&path).unwrap().len() > 1000);
+        let skipped = dir.join("none.svg");
+        for m in [[f64::NAN, 1.0, 1.0], [0.0, 0.0, 0.0], [-1.0, -1.0, -1.0]] {
+            assert!(!tensor_axes_plot(m, E, "", "t", &skipped).unwrap());
+            assert!(!skipped.exists());
+        }
+        std::fs::remove_dir_all(&dir).ok();
+    }
 }
