@@ -92,3 +92,114 @@ impl Method for Ml {
         [th[0], th[1], th[2]]
     }
 }
+
+/// Output-error maximum likelihood with the ratios' constraint built in: `a` from two moment
+/// ratios `r1 = A1/A2`, `r3 = A3/A2`, `a1 = (1 - r3)/r1`, `a2 = r3 - r1`, `a3 = (r1 - 1)/r3`
+/// (so `a1 + a2 + a3 + a1 a2 a3 = 0` holds exactly), and `omega0`: five parameters. The
+/// reference for the pipeline's ratio fit, which has the same model: the constrained bound is
+/// what both aim at, and where neither reaches it the excess is the maximum likelihood's own
+/// at that sample size, not the pipeline's.
+pub struct MlConstrained;
+
+/// `a` at `(r1, r3)` and its Jacobian `da / d(r1, r3)`.
+fn a_of_ratios(r1: f64, r3: f64) -> ([f64; 3], [[f64; 2]; 3]) {
+    let a = [(1.0 - r3) / r1, r3 - r1, (r1 - 1.0) / r3];
+    let d = [
+        [-(1.0 - r3) / (r1 * r1), -1.0 / r1],
+        [-1.0, 1.0],
+        [1.0 / r3, -(r1 - 1.0) / (r3 * r3)],
+    ];
+    (a, d)
+}
+
+type M5 = nalgebra::SMatrix<f64, 5, 5>;
+type V5 = nalgebra::SVector<f64, 5>;
+
+/// Cost and normal equations of the constrained model at `theta = (r1, r3, omega0)`.
+fn normal5(theta: &V5, y: &[[f64; 3]], dt: f64, sub: usize) -> (f64, M5, V5) {
+    let (a, d) = a_of_ratios(theta[0], theta[1]);
+    let w0 = [theta[2], theta[3], theta[4]];
+    let tr = sensitivities(a, w0, y.len(), dt, sub);
+    let mut jtj = M5::zeros();
+    let mut jtr = V5::zeros();
+    let mut cost = 0.0;
+    for (x, yk) in tr.iter().zip(y) {
+        for i in 0..3 {
+            let r = yk[i] - x.w[i];
+            cost += r * r;
+            let mut s = [0.0; 5];
+            for k in 0..2 {
+                s[k] = (0..3).map(|j| x.s[i][j] * d[j][k]).sum();
+            }
+            s[2..5].copy_from_slice(&x.s[i][3..6]);
+            for c in 0..5 {
+                jtr[c] += s[c] * r;
+                for e in 0..5 {
+                    jtj[(c, e)] += s[c] * s[e];
+                }
+            }
+        }
+    }
+    (cost, jtj, jtr)
+}
+
+/// Fits the constrained model from the unconstrained fit `start = (a, omega0)`; `None` when
+/// `a` gives no finite moment ratios to start from.
+pub fn fit_constrained(y: &[[f64; 3]], dt: f64, start: [f64; 6]) -> Option<[f64; 3]> {
+    let sub = if dt > 2e-3 { 4 } else { 1 };
+    // From a2 = r3 - r1 and a3 = (r1 - 1)/r3 (well conditioned where a1 = -1, a2 = 1 are
+    // not: the racquet's two large moments make A1/A2 and A3/A2 large and a1 + 1 small).
+    let [_, a2, a3] = [start[0], start[1], start[2]];
+    let r1 = (1.0 + a2 * a3) / (1.0 - a3);
+    let r3 = r1 + a2;
+    if !(r1.is_finite() && r3.is_finite() && r1 != 0.0 && r3 != 0.0) {
+        return None;
+    }
+    let mut theta = V5::new(r1, r3, start[3], start[4], start[5]);
+    let (mut cost, mut jtj, mut jtr) = normal5(&theta, y, dt, sub);
+    let mut mu = 1e-6;
+    for _ in 0..50 {
+        let mut m = jtj;
+        for i in 0..5 {
+            m[(i, i)] *= 1.0 + mu;
+        }
+        let Some(step) = m.cholesky().map(|c| c.solve(&jtr)) else {
+            mu *= 10.0;
+            continue;
+        };
+        let cand = theta + step;
+        let (c2, j2, r2) = normal5(&cand, y, dt, sub);
+        if c2.is_finite() && c2 <= cost {
+            let done = (cost - c2) <= 1e-12 * cost;
+            theta = cand;
+            cost = c2;
+            jtj = j2;
+            jtr = r2;
+            mu = (mu * 0.1).max(1e-9);
+            if done {
+                break;
+            }
+        } else {
+            mu *= 10.0;
+            if mu > 1e6 {
+                break;
+            }
+        }
+    }
+    Some(a_of_ratios(theta[0], theta[1]).0)
+}
+
+impl Method for MlConstrained {
+    fn name(&self) -> &'static str {
+        "output-error ML, constrained (batch)"
+    }
+    fn estimate(&self, t: &[f64], y: &[[f64; 3]]) -> [f64; 3] {
+        if t.len() < 8 {
+            return [0.0; 3];
+        }
+        let dt = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+        let a0 = batch_ls::BatchLs.estimate(t, y);
+        let th = fit(y, dt, a0);
+        fit_constrained(y, dt, th).unwrap_or([f64::NAN; 3])
+    }
+}

@@ -242,6 +242,7 @@ pub fn all_methods() -> Vec<Box<dyn Method>> {
         Box::new(rls::Rls),
         Box::new(ekf::Ekf),
         Box::new(ml::Ml),
+        Box::new(ml::MlConstrained),
     ]
 }
 
