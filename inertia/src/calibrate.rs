@@ -73,8 +73,9 @@ pub struct SkippedThrow {
 
 /// Whether a throw's tensor may enter the calibration, from its status. Left out: a throw the
 /// estimator says it cannot determine (`TooFewSamples`, `NoExcitation`), one whose data are
-/// suspect (`UnitsLookWrong`, `Saturated`: the clipped stretch is lost and with it much of the
-/// spin-up that fixes the scale) or whose tensor is not a body's (`PhysicallyImpossible`).
+/// suspect (`UnitsLookWrong`; `Saturated`: the clipped stretches never reach the fit, and a
+/// clipped throw is one the product does not trust) or whose tensor is not a body's
+/// (`PhysicallyImpossible`).
 /// Kept: `Converged`, `Converging` and `ModelMismatch` (every thrown-FC throw is the last: its
 /// residual is a model error, and its reported standard deviation is scaled to it).
 pub fn usable(tensor_status: &str) -> bool {
@@ -436,8 +437,9 @@ pub struct CalibrateArgs {
     /// Where to write the JSON report.
     #[arg(long)]
     pub json: std::path::PathBuf,
-    /// Directory for `throws.svg`: each throw's moments against its group's mean, with the
-    /// standard deviations the throw reported.
+    /// Directory for the plots: `throws.svg` (each throw's moments against its group's mean,
+    /// with the standard deviations the throw reported), `board_axes.svg` and, with an object,
+    /// `object_axes.svg` (the tensors' equimomental ellipsoids and principal axes).
     #[arg(long)]
     pub plots: Option<std::path::PathBuf>,
 }
