@@ -25,6 +25,37 @@ mod inputs;
 mod passes;
 #[cfg(test)]
 mod reference;
+/// Relative standard deviation below which the gyro's scale factors, not its noise, limit an
+/// estimate: a MEMS gyro's are typically within 0.5-1 % uncalibrated, and they move `a` and the
+/// tensor's scale by about as much as their differences (README, "Gyro scale factors").
+const SCALE_FLOOR: f32 = 2e-3;
+
+/// A warning when the pooled estimate's reported standard deviations are below
+/// [`SCALE_FLOOR`] of what they measure: they are the gyro noise's only, and the data cannot
+/// show a scale-factor error (it leaves the torque-free equations exactly satisfied with other
+/// ratios).
+fn scale_floor_warning(p: &EstimateJson) -> Option<String> {
+    let rel = |v: f32, s: f32| (v.abs() > 0.05).then(|| s / v.abs());
+    let mut worst: Option<f32> = None;
+    if let (Some(a), Some(s)) = (p.a, p.std_a) {
+        for i in 0..3 {
+            if let Some(r) = rel(a[i], s[i]) {
+                worst = Some(worst.map_or(r, |w: f32| w.max(r)));
+            }
+        }
+    }
+    let below = worst.is_some_and(|w| w.is_finite() && w < SCALE_FLOOR);
+    below.then(|| {
+        format!(
+            "the standard deviation of a (at most {:.3} % of a) is the gyro noise's only: an \
+             uncalibrated gyro's scale factors (typically 0.5-1 %) move a by about as much as \
+             their differences, and the data cannot show it; calibrate them to trust a beyond \
+             that (README, 'Gyro scale factors')",
+            worst.unwrap_or(0.0) * 100.0
+        )
+    })
+}
+
 #[cfg(test)]
 mod tests;
 mod throws;
@@ -460,6 +491,7 @@ pub fn identify_source(
             pooled.ratios.status
         ));
     }
+    warnings.extend(scale_floor_warning(&pooled_json));
     Ok(Report {
         input: src.name(),
         log_samples: n,

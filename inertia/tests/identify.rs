@@ -120,6 +120,14 @@ fn csv_toss_converges_to_the_truth() {
     let (code, v, err) = run(&["--input", csv.to_str().unwrap()], &d.join("toss.json"));
     assert_eq!(code, 0, "{err}");
     assert_eq!(v["pooled"]["status"], "Converged", "{err}");
+    // 10 s of a well-excited body: the noise's std is far below what the gyro's scale factors
+    // allow, and the tool says so.
+    let warned = v["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|w| w.as_str().unwrap_or("").contains("scale factors"));
+    assert!(warned, "{:?}", v["warnings"]);
     let (a, s) = a_of(&v).unwrap();
     let t = truth();
     for i in 0..3 {
