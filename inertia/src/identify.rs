@@ -34,7 +34,7 @@ const SCALE_FLOOR: f32 = 2e-3;
 /// [`SCALE_FLOOR`] of what they measure: they are the gyro noise's only, and the data cannot
 /// show a scale-factor error (it leaves the torque-free equations exactly satisfied with other
 /// ratios).
-fn scale_floor_warning(p: &EstimateJson) -> Option<String> {
+pub(crate) fn scale_floor_warning(p: &EstimateJson) -> Option<String> {
     let rel = |v: f32, s: f32| (v.abs() > 0.05).then(|| s / v.abs());
     let mut worst: Option<f32> = None;
     if let (Some(a), Some(s)) = (p.a, p.std_a) {
@@ -50,7 +50,8 @@ fn scale_floor_warning(p: &EstimateJson) -> Option<String> {
             "the standard deviation of a (at most {:.3} % of a) is the gyro noise's only: an \
              uncalibrated gyro's scale factors (typically 0.5-1 %) move a by about as much as \
              their differences, and the data cannot show it; calibrate them to trust a beyond \
-             that (README, 'Gyro scale factors')",
+             that, or give --gyro-scale-tolerance to have it in the report (README, 'Gyro scale \
+             factors')",
             worst.unwrap_or(0.0) * 100.0
         )
     })
@@ -198,6 +199,10 @@ pub struct Report {
     /// The rates to plot, when asked for ([`IdentifyOptions::trace`]; not written to JSON).
     #[serde(skip)]
     pub trace: Option<Trace>,
+    /// How far the gyro's scale-factor tolerance moves the pooled estimate, when asked for
+    /// (`--gyro-scale-tolerance`, [`scale_systematic`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gyro_scale: Option<ScaleSystematic>,
 }
 
 /// The rates of every `step`-th sample (`step = max(n / 20000, 1)`), the whole log's time
@@ -504,5 +509,89 @@ pub fn identify_source(
         warnings,
         fed_runs: runs.into_iter().map(|r| r.ranges).collect(),
         trace,
+        gyro_scale: None,
+    })
+}
+
+/// The systematic uncertainty of the pooled estimate from the gyro's scale factors, which the
+/// data cannot show (a scale-factor error leaves the torque-free equations satisfied with other
+/// ratios): the log identified again with each gyro axis reading `tolerance` high in turn.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ScaleSystematic {
+    /// The 1-sigma relative tolerance of each axis's scale factor, percent.
+    pub gyro_scale_tolerance_percent: f32,
+    /// `a` with gyro axis x, y, z (one row each) reading the tolerance high, minus the pooled
+    /// `a` (`None` where either has no `a`).
+    pub a_shift: [Option<[f32; 3]>; 3],
+    /// `sqrt(sum over axes of the shift^2)`: the standard deviation of `a` from independent
+    /// scale-factor errors of that size.
+    pub std_a: Option<[f32; 3]>,
+    /// `sqrt(std_a(noise)^2 + std_a(scale)^2)`.
+    pub total_std_a: Option<[f32; 3]>,
+    /// The same standard deviation for each entry of the tensor (kg m^2 with a rotor, else
+    /// `J / trace J`).
+    pub std_tensor: Option<[[f32; 3]; 3]>,
+}
+
+/// [`ScaleSystematic`] for `base`, the report of `src` under `opts`, and a tolerance in percent:
+/// three more identifications (one per gyro axis) of the same samples scaled by
+/// `1 + tolerance / 100`, to first order in the tolerance.
+pub fn scale_systematic(
+    src: &dyn Source,
+    opts: &IdentifyOptions,
+    base: &Report,
+    tolerance_percent: f32,
+) -> Result<ScaleSystematic, IdentifyError> {
+    let opts = IdentifyOptions {
+        trace: false,
+        ..opts.clone()
+    };
+    let tensor_of = |p: &EstimateJson| p.tensor_kg_m2.or(p.tensor_normalized);
+    let (a0, t0) = (base.pooled.a, tensor_of(&base.pooled));
+    let mut a_shift = [None; 3];
+    let mut t_shift = [None; 3];
+    for k in 0..3 {
+        let mut scale = [1.0f32; 3];
+        scale[k] += tolerance_percent / 100.0;
+        let scaled = crate::source::ScaledSource::new(src, scale);
+        let rep = identify_source(&scaled, &opts, &mut Quiet)?;
+        a_shift[k] = a0
+            .zip(rep.pooled.a)
+            .map(|(a, b)| std::array::from_fn(|i| b[i] - a[i]));
+        t_shift[k] = t0.zip(tensor_of(&rep.pooled)).map(|(a, b)| {
+            std::array::from_fn::<[f32; 3], 3, _>(|r| std::array::from_fn(|c| b[r][c] - a[r][c]))
+        });
+    }
+    let std_a = (a_shift.iter().all(Option::is_some)).then(|| {
+        std::array::from_fn(|i| {
+            a_shift
+                .iter()
+                .flatten()
+                .map(|d| d[i] * d[i])
+                .sum::<f32>()
+                .sqrt()
+        })
+    });
+    let total_std_a = std_a
+        .zip(base.pooled.std_a)
+        .map(|(s, n): ([f32; 3], [f32; 3])| std::array::from_fn(|i| s[i].hypot(n[i])));
+    let std_tensor = (t_shift.iter().all(Option::is_some)).then(|| {
+        std::array::from_fn(|r| {
+            std::array::from_fn(|c| {
+                t_shift
+                    .iter()
+                    .flatten()
+                    .map(|d| d[r][c] * d[r][c])
+                    .sum::<f32>()
+                    .sqrt()
+            })
+        })
+    });
+    Ok(ScaleSystematic {
+        gyro_scale_tolerance_percent: tolerance_percent,
+        a_shift,
+        std_a,
+        total_std_a,
+        std_tensor,
     })
 }

@@ -187,6 +187,12 @@ struct IdentifyArgs {
     /// Directory for plots (SVG).
     #[arg(long)]
     plots: Option<PathBuf>,
+    /// The gyro's scale-factor tolerance per axis, percent (1 sigma; a MEMS gyro's is typically
+    /// 0.5-1 uncalibrated): the log is identified three more times with one axis scaled by it,
+    /// and `gyro_scale` in the JSON gives how far that moves the estimate (the data cannot show a
+    /// scale-factor error, and the standard deviations are otherwise the noise's only).
+    #[arg(long)]
+    gyro_scale_tolerance: Option<f32>,
 }
 
 fn parse_gyro_unit(s: &str) -> Result<GyroUnit, String> {
@@ -359,7 +365,25 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
     let mut bar = Bar::new(&args.input);
     let report = identify_source(&*src, &iopts, &mut bar).map_err(|e| e.to_string());
     bar.clear();
-    let report = report?;
+    let mut report = report?;
+    if let Some(tol) = args.gyro_scale_tolerance {
+        if !(tol.is_finite() && tol > 0.0 && tol < 50.0) {
+            return Err(format!(
+                "--gyro-scale-tolerance {tol}: a percentage above 0 and below 50"
+            ));
+        }
+        let sys = inertia::identify::scale_systematic(&*src, &iopts, &report, tol)
+            .map_err(|e| e.to_string())?;
+        if let (Some(s), Some(n)) = (sys.std_a, report.pooled.std_a) {
+            if (0..3).any(|i| s[i] > 3.0 * n[i]) {
+                report.warnings.push(format!(
+                    "a {tol} % gyro scale tolerance moves a by {s:?} (1 sigma), more than three \
+                     times the noise's standard deviation {n:?}: see gyro_scale.total_std_a"
+                ));
+            }
+        }
+        report.gyro_scale = Some(sys);
+    }
     for w in &report.warnings {
         eprintln!("warning: {w}");
     }

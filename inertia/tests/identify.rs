@@ -435,3 +435,62 @@ fn thrown_fc_free_flights_found_hand_and_catch_excluded() {
         }
     }
 }
+
+/// A gyro whose x and y axes read 0.2 % high and low: the fit cannot see it, its `std_a` (the
+/// noise's) is far too small for the error it leaves, and `--gyro-scale-tolerance 0.2` puts the
+/// scale factors' share into `gyro_scale.total_std_a`, which covers the error.
+#[test]
+fn the_gyro_scale_tolerance_covers_a_scale_factor_error() {
+    let d = out_dir();
+    let mut rows = toss(MOM, [1.0, 1.0, 1.0], 200.0, 10.0, 2e-3, 3);
+    for r in rows.iter_mut() {
+        r[1] *= 1.002;
+        r[2] *= 0.998;
+    }
+    let csv = d.join("scaled.csv");
+    write_csv(&csv, &rows, 1.0, 1.0);
+    let (code, v, err) = run(
+        &[
+            "--input",
+            csv.to_str().unwrap(),
+            "--gyro-scale-tolerance",
+            "0.2",
+        ],
+        &d.join("scaled.json"),
+    );
+    assert_eq!(code, 0, "{err}");
+    let (a, s) = a_of(&v).unwrap();
+    let g = &v["gyro_scale"];
+    let total: Vec<f64> = g["total_std_a"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    let t = truth();
+    let mut worst_noise = 0.0f64;
+    for i in 0..3 {
+        let (z_noise, z_total) = ((a[i] - t[i]) / s[i], (a[i] - t[i]) / total[i]);
+        println!(
+            "a{}: error {:+.2e}, over the noise's std {z_noise:+.1}, over the total std {z_total:+.2}",
+            i + 1,
+            a[i] - t[i]
+        );
+        worst_noise = worst_noise.max(z_noise.abs());
+        assert!(z_total.abs() < 3.0, "a{}: {z_total}", i + 1);
+    }
+    assert!(
+        worst_noise > 5.0,
+        "the scale error should be far beyond the noise's std"
+    );
+    assert!(
+        v["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap_or("").contains("gyro scale tolerance")),
+        "{:?}",
+        v["warnings"]
+    );
+    assert!(g["std_tensor"].is_array());
+}

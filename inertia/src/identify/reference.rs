@@ -193,6 +193,7 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
             pooled_ratios.status
         ));
     }
+    warnings.extend(super::scale_floor_warning(&pooled));
     Ok(Report {
         input: rec.source.clone(),
         log_samples: n,
@@ -209,5 +210,6 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
             .map(|r| ranges(&r))
             .collect(),
         trace: None,
+        gyro_scale: None,
     })
 }
