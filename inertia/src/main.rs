@@ -372,17 +372,25 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
                 "--gyro-scale-tolerance {tol}: a percentage above 0 and below 50"
             ));
         }
-        let sys = inertia::identify::scale_systematic(&*src, &iopts, &report, tol)
-            .map_err(|e| e.to_string())?;
-        if let (Some(s), Some(n)) = (sys.std_a, report.pooled.std_a) {
-            if (0..3).any(|i| s[i] > 3.0 * n[i]) {
-                report.warnings.push(format!(
-                    "a {tol} % gyro scale tolerance moves a by {s:?} (1 sigma), more than three \
-                     times the noise's standard deviation {n:?}: see gyro_scale.total_std_a"
-                ));
+        // The estimate stands without it: a re-identification that fails is a warning.
+        match inertia::identify::scale_systematic(&*src, &iopts, &report, tol) {
+            Ok(sys) => {
+                if let (Some(s), Some(n)) = (sys.std_a, report.pooled.std_a) {
+                    if (0..3).any(|i| s[i] > 3.0 * n[i]) {
+                        report.warnings.push(format!(
+                            "a {tol} % gyro scale tolerance moves a by {s:?} (1 sigma), more \
+                             than three times the noise's standard deviation {n:?}: see \
+                             gyro_scale.total_std_a"
+                        ));
+                    }
+                }
+                report.gyro_scale = Some(sys);
             }
+            Err(e) => report.warnings.push(format!(
+                "--gyro-scale-tolerance: the log scaled by it could not be identified ({e}); \
+                 no gyro_scale in the report"
+            )),
         }
-        report.gyro_scale = Some(sys);
     }
     for w in &report.warnings {
         eprintln!("warning: {w}");
