@@ -372,6 +372,7 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
                 "--gyro-scale-tolerance {tol}: a percentage above 0 and below 50"
             ));
         }
+        eprintln!("identifying the log three more times, one gyro axis scaled by {tol} % each");
         // The estimate stands without it: a re-identification that fails is a warning.
         match inertia::identify::scale_systematic(&*src, &iopts, &report, tol) {
             Ok(sys) => {
