@@ -13,43 +13,53 @@ use crate::crb::{sensitivities, M6, V6};
 /// The output-error fit.
 pub struct Ml;
 
-/// Sum of squared residuals and the normal equations at `theta`.
-fn normal(theta: &V6, y: &[[f64; 3]], dt: f64, sub: usize) -> (f64, M6, V6) {
-    let a = [theta[0], theta[1], theta[2]];
-    let w0 = [theta[3], theta[4], theta[5]];
+type Mat<const N: usize> = nalgebra::SMatrix<f64, N, N>;
+type Vector<const N: usize> = nalgebra::SVector<f64, N>;
+
+/// Sum of squared residuals and the normal equations of a model whose trajectory is that of
+/// `(a, omega0)`, each sample's sensitivity row (`d omega_i / d(a, omega0)`, six entries)
+/// turned into the model's `N` parameters by `row`.
+fn normal_rows<const N: usize>(
+    a: [f64; 3],
+    w0: [f64; 3],
+    y: &[[f64; 3]],
+    dt: f64,
+    sub: usize,
+    row: impl Fn(&[f64; 6]) -> [f64; N],
+) -> (f64, Mat<N>, Vector<N>) {
     let tr = sensitivities(a, w0, y.len(), dt, sub);
-    let mut jtj = M6::zeros();
-    let mut jtr = V6::zeros();
+    let mut jtj = Mat::<N>::zeros();
+    let mut jtr = Vector::<N>::zeros();
     let mut cost = 0.0;
     for (x, yk) in tr.iter().zip(y) {
         for i in 0..3 {
             let r = yk[i] - x.w[i];
             cost += r * r;
-            for c in 0..6 {
-                jtr[c] += x.s[i][c] * r;
-                for d in c..6 {
-                    jtj[(c, d)] += x.s[i][c] * x.s[i][d];
+            let s = row(&x.s[i]);
+            for c in 0..N {
+                jtr[c] += s[c] * r;
+                for d in 0..N {
+                    jtj[(c, d)] += s[c] * s[d];
                 }
             }
-        }
-    }
-    for c in 0..6 {
-        for d in 0..c {
-            jtj[(c, d)] = jtj[(d, c)];
         }
     }
     (cost, jtj, jtr)
 }
 
-/// Fits `(a, omega0)` to uniformly sampled `y` with period `dt`, from the initial `a0`.
-pub fn fit(y: &[[f64; 3]], dt: f64, a0: [f64; 3]) -> [f64; 6] {
-    let sub = if dt > 2e-3 { 4 } else { 1 };
-    let mut theta = V6::new(a0[0], a0[1], a0[2], y[0][0], y[0][1], y[0][2]);
-    let (mut cost, mut jtj, mut jtr) = normal(&theta, y, dt, sub);
+/// Gauss-Newton with Levenberg damping from `theta` on `normal` (cost and normal equations),
+/// at most `iterations` steps, stopping once an accepted step gains at most `tol` of the cost.
+fn levenberg<const N: usize>(
+    mut theta: Vector<N>,
+    normal: impl Fn(&Vector<N>) -> (f64, Mat<N>, Vector<N>),
+    iterations: usize,
+    tol: f64,
+) -> Vector<N> {
+    let (mut cost, mut jtj, mut jtr) = normal(&theta);
     let mut mu = 1e-6;
-    for _ in 0..30 {
+    for _ in 0..iterations {
         let mut m = jtj;
-        for i in 0..6 {
+        for i in 0..N {
             m[(i, i)] *= 1.0 + mu;
         }
         let Some(step) = m.cholesky().map(|c| c.solve(&jtr)) else {
@@ -57,9 +67,9 @@ pub fn fit(y: &[[f64; 3]], dt: f64, a0: [f64; 3]) -> [f64; 6] {
             continue;
         };
         let cand = theta + step;
-        let (c2, j2, r2) = normal(&cand, y, dt, sub);
+        let (c2, j2, r2) = normal(&cand);
         if c2.is_finite() && c2 <= cost {
-            let done = (cost - c2) <= 1e-10 * cost;
+            let done = (cost - c2) <= tol * cost;
             theta = cand;
             cost = c2;
             jtj = j2;
@@ -75,6 +85,21 @@ pub fn fit(y: &[[f64; 3]], dt: f64, a0: [f64; 3]) -> [f64; 6] {
             }
         }
     }
+    theta
+}
+
+/// Sum of squared residuals and the normal equations at `theta`.
+fn normal(theta: &V6, y: &[[f64; 3]], dt: f64, sub: usize) -> (f64, M6, V6) {
+    let a = [theta[0], theta[1], theta[2]];
+    let w0 = [theta[3], theta[4], theta[5]];
+    normal_rows(a, w0, y, dt, sub, |s| *s)
+}
+
+/// Fits `(a, omega0)` to uniformly sampled `y` with period `dt`, from the initial `a0`.
+pub fn fit(y: &[[f64; 3]], dt: f64, a0: [f64; 3]) -> [f64; 6] {
+    let sub = if dt > 2e-3 { 4 } else { 1 };
+    let theta = V6::new(a0[0], a0[1], a0[2], y[0][0], y[0][1], y[0][2]);
+    let theta = levenberg(theta, |th| normal(th, y, dt, sub), 30, 1e-10);
     std::array::from_fn(|i| theta[i])
 }
 
@@ -112,35 +137,18 @@ fn a_of_ratios(r1: f64, r3: f64) -> ([f64; 3], [[f64; 2]; 3]) {
     (a, d)
 }
 
-type M5 = nalgebra::SMatrix<f64, 5, 5>;
-type V5 = nalgebra::SVector<f64, 5>;
-
 /// Cost and normal equations of the constrained model at `theta = (r1, r3, omega0)`.
-fn normal5(theta: &V5, y: &[[f64; 3]], dt: f64, sub: usize) -> (f64, M5, V5) {
+fn normal5(theta: &Vector<5>, y: &[[f64; 3]], dt: f64, sub: usize) -> (f64, Mat<5>, Vector<5>) {
     let (a, d) = a_of_ratios(theta[0], theta[1]);
     let w0 = [theta[2], theta[3], theta[4]];
-    let tr = sensitivities(a, w0, y.len(), dt, sub);
-    let mut jtj = M5::zeros();
-    let mut jtr = V5::zeros();
-    let mut cost = 0.0;
-    for (x, yk) in tr.iter().zip(y) {
-        for i in 0..3 {
-            let r = yk[i] - x.w[i];
-            cost += r * r;
-            let mut s = [0.0; 5];
-            for k in 0..2 {
-                s[k] = (0..3).map(|j| x.s[i][j] * d[j][k]).sum();
-            }
-            s[2..5].copy_from_slice(&x.s[i][3..6]);
-            for c in 0..5 {
-                jtr[c] += s[c] * r;
-                for e in 0..5 {
-                    jtj[(c, e)] += s[c] * s[e];
-                }
-            }
+    normal_rows(a, w0, y, dt, sub, |s6| {
+        let mut s = [0.0; 5];
+        for k in 0..2 {
+            s[k] = (0..3).map(|j| s6[j] * d[j][k]).sum();
         }
-    }
-    (cost, jtj, jtr)
+        s[2..5].copy_from_slice(&s6[3..6]);
+        s
+    })
 }
 
 /// Fits the constrained model from the unconstrained fit `start = (a, omega0)`; `None` when
@@ -155,37 +163,8 @@ pub fn fit_constrained(y: &[[f64; 3]], dt: f64, start: [f64; 6]) -> Option<[f64;
     if !(r1.is_finite() && r3.is_finite() && r1 != 0.0 && r3 != 0.0) {
         return None;
     }
-    let mut theta = V5::new(r1, r3, start[3], start[4], start[5]);
-    let (mut cost, mut jtj, mut jtr) = normal5(&theta, y, dt, sub);
-    let mut mu = 1e-6;
-    for _ in 0..50 {
-        let mut m = jtj;
-        for i in 0..5 {
-            m[(i, i)] *= 1.0 + mu;
-        }
-        let Some(step) = m.cholesky().map(|c| c.solve(&jtr)) else {
-            mu *= 10.0;
-            continue;
-        };
-        let cand = theta + step;
-        let (c2, j2, r2) = normal5(&cand, y, dt, sub);
-        if c2.is_finite() && c2 <= cost {
-            let done = (cost - c2) <= 1e-12 * cost;
-            theta = cand;
-            cost = c2;
-            jtj = j2;
-            jtr = r2;
-            mu = (mu * 0.1).max(1e-9);
-            if done {
-                break;
-            }
-        } else {
-            mu *= 10.0;
-            if mu > 1e6 {
-                break;
-            }
-        }
-    }
+    let theta = Vector::<5>::new(r1, r3, start[3], start[4], start[5]);
+    let theta = levenberg(theta, |th| normal5(th, y, dt, sub), 50, 1e-12);
     Some(a_of_ratios(theta[0], theta[1]).0)
 }
 
