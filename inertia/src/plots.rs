@@ -111,8 +111,10 @@ pub fn calibrate_plot(rep: &CalibrationReport, dir: &Path) -> anyhow::Result<()>
     let mut start = 0usize;
     for &n in &groups {
         let throws = rep.throws.get(start..start + n).unwrap_or(&[]);
+        // The group's mean tensor, as the calibration takes it.
+        let (group_mean, _) = crate::calibrate::mean(throws);
         for k in 0..3 {
-            let mean = throws.iter().map(|t| t.j1[k][k]).sum::<f64>() / n.max(1) as f64;
+            let mean = group_mean[k][k];
             for (i, t) in throws.iter().enumerate() {
                 let dev = (t.j1[k][k] / mean - 1.0) * 100.0;
                 let sd = t.j1_std.map_or(0.0, |s| s[k][k] / mean * 100.0);
