@@ -562,31 +562,16 @@ pub fn scale_systematic(
             std::array::from_fn::<[f32; 3], 3, _>(|r| std::array::from_fn(|c| b[r][c] - a[r][c]))
         });
     }
-    let std_a = (a_shift.iter().all(Option::is_some)).then(|| {
-        std::array::from_fn(|i| {
-            a_shift
-                .iter()
-                .flatten()
-                .map(|d| d[i] * d[i])
-                .sum::<f32>()
-                .sqrt()
-        })
-    });
+    let std_a = root_sum_square(a_shift);
     let total_std_a = std_a
         .zip(base.pooled.std_a)
         .map(|(s, n): ([f32; 3], [f32; 3])| std::array::from_fn(|i| s[i].hypot(n[i])));
-    let std_tensor = (t_shift.iter().all(Option::is_some)).then(|| {
-        std::array::from_fn(|r| {
-            std::array::from_fn(|c| {
-                t_shift
-                    .iter()
-                    .flatten()
-                    .map(|d| d[r][c] * d[r][c])
-                    .sum::<f32>()
-                    .sqrt()
-            })
-        })
-    });
+    let rows: [Option<[f32; 3]>; 3] =
+        std::array::from_fn(|r| root_sum_square(t_shift.map(|t| t.map(|d| d[r]))));
+    let std_tensor = match rows {
+        [Some(x), Some(y), Some(z)] => Some([x, y, z]),
+        _ => None,
+    };
     Ok(ScaleSystematic {
         gyro_scale_tolerance_percent: tolerance_percent,
         a_shift,
@@ -594,4 +579,15 @@ pub fn scale_systematic(
         total_std_a,
         std_tensor,
     })
+}
+
+/// `sqrt(x^2 + y^2 + z^2)` entry by entry over the three axes' shifts; `None` unless all three
+/// are there.
+fn root_sum_square(shifts: [Option<[f32; 3]>; 3]) -> Option<[f32; 3]> {
+    let [Some(x), Some(y), Some(z)] = shifts else {
+        return None;
+    };
+    Some(std::array::from_fn(|i| {
+        (x[i] * x[i] + y[i] * y[i] + z[i] * z[i]).sqrt()
+    }))
 }

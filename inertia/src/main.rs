@@ -348,6 +348,13 @@ impl Progress for Bar {
 }
 
 fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
+    if let Some(tol) = args.gyro_scale_tolerance {
+        if !(tol.is_finite() && tol > 0.0 && tol < 50.0) {
+            return Err(format!(
+                "--gyro-scale-tolerance {tol}: a percentage above 0 and below 50"
+            ));
+        }
+    }
     let rotor = rotor_and_noise(&args.rotor, args.noise_std)?;
     let segments = args.segments.as_ref().map(parse_segments).transpose()?;
     let opts = ReadOptions {
@@ -367,11 +374,6 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
     bar.clear();
     let mut report = report?;
     if let Some(tol) = args.gyro_scale_tolerance {
-        if !(tol.is_finite() && tol > 0.0 && tol < 50.0) {
-            return Err(format!(
-                "--gyro-scale-tolerance {tol}: a percentage above 0 and below 50"
-            ));
-        }
         eprintln!("identifying the log three more times, one gyro axis scaled by {tol} % each");
         // The estimate stands without it: a re-identification that fails is a warning.
         match inertia::identify::scale_systematic(&*src, &iopts, &report, tol) {
