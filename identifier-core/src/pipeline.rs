@@ -20,7 +20,8 @@ use crate::refined::{Refined, RefinedSettings};
 use crate::refined_bias::RefinedBias;
 use crate::status::{physically_possible, precise, SampleStatus, Trust};
 use crate::tensor::{
-    TensorEstimate, TensorEstimator, TensorMethod, TensorModel, TensorSettings, TensorStatus,
+    products_wald, TensorEstimate, TensorEstimator, TensorMethod, TensorModel, TensorSettings,
+    TensorStatus,
 };
 use crate::tensor_fit::{FlightTensorFit, TensorFit};
 use crate::trajectory::{FlightRatioFit, RatioFit, RatioFitEstimate};
@@ -431,14 +432,13 @@ impl<const N: usize> Pipeline<N> {
                 source: RatioSource::Tensor,
             };
         }
-        // Whether the sensor axes are principal axes is the equation error's Wald test on the
-        // products of inertia (`TensorSettings::products_chi2`), `own`'s model. Once a flight
-        // has ended `t` is the output-error fit up to scale, which always estimates the
-        // products; its `a` is far less precise than the principal-axis ratio fit's where two
-        // moments are close (the principal axes are then barely defined: 125x the constrained
-        // bound on a1 of the near-symmetric body at 2 kHz, 2-8x on the tosses, when it was
-        // used for every body).
-        let principal = own.model == TensorModel::Principal || own.normalized.is_none();
+        // Whether the sensor axes are principal axes: a Wald test on the products of inertia
+        // (`TensorSettings::products_chi2`). Once a flight has ended `t` is the output-error
+        // fit up to scale, which always estimates the products; its `a` is far less precise
+        // than the principal-axis ratio fit's where two moments are close (the principal axes
+        // are then barely defined: 125x the constrained bound on a1 of the near-symmetric body
+        // at 2 kHz, 2-8x on the tosses, when it was used for every body).
+        let principal = self.principal_axes(own);
         let trust = self.refined.trust();
         let status = match trust {
             Trust::NoInformation | Trust::TooFewSamples => TensorStatus::TooFewSamples,
@@ -683,6 +683,37 @@ impl<const N: usize> Pipeline<N> {
 
     /// True when the ratio fit's residual is at most [`TRAJECTORY_FIT_RATIO`] times the
     /// configured gyro noise: the torque-free principal-axis model explains the data.
+    /// Whether the products of inertia are not significant (the sensor axes are principal
+    /// axes): the Wald statistic `z^T C_zz^-1 z` of the products `z` below
+    /// `TensorSettings::products_chi2`. Taken from the output-error fit up to scale once it
+    /// fits to the noise (efficient, and its discretisation error far below the noise), else
+    /// from the equation error (`own`'s model). The equation error's own error does not shrink
+    /// with the noise: with a quiet gyro (5e-5 rad/s at 1 kHz) it called the products of a
+    /// principal body significant on every seed, and the ratios then came from the tensor's
+    /// `a` (4-5x the bound) or from the bias model (`PhysicallyImpossible` on a body the
+    /// trajectory fit had to 1e-6).
+    fn principal_axes(&self, own: &TensorEstimate) -> bool {
+        if !self.rotor_seen {
+            if let Some(f) = self.tensor_fit.estimate_normalized() {
+                let cfg = self.settings.tensor.noise_std;
+                if f.noise > 0.0 && f.noise <= TRAJECTORY_FIT_RATIO * cfg {
+                    let t = &f.tensor;
+                    let j = [t[0][0], t[1][1], t[2][2], t[0][1], t[0][2], t[1][2]];
+                    // The test never assumes less noise than configured (as the equation
+                    // error's and the bias test): on noise-free data the fit's f32 rounding
+                    // would otherwise make products of 1e-7 significant.
+                    let k = if f.noise < cfg {
+                        (f.noise / cfg) * (f.noise / cfg)
+                    } else {
+                        1.0
+                    };
+                    return k * products_wald(&j, &f.cov) < self.settings.tensor.products_chi2;
+                }
+            }
+        }
+        own.model == TensorModel::Principal || own.normalized.is_none()
+    }
+
     fn fits_to_the_noise(&self, fe: &RatioFitEstimate) -> bool {
         fe.noise <= TRAJECTORY_FIT_RATIO * self.settings.refined.noise_std
     }

@@ -1249,10 +1249,24 @@ fn solve_absolute(lam: &Sym<6>, nrm: &Normal, principal: bool) -> Option<Solutio
 /// covariance scaled by the residual variance.
 fn products_chi2(j: &[f32; 6], cov: &Sym<6>, sigma2: f32, s2: f32) -> f32 {
     let s = max(s2, sigma2);
+    let mut scaled = *cov;
+    for row in scaled.iter_mut() {
+        for x in row.iter_mut() {
+            *x *= s;
+        }
+    }
+    products_wald(j, &scaled)
+}
+
+/// Wald statistic of the products of inertia `z = (Jxy, Jxz, Jyz)` (entries 3..6 of `j`, the
+/// order `(Jxx, Jyy, Jzz, Jxy, Jxz, Jyz)`) under their covariance `C_zz` (the same block of
+/// `cov`): `z^T C_zz^-1 z`, chi-square with 3 degrees of freedom when the products are zero;
+/// infinite when `C_zz` is not positive definite or the statistic is not finite.
+pub(crate) fn products_wald(j: &[f32; 6], cov: &Sym<6>) -> f32 {
     let m: Sym<3> = [
-        [cov[3][3] * s, cov[3][4] * s, cov[3][5] * s],
-        [cov[4][3] * s, cov[4][4] * s, cov[4][5] * s],
-        [cov[5][3] * s, cov[5][4] * s, cov[5][5] * s],
+        [cov[3][3], cov[3][4], cov[3][5]],
+        [cov[4][3], cov[4][4], cov[4][5]],
+        [cov[5][3], cov[5][4], cov[5][5]],
     ];
     let z = [j[3], j[4], j[5]];
     let Some(l) = cholesky(&m) else {
