@@ -477,10 +477,32 @@ pub(crate) fn bias_worth_fitting(
     if !(dof_plain > 0.0) {
         return true;
     }
-    let seen = cost_plain / dof_plain;
-    let floor = noise_floor * noise_floor;
-    let s2 = if seen > floor { seen } else { floor };
+    let s2 = residual_variance(cost_plain, dof_plain, noise_floor);
     !(s2 > 0.0) || score > 0.5 * BIAS_CHI2 * s2
+}
+
+/// The score (Lagrange multiplier) test of 3 more parameters at the fitted model's optimum:
+/// true when `score / s2 > BIAS_CHI2` (chi-square, 3 degrees of freedom, 0.01 %), `score` the
+/// statistic `g^T F^-1 g` of the extended model, `s2` the fitted model's residual variance per
+/// sample but never below `noise_floor^2`. Asymptotically the likelihood-ratio test, without
+/// fitting the extended model. False when `dof` is not positive.
+pub(crate) fn score_rejects(score: f32, cost: f32, dof: f32, noise_floor: f32) -> bool {
+    if !(dof > 0.0) {
+        return false;
+    }
+    let s2 = residual_variance(cost, dof, noise_floor);
+    s2 > 0.0 && score > BIAS_CHI2 * s2
+}
+
+/// `cost / dof`, at least `noise_floor^2`.
+fn residual_variance(cost: f32, dof: f32, noise_floor: f32) -> f32 {
+    let seen = cost / dof;
+    let floor = noise_floor * noise_floor;
+    if seen > floor {
+        seen
+    } else {
+        floor
+    }
 }
 
 /// Chi-square (3 degrees of freedom) a constant gyro bias must exceed: 21.11, 0.01 %.
@@ -519,6 +541,11 @@ pub(crate) struct Pooled<const M: usize> {
 }
 
 impl<const M: usize> Pooled<M> {
+    /// The pooled stretches' summed cost.
+    pub(crate) fn cost(&self) -> f32 {
+        self.cost
+    }
+
     pub(crate) const EMPTY: Self = Pooled {
         info: [[0.0; M]; M],
         info_p: [0.0; M],
@@ -602,6 +629,9 @@ pub(crate) struct StretchResult<const M: usize> {
     pub(crate) params: usize,
     pub(crate) bias: Option<[f32; 3]>,
     pub(crate) lag1: f32,
+    /// The cost with a constant torque fitted, when its score test rejected the torque-free
+    /// model (`None`: not rejected, or not tested).
+    pub(crate) torque: Option<f32>,
 }
 
 /// What both fits keep between samples: the open stretch's blocks (`K` channels), the
@@ -613,6 +643,10 @@ pub(crate) struct FitState<const N: usize, const K: usize, const M: usize> {
     pub(crate) pooled: Pooled<M>,
     pub(crate) biased: bool,
     pub(crate) bias: [f32; 3],
+    /// A closed stretch's score test found a constant torque.
+    pub(crate) torque: bool,
+    /// The pooled stretches' costs, each with the torque fitted where its test rejected.
+    pub(crate) torque_cost: f32,
     pub(crate) last: StretchOutcome,
 }
 
@@ -622,6 +656,8 @@ impl<const N: usize, const K: usize, const M: usize> FitState<N, K, M> {
         pooled: Pooled::EMPTY,
         biased: false,
         bias: [0.0; 3],
+        torque: false,
+        torque_cost: 0.0,
         last: StretchOutcome::Empty,
     };
 
@@ -635,6 +671,12 @@ impl<const N: usize, const K: usize, const M: usize> FitState<N, K, M> {
         let outcome = self.close_into(&mut pooled, fit);
         self.pooled = pooled;
         outcome
+    }
+
+    /// Keeps a pooled stretch's torque test: whether it rejected, and its cost with the torque.
+    fn note_torque<const M2: usize>(&mut self, r: &StretchResult<M2>) {
+        self.torque |= r.torque.is_some();
+        self.torque_cost += r.torque.unwrap_or(r.cost);
     }
 
     /// [`FitState::close`] pooling into `pooled` instead of the state's own (a fit of other
@@ -657,10 +699,12 @@ impl<const N: usize, const K: usize, const M: usize> FitState<N, K, M> {
                     if !pooled.add(&r.p, &r.cov, r.cost, dof_of(r.params), samples) {
                         StretchOutcome::Failed
                     } else if let Some(b) = r.bias {
+                        self.note_torque(&r);
                         self.biased = true;
                         self.bias = b;
                         StretchOutcome::FittedWithBias
                     } else {
+                        self.note_torque(&r);
                         StretchOutcome::Fitted
                     }
                 }

@@ -42,6 +42,15 @@
 //! bias model (`b`, three more parameters) replaces the plain one by the likelihood-ratio test;
 //! stretches are pooled by the information on the six entries (see `output_error`).
 //!
+//! Up to scale (below), each fit is followed by the score test of a constant torque `q` that
+//! the free flight should not have (as [`crate::RatioFit`]'s, see there):
+//!
+//! ```text
+//! L' = L x w + q,   Sigma_q' = Sigma_q x w + L x dw/dq + I,   Sigma_q(t_0) = 0        (F4)
+//! ```
+//!
+//! at `q = 0`, against 21.11 (chi-square, 3 degrees of freedom, 0.01 %).
+//!
 //! The fit starts from an estimate of `J` the caller gives (the pipeline gives
 //! [`crate::TensorEstimator`]'s) and the first block's rate, on all the blocks at once, and on
 //! growing prefixes of them only when that does not fit to twice the noise.
@@ -72,8 +81,8 @@
 )]
 
 use crate::output_error::{
-    bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, staged_fit,
-    substeps, Block, FitState, Normal, NormalSums, Pooled, StretchResult,
+    bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, score_rejects,
+    staged_fit, substeps, Block, FitState, Normal, NormalSums, Pooled, StretchResult,
 };
 use crate::symmetric::{sqrt, Sym};
 use crate::trajectory::StretchOutcome;
@@ -103,6 +112,13 @@ pub struct TensorFitEstimate {
     pub biased: bool,
     /// The bias of the last stretch fitted with the bias model, rad/s.
     pub bias: [f32; 3],
+    /// True when the score test of a constant torque ((F4)) rejected the torque-free model on
+    /// any stretch fitted up to scale ([`TensorFit::close_normalized`]; the absolute fits are
+    /// not tested).
+    pub torque: bool,
+    /// The fits' weighted cost `sum_b n_b |ybar_b - w_b|^2` summed over the pooled stretches,
+    /// (rad/s)^2.
+    pub cost: f32,
 }
 
 /// Output-error fit of (F1) over free flights, `N` blocks per flight (see the module docs).
@@ -231,20 +247,25 @@ fn e_times(c: usize, w: [f32; 3]) -> [f32; 3] {
     }
 }
 
-/// `L` and `Sigma = dL/dtheta` (columns: six entries, three initial rates).
+/// Sensitivity columns with a constant torque's ((F4)): six entries, three initial rates,
+/// three torques.
+const C_TORQUE: usize = P0 + 3;
+
+/// `L` and `Sigma = dL/dtheta` (columns: six entries, three initial rates, and when `C =
+/// 12` a constant torque).
 #[derive(Clone, Copy, Debug)]
-struct Aug {
+struct Aug<const C: usize> {
     l: [f32; 3],
     /// Compensation of `l`'s running sum (Kahan): the increments are a few percent of `L`,
     /// and `f32` rounding of `L` is amplified by `J^-1` in `w`.
     lc: [f32; 3],
-    s: [[f32; P0]; 3],
+    s: [[f32; C]; 3],
 }
 
-/// `dw/dtheta` (3 x 9) at `w`: `J^-1 (Sigma_c - E_c w)`.
-fn rate_sens(k: &Mat3, x: &Aug, w: [f32; 3]) -> [[f32; P0]; 3] {
-    let mut u = [[0.0f32; P0]; 3];
-    for c in 0..P0 {
+/// `dw/dtheta` (3 x C) at `w`: `J^-1 (Sigma_c - E_c w)`.
+fn rate_sens<const C: usize>(k: &Mat3, x: &Aug<C>, w: [f32; 3]) -> [[f32; C]; 3] {
+    let mut u = [[0.0f32; C]; 3];
+    for c in 0..C {
         let col = [x.s[0][c], x.s[1][c], x.s[2][c]];
         let v = if c < 6 { sub(col, e_times(c, w)) } else { col };
         let d = mul(k, v);
@@ -255,12 +276,13 @@ fn rate_sens(k: &Mat3, x: &Aug, w: [f32; 3]) -> [[f32; P0]; 3] {
     u
 }
 
-/// The right-hand side of (F1) and (F3) at rotor momentum `h`.
-fn deriv(k: &Mat3, h: [f32; 3], x: &Aug) -> Aug {
+/// The right-hand side of (F1) and (F3) at rotor momentum `h` (and of (F4) when `C = 12`:
+/// `L' = L x w + q`, the torque's sensitivity forced by the identity).
+fn deriv<const C: usize>(k: &Mat3, h: [f32; 3], q: &[f32; 3], x: &Aug<C>) -> Aug<C> {
     let w = mul(k, sub(x.l, h));
     let u = rate_sens(k, x, w);
-    let mut s = [[0.0f32; P0]; 3];
-    for c in 0..P0 {
+    let mut s = [[0.0f32; C]; 3];
+    for c in 0..C {
         let col = [x.s[0][c], x.s[1][c], x.s[2][c]];
         let uc = [u[0][c], u[1][c], u[2][c]];
         let a = cross(col, w);
@@ -269,18 +291,26 @@ fn deriv(k: &Mat3, h: [f32; 3], x: &Aug) -> Aug {
             s[i][c] = a[i] + b[i];
         }
     }
+    if C == C_TORQUE {
+        for (i, row) in s.iter_mut().enumerate() {
+            if let Some(v) = row.get_mut(P0 + i) {
+                *v += 1.0;
+            }
+        }
+    }
+    let lw = cross(x.l, w);
     Aug {
-        l: cross(x.l, w),
+        l: [lw[0] + q[0], lw[1] + q[1], lw[2] + q[2]],
         lc: [0.0; 3],
         s,
     }
 }
 
-fn axpy(x: &Aug, k: &Aug, h: f32) -> Aug {
+fn axpy<const C: usize>(x: &Aug<C>, k: &Aug<C>, h: f32) -> Aug<C> {
     let mut y = *x;
     for i in 0..3 {
         y.l[i] += h * k.l[i];
-        for c in 0..P0 {
+        for c in 0..C {
             y.s[i][c] += h * k.s[i][c];
         }
     }
@@ -318,12 +348,19 @@ impl RotorSegment {
     }
 }
 
-/// One RK4 step of length `dt` from `tau` within the segment `seg`.
-fn rk4(k: &Mat3, seg: &RotorSegment, x: &Aug, tau: f32, dt: f32) -> Aug {
-    let k1 = deriv(k, seg.at(tau), x);
-    let k2 = deriv(k, seg.at(tau + 0.5 * dt), &axpy(x, &k1, 0.5 * dt));
-    let k3 = deriv(k, seg.at(tau + 0.5 * dt), &axpy(x, &k2, 0.5 * dt));
-    let k4 = deriv(k, seg.at(tau + dt), &axpy(x, &k3, dt));
+/// One RK4 step of length `dt` from `tau` within the segment `seg`, constant torque `q`.
+fn rk4<const C: usize>(
+    k: &Mat3,
+    seg: &RotorSegment,
+    q: &[f32; 3],
+    x: &Aug<C>,
+    tau: f32,
+    dt: f32,
+) -> Aug<C> {
+    let k1 = deriv(k, seg.at(tau), q, x);
+    let k2 = deriv(k, seg.at(tau + 0.5 * dt), q, &axpy(x, &k1, 0.5 * dt));
+    let k3 = deriv(k, seg.at(tau + 0.5 * dt), q, &axpy(x, &k2, 0.5 * dt));
+    let k4 = deriv(k, seg.at(tau + dt), q, &axpy(x, &k3, dt));
     let mut y = *x;
     let d6 = dt / 6.0;
     for i in 0..3 {
@@ -331,7 +368,7 @@ fn rk4(k: &Mat3, seg: &RotorSegment, x: &Aug, tau: f32, dt: f32) -> Aug {
         let sum = x.l[i] + inc;
         y.lc[i] = (sum - x.l[i]) - inc;
         y.l[i] = sum;
-        for c in 0..P0 {
+        for c in 0..C {
             y.s[i][c] += d6 * (k1.s[i][c] + 2.0 * k2.s[i][c] + 2.0 * k3.s[i][c] + k4.s[i][c]);
         }
     }
@@ -417,18 +454,49 @@ fn normal<const P: usize>(
     theta: &[f32; P],
     trace: f32,
 ) -> Option<Normal<P>> {
-    normal_visit(blocks, limit, theta, trace, &mut |_, _| {})
+    normal_visit::<P, P0>(blocks, limit, theta, trace, false, &mut |_, _| {})
 }
 
-/// [`normal`], calling `visit(axis, r)` with each block's residual on each axis in turn.
-fn normal_visit<const P: usize>(
+/// [`normal`] of the model extended by a constant torque ((F4)): `theta` is the plain or bias
+/// model's parameters with the torque's three inserted after the initial rate (`P` = 11, 12,
+/// 14 or 15; `normalized` tells the trace-held layouts apart).
+fn normal_torque<const P: usize>(
+    blocks: &[Block<6>],
+    theta: &[f32; P],
+    trace: f32,
+    normalized: bool,
+) -> Option<Normal<P>> {
+    normal_visit::<P, C_TORQUE>(
+        blocks,
+        blocks.len(),
+        theta,
+        trace,
+        normalized,
+        &mut |_, _| {},
+    )
+}
+
+/// [`normal`], calling `visit(axis, r)` with each block's residual on each axis in turn. With
+/// `C = 12` the parameters hold a constant torque after the initial rate (`normalized`: the
+/// trace is held, five entries; else six).
+fn normal_visit<const P: usize, const C: usize>(
     blocks: &[Block<6>],
     limit: usize,
     theta: &[f32; P],
     trace: f32,
+    normalized: bool,
     visit: &mut impl FnMut(usize, f32),
 ) -> Option<Normal<P>> {
-    let m = entries_of(P);
+    let torque = C == C_TORQUE;
+    let m = if torque {
+        if normalized {
+            5
+        } else {
+            6
+        }
+    } else {
+        entries_of(P)
+    };
     let e6 = six(theta, trace);
     let j = tensor_of(&e6);
     let k = inverse_pd(&j)?;
@@ -436,10 +504,10 @@ fn normal_visit<const P: usize>(
     let w0 = [g(m), g(m + 1), g(m + 2)];
     let (h_first, _) = rotor_node(blocks, 0);
     let jw = mul(&j, w0);
-    let mut x = Aug {
+    let mut x = Aug::<C> {
         l: [jw[0] + h_first[0], jw[1] + h_first[1], jw[2] + h_first[2]],
         lc: [0.0; 3],
-        s: [[0.0; P0]; 3],
+        s: [[0.0; C]; 3],
     };
     for c in 0..6 {
         let e = e_times(c, w0);
@@ -459,9 +527,16 @@ fn normal_visit<const P: usize>(
         }
     }
     let k_norm = sqrt(k_norm);
-    let biased = P == m + 6;
-    let bias = if biased {
+    // Layout: entries (m), initial rate (3), [torque (3)], [bias (3)].
+    let tq = if torque { 3 } else { 0 };
+    let q = if torque {
         [g(m + 3), g(m + 4), g(m + 5)]
+    } else {
+        [0.0f32; 3]
+    };
+    let biased = P == m + 6 + tq;
+    let bias = if biased {
+        [g(m + 3 + tq), g(m + 4 + tq), g(m + 5 + tq)]
     } else {
         [0.0f32; 3]
     };
@@ -497,7 +572,7 @@ fn normal_visit<const P: usize>(
                 let dt = span / steps as f32;
                 let mut tau = 0.0f32;
                 for _ in 0..steps {
-                    x = rk4(&k, &seg, &x, tau, dt);
+                    x = rk4(&k, &seg, &q, &x, tau, dt);
                     tau += dt;
                 }
             }
@@ -526,28 +601,33 @@ fn normal_visit<const P: usize>(
             visit(i, r);
             let mut row = [0.0f32; P];
             let ui = &u[i];
+            let uc = |c: usize| ui.get(c).copied().unwrap_or(0.0);
             if m == 6 {
+                // Entries, initial rate and torque: the columns as they are.
                 for (dst, src) in row.iter_mut().zip(ui.iter()) {
                     *dst = *src;
                 }
             } else {
                 // Trace held: Jzz moves against Jxx and Jyy.
                 let cols = [
-                    ui[0] - ui[2],
-                    ui[1] - ui[2],
-                    ui[3],
-                    ui[4],
-                    ui[5],
-                    ui[6],
-                    ui[7],
-                    ui[8],
+                    uc(0) - uc(2),
+                    uc(1) - uc(2),
+                    uc(3),
+                    uc(4),
+                    uc(5),
+                    uc(6),
+                    uc(7),
+                    uc(8),
+                    uc(9),
+                    uc(10),
+                    uc(11),
                 ];
-                for (dst, src) in row.iter_mut().zip(cols.iter()) {
+                for (dst, src) in row.iter_mut().zip(cols.iter().take(8 + tq)) {
                     *dst = *src;
                 }
             }
             if biased {
-                if let Some(dst) = row.get_mut(m + 3 + i) {
+                if let Some(dst) = row.get_mut(m + 3 + tq + i) {
                     *dst = 1.0;
                 }
             }
@@ -580,7 +660,7 @@ fn leading_block<const A: usize, const M: usize>(c: &[[f32; A]; A]) -> Sym<M> {
 /// up to scale so poorly that the staged fit left the right basin on about 1 flight in 25.
 /// On the simulated flywheel throw the absolute fit is as accurate as staged alone, at two
 /// thirds of the cost.
-fn fit_model<const P: usize, const PB: usize, const M: usize>(
+fn fit_model<const P: usize, const PB: usize, const M: usize, const PT: usize, const PTB: usize>(
     blocks: &[Block<6>],
     th: [f32; P],
     trace: f32,
@@ -624,6 +704,17 @@ fn fit_model<const P: usize, const PB: usize, const M: usize>(
                 } else {
                     0.0
                 };
+                // The torque's parameters go between the initial rate and the bias.
+                let th_t: [f32; PTB] = core::array::from_fn(|i| {
+                    if i < M + 3 {
+                        g(i)
+                    } else if i < M + 6 {
+                        0.0
+                    } else {
+                        g(i - 3)
+                    }
+                });
+                let torque = torque_found(blocks, &th_t, trace, cost1, dof1, noise_floor);
                 return Some(StretchResult {
                     p: leading(&t1),
                     cov: leading_block(&c1),
@@ -631,6 +722,7 @@ fn fit_model<const P: usize, const PB: usize, const M: usize>(
                     params: PB,
                     bias: Some([g(M + 3), g(M + 4), g(M + 5)]),
                     lag1,
+                    torque,
                 });
             }
         }
@@ -640,6 +732,8 @@ fn fit_model<const P: usize, const PB: usize, const M: usize>(
     } else {
         0.0
     };
+    let th_t: [f32; PT] = leading(&th);
+    let torque = torque_found(blocks, &th_t, trace, cost0, dof0, noise_floor);
     Some(StretchResult {
         p: leading(&th),
         cov: leading_block(&cov0),
@@ -647,7 +741,28 @@ fn fit_model<const P: usize, const PB: usize, const M: usize>(
         params: P,
         bias: None,
         lag1,
+        torque,
     })
+}
+
+/// The score test of a constant torque ((F4)) at a fitted model's optimum: `theta` that
+/// model's parameters with a zero torque inserted after the initial rate, `cost` and `dof` its
+/// own (see `output_error::score_rejects`). Only up to scale (`trace` > 0, the gyro-only path):
+/// with a rotor the model's error is the rotor's and the status says so already.
+fn torque_found<const P: usize>(
+    blocks: &[Block<6>],
+    theta: &[f32; P],
+    trace: f32,
+    cost: f32,
+    dof: f32,
+    noise_floor: f32,
+) -> Option<f32> {
+    let rejects = trace > 0.0
+        && normal_torque(blocks, theta, trace, true)
+            .and_then(|(_, f, g)| score(&f, &g))
+            .is_some_and(|sc| score_rejects(sc, cost, dof, noise_floor));
+    // The pipeline only asks whether it rejected: no torque fit.
+    rejects.then_some(cost)
 }
 
 /// Lag-1 autocorrelation of the block residuals at `theta` over the three axes: the sum of
@@ -656,7 +771,7 @@ fn fit_model<const P: usize, const PB: usize, const M: usize>(
 fn residual_lag1<const P: usize>(blocks: &[Block<6>], theta: &[f32; P], trace: f32) -> f32 {
     let mut prev: [Option<f32>; 3] = [None; 3];
     let (mut num, mut den) = (0.0f32, 0.0f32);
-    let ok = normal_visit(blocks, blocks.len(), theta, trace, &mut |i, r| {
+    let ok = normal_visit::<P, P0>(blocks, blocks.len(), theta, trace, false, &mut |i, r| {
         if let Some(slot) = prev.get_mut(i) {
             if let Some(p) = *slot {
                 num += p * r;
@@ -713,7 +828,7 @@ fn fit_stretch(
             init[0][0], init[1][1], init[2][2], init[0][1], init[0][2], init[1][2], w0[0], w0[1],
             w0[2],
         ];
-        fit_model::<P0, P1, 6>(blocks, th, 0.0, noise_floor, test_bias)
+        fit_model::<P0, P1, 6, { P0 + 3 }, { P1 + 3 }>(blocks, th, 0.0, noise_floor, test_bias)
     };
     let whole = from(blocks, init)?;
     let per_dof = |r: &StretchResult<6>, n: usize| r.cost / ((3 * n) as f32 - r.params as f32);
@@ -797,7 +912,13 @@ fn fit_stretch_normalized(
         }
     }
     let (th, tr, _) = best?;
-    let mut r = fit_model::<{ P0 - 1 }, { P1 - 1 }, 5>(blocks, th, tr, noise_floor, test_bias)?;
+    let mut r = fit_model::<{ P0 - 1 }, { P1 - 1 }, 5, { P0 + 2 }, { P1 + 2 }>(
+        blocks,
+        th,
+        tr,
+        noise_floor,
+        test_bias,
+    )?;
     let k = 1.0 / tr;
     r.p = r.p.map(|x| x * k);
     r.cov = r.cov.map(|row| row.map(|x| x * k * k));
@@ -943,6 +1064,8 @@ impl<const N: usize> TensorFit<N> {
             samples: self.state.pooled.samples,
             biased: self.state.biased,
             bias: self.state.bias,
+            torque: self.state.torque,
+            cost: self.state.pooled.cost(),
         })
     }
 
@@ -981,6 +1104,8 @@ impl<const N: usize> TensorFit<N> {
             samples: self.normalized.samples,
             biased: self.state.biased,
             bias: self.state.bias,
+            torque: self.state.torque,
+            cost: self.normalized.cost(),
         })
     }
 

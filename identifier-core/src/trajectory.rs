@@ -74,6 +74,30 @@
 //! `a` and its standard deviations follow by the chain rule, `cov(a) = (da/dp) cov(p)
 //! (da/dp)^T`.
 //!
+//! # A torque the model lacks
+//!
+//! A free flight has no torque about the centre of mass; a tether, air drag or a hand has. The
+//! alternative checked after every fit is the simplest one, a constant angular acceleration
+//! `c` per axis:
+//!
+//! ```text
+//! w' = f(w) + c,   S_c' = (df/dw) S_c + I,   S_c(tbar_0) = 0                       (T4)
+//! ```
+//!
+//! At the chosen model's optimum (`c = 0`) the score statistic `g^T F^-1 g / s2` of the model
+//! extended by `c` (`F`, `g` its normal equations: 8 parameters, 11 with the bias; `s2` the
+//! chosen model's residual variance, at least the configured noise's) is compared with 21.11
+//! (chi-square, 3 degrees of freedom, 0.01 %): one evaluation with 8 sensitivity columns, no
+//! fit. When it rejects, [`RatioFitEstimate::torque`] is set and the pipeline does not call
+//! the ratios `Converged`. The residual alone cannot show such an effect: a constant torque of
+//! 2e-3 rad/s^2 on a 6 s, 500 Hz flight moved `a` by 10-15 standard deviations while the
+//! residual stayed within 1.1 of the noise (`scripts/sweep-identify.sh`, row `trap-torque`).
+//! On that sweep (100 seeds a row) no row of a free body is flagged; air drag of 0.01/s is on
+//! every seed; a gyro bias random-walking at 2e-3 rad/s/sqrt(s) on 99 (one `Converged` seed
+//! more than 4 standard deviations off, against 5 without the test); gyro scale factors off by
+//! (0, +0.5, -0.3) % only on 62: a scale error is mostly absorbed by `a` itself (34 seeds stay
+//! `Converged` and more than 4 standard deviations off, against 100 without the test).
+//!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 137 / 180
 //! instructions per sample (a block sum; a merge of the 256 blocks once in a while costs up to
 //! 14 k); one fit 7.8 M instructions after 20 s at 1 kHz, 1.9 M after an 85-sample toss.
@@ -87,8 +111,8 @@
 )]
 
 use crate::output_error::{
-    bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, staged_fit,
-    substeps, Block, FitState, Normal, NormalSums, StretchResult,
+    bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, score_rejects,
+    staged_fit, substeps, Block, FitState, Normal, NormalSums, StretchResult,
 };
 use crate::symmetric::{sqrt, Sym};
 
@@ -98,7 +122,8 @@ use crate::symmetric::{sqrt, Sym};
 pub struct RatioFitEstimate {
     /// `a` of (1) from the moments: `a1 = (A2 - A3)/A1` and cyclic.
     pub a: [f32; 3],
-    /// Standard deviations of `a`: `sqrt(diag((da/dp) cov(p) (da/dp)^T))`.
+    /// Standard deviations of `a`: `sqrt(diag((da/dp) cov(p) (da/dp)^T) + r^2)`, `r`
+    /// the rounding's [`STD_A_ROUNDING`].
     pub std_a: [f32; 3],
     /// Principal moments scaled to trace 1, `(p1, p2, 1 - p1 - p2)`.
     pub moments: [f32; 3],
@@ -114,6 +139,16 @@ pub struct RatioFitEstimate {
     pub biased: bool,
     /// The bias of the last stretch fitted with the bias model, rad/s (zero otherwise).
     pub bias: [f32; 3],
+    /// True when the score test of a constant torque ((T4)) rejected the torque-free model on
+    /// any stretch: the motion is not free (air drag, a tether, a hand), or the sensor axes
+    /// are not principal axes (this model lacks the products of inertia); `a` is not to be
+    /// trusted however small its standard deviation.
+    pub torque: bool,
+    /// The fits' weighted cost `sum_b n_b |ybar_b - w_b|^2` summed over the stretches, (rad/s)^2.
+    pub cost: f32,
+    /// The same with the constant torque fitted on the stretches whose test rejected (the
+    /// alternative the pipeline weighs against the tensor's products of inertia).
+    pub cost_with_torque: f32,
 }
 
 /// What happened to the last stretch closed by [`RatioFit::close`].
@@ -174,8 +209,22 @@ pub struct RatioFit<const N: usize> {
 /// to 8e-6: the block correction's neglected fourth-order term.
 pub type FlightRatioFit = RatioFit<256>;
 
-/// Largest parameter count (moments 2, initial rates 3, bias 3).
+/// Standard deviation of the `f32` fit's own error in `a` (rounding in the sums and the RK4
+/// steps), added in quadrature to the noise's. On noise-free data the fit's residual is the
+/// rounding's (about 1e-8 rad/s) and its covariance alone claimed `a` to 3e-8 where the error
+/// was 2.2e-7 RMS (`scripts/sweep-identify.sh`, row `noise-free-1k`; at most 9.6e-7 on the
+/// benchmark's noise-free runs). `|a_i| <= 1` for every rigid body: about 2.5 units in the
+/// last place of `f32`.
+pub const STD_A_ROUNDING: f32 = 3e-7;
+
+/// Parameter count of the bias model (moments 2, initial rates 3, bias 3).
 const P_MAX: usize = 8;
+
+/// Sensitivity columns with the constant torque's (moments 2, initial rates 3, torque 3).
+const C_TORQUE: usize = 8;
+
+/// Parameters of the torque alternative to the bias model (bias model 8, torque 3).
+const P_TORQUE_BIAS: usize = 11;
 
 /// One fit's result.
 #[derive(Clone, Copy, Debug)]
@@ -186,11 +235,12 @@ struct Fit<const P: usize> {
     cov: Sym<P>,
 }
 
-/// The augmented state of (T3): rates and their sensitivities to `(p1, p2, w0)`.
+/// The augmented state of (T3): rates and their sensitivities to `(p1, p2, w0)` (`C = 5`),
+/// and to a constant torque `c` (`C = 8`, (T4)).
 #[derive(Clone, Copy, Debug)]
-struct Aug {
+struct Aug<const C: usize> {
     w: [f32; 3],
-    s: [[f32; 5]; 3],
+    s: [[f32; C]; 3],
 }
 
 /// `a` and `da/dp` for moments `(p1, p2, 1 - p1 - p2)`; `None` unless all three are positive.
@@ -230,58 +280,73 @@ fn jac(a: &[f32; 3], w: &[f32; 3]) -> [[f32; 3]; 3] {
     ]
 }
 
-/// The right-hand side of (T3).
-fn deriv(a: &[f32; 3], dadp: &[[f32; 2]; 3], x: &Aug) -> Aug {
+/// The right-hand side of (T3) (and of (T4) when `C = 8`: `w' = f(w) + c`, the torque's
+/// sensitivity forced by the identity).
+fn deriv<const C: usize>(a: &[f32; 3], dadp: &[[f32; 2]; 3], c: &[f32; 3], x: &Aug<C>) -> Aug<C> {
     let w = &x.w;
     let j = jac(a, w);
     let prod = [w[1] * w[2], w[2] * w[0], w[0] * w[1]];
-    let mut s = [[0.0f32; 5]; 3];
+    let mut s = [[0.0f32; C]; 3];
     for i in 0..3 {
-        for c in 0..5 {
-            s[i][c] = j[i][0] * x.s[0][c] + j[i][1] * x.s[1][c] + j[i][2] * x.s[2][c];
+        for k in 0..C {
+            s[i][k] = j[i][0] * x.s[0][k] + j[i][1] * x.s[1][k] + j[i][2] * x.s[2][k];
         }
         s[i][0] += prod[i] * dadp[i][0];
         s[i][1] += prod[i] * dadp[i][1];
+        if C == C_TORQUE {
+            s[i][5 + i] += 1.0;
+        }
     }
     Aug {
-        w: [a[0] * prod[0], a[1] * prod[1], a[2] * prod[2]],
+        w: [
+            a[0] * prod[0] + c[0],
+            a[1] * prod[1] + c[1],
+            a[2] * prod[2] + c[2],
+        ],
         s,
     }
 }
 
 /// `x + h k`.
-fn axpy(x: &Aug, k: &Aug, h: f32) -> Aug {
+fn axpy<const C: usize>(x: &Aug<C>, k: &Aug<C>, h: f32) -> Aug<C> {
     let mut y = *x;
     for i in 0..3 {
         y.w[i] += h * k.w[i];
-        for c in 0..5 {
+        for c in 0..C {
             y.s[i][c] += h * k.s[i][c];
         }
     }
     y
 }
 
-/// One classical RK4 step of (T3).
-fn rk4(a: &[f32; 3], dadp: &[[f32; 2]; 3], x: &Aug, h: f32) -> Aug {
-    let k1 = deriv(a, dadp, x);
-    let k2 = deriv(a, dadp, &axpy(x, &k1, 0.5 * h));
-    let k3 = deriv(a, dadp, &axpy(x, &k2, 0.5 * h));
-    let k4 = deriv(a, dadp, &axpy(x, &k3, h));
+/// One classical RK4 step of (T3) (or (T4)) with the constant torque `c`.
+fn rk4<const C: usize>(
+    a: &[f32; 3],
+    dadp: &[[f32; 2]; 3],
+    c: &[f32; 3],
+    x: &Aug<C>,
+    h: f32,
+) -> Aug<C> {
+    let k1 = deriv(a, dadp, c, x);
+    let k2 = deriv(a, dadp, c, &axpy(x, &k1, 0.5 * h));
+    let k3 = deriv(a, dadp, c, &axpy(x, &k2, 0.5 * h));
+    let k4 = deriv(a, dadp, c, &axpy(x, &k3, h));
     let mut y = *x;
     let h6 = h / 6.0;
     for i in 0..3 {
         y.w[i] += h6 * (k1.w[i] + 2.0 * k2.w[i] + 2.0 * k3.w[i] + k4.w[i]);
-        for c in 0..5 {
-            y.s[i][c] += h6 * (k1.s[i][c] + 2.0 * k2.s[i][c] + 2.0 * k3.s[i][c] + k4.s[i][c]);
+        for k in 0..C {
+            y.s[i][k] += h6 * (k1.s[i][k] + 2.0 * k2.s[i][k] + 2.0 * k3.s[i][k] + k4.s[i][k]);
         }
     }
     y
 }
 
-/// The weighted cost and normal equations of the first `limit` blocks at `theta` (P = 5: no
-/// bias; P = 8: bias in `theta[5..8]`). `None` when the moments are not positive or anything
-/// is not finite.
-fn normal<const P: usize>(
+/// The weighted cost and normal equations of the first `limit` blocks at `theta`: `C = 5`
+/// sensitivity columns `(p1, p2, w0)`, or `C = 8` with a constant torque in `theta[5..8]`
+/// ((T4)); and when `P = C + 3`, a gyro bias in `theta[C..C + 3]`. `None` when the moments
+/// are not positive or anything is not finite.
+fn normal<const P: usize, const C: usize>(
     blocks: &[Block<3>],
     limit: usize,
     theta: &[f32; P],
@@ -290,17 +355,21 @@ fn normal<const P: usize>(
     let amax = a
         .iter()
         .fold(0.0f32, |m, x| if x.abs() > m { x.abs() } else { m });
-    let mut x = Aug {
+    let mut x = Aug::<C> {
         w: [theta[2], theta[3], theta[4]],
-        s: [
-            [0.0, 0.0, 1.0, 0.0, 0.0],
-            [0.0, 0.0, 0.0, 1.0, 0.0],
-            [0.0, 0.0, 0.0, 0.0, 1.0],
-        ],
+        s: [[0.0; C]; 3],
     };
+    x.s[0][2] = 1.0;
+    x.s[1][3] = 1.0;
+    x.s[2][4] = 1.0;
+    let mut torque = [0.0f32; 3];
+    if C == C_TORQUE {
+        torque = [theta[5], theta[6], theta[7]];
+    }
+    let has_bias = P == C + 3;
     let mut bias = [0.0f32; 3];
-    if P == P_MAX {
-        bias = [theta[5], theta[6], theta[7]];
+    if has_bias {
+        bias = [theta[C], theta[C + 1], theta[C + 2]];
     }
     let mut sums = NormalSums::<P>::EMPTY;
     let mut prev: Option<f32> = None;
@@ -314,12 +383,13 @@ fn normal<const P: usize>(
                 let steps = substeps(span, speed);
                 let h = span / steps as f32;
                 for _ in 0..steps {
-                    x = rk4(&a, &dadp, &x, h);
+                    x = rk4(&a, &dadp, &torque, &x, h);
                 }
             }
         }
         prev = Some(t);
-        // (T2): the block mean of w is w(tbar) + v/2 w''(tbar).
+        // (T2): the block mean of w is w(tbar) + v/2 w''(tbar) (the torque's part of w'' is
+        // left out: it is zero where the test evaluates it).
         let fw = rhs(&a, &x.w);
         let j = jac(&a, &x.w);
         let half_v = 0.5 * b.time_var();
@@ -328,9 +398,9 @@ fn normal<const P: usize>(
             let w2 = j[i][0] * fw[0] + j[i][1] * fw[1] + j[i][2] * fw[2];
             let r = y[i] - x.w[i] - half_v * w2 - bias[i];
             let mut row = [0.0f32; P];
-            row[..5].copy_from_slice(&x.s[i]);
-            if P == P_MAX {
-                row[5 + i] = 1.0;
+            row[..C].copy_from_slice(&x.s[i]);
+            if has_bias {
+                row[C + i] = 1.0;
             }
             sums.add(b.n, r, &row);
         }
@@ -403,31 +473,73 @@ fn moments_of(a: [f32; 3]) -> [f32; 2] {
     }
 }
 
+/// The constant-torque alternative ((T4)) at a fitted model's optimum `theta` (`P` = 8: the
+/// plain model's five and a zero torque; 11: and the bias last), `cost` and `dof` that
+/// model's: `None` when the score test does not reject it, else the cost of the model with the
+/// torque fitted (`cost` itself if that fit fails), for the pipeline to weigh it against the
+/// tensor's products of inertia.
+fn torque_alternative<const P: usize>(
+    blocks: &[Block<3>],
+    theta: [f32; P],
+    cost: f32,
+    dof: f32,
+    noise_floor: f32,
+) -> Option<f32> {
+    let total = blocks.len();
+    let rejects = normal::<P, C_TORQUE>(blocks, total, &theta)
+        .and_then(|(_, f, g)| score(&f, &g))
+        .is_some_and(|sc| score_rejects(sc, cost, dof, noise_floor));
+    if !rejects {
+        return None;
+    }
+    let fitted = levenberg(
+        |th| normal::<P, C_TORQUE>(blocks, total, th),
+        theta,
+        30,
+        dof - 3.0,
+    );
+    Some(match fitted {
+        Some((_, c, _)) if c < cost => c,
+        _ => cost,
+    })
+}
+
 /// Fits the stretch in `blocks`: the plain model on growing prefixes, then the bias model from
-/// its result. Returns the chosen fit (unit-noise covariance) and whether it has the bias.
-fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<(Fit<P_MAX>, bool, usize)> {
+/// its result. Returns the chosen fit (unit-noise covariance), whether it has the bias, its
+/// parameter count, and the cost with a constant torque when the torque's score test
+/// rejected the chosen model.
+fn fit_stretch(
+    blocks: &[Block<3>],
+    noise_floor: f32,
+) -> Option<(Fit<P_MAX>, bool, usize, Option<f32>)> {
     let total = blocks.len();
     let first = blocks.first().map(|b| [b.mean(0), b.mean(1), b.mean(2)])?;
     let p0 = initial_a(blocks).map_or([1.0 / 3.0, 1.0 / 3.0], moments_of);
     let theta5 = [p0[0], p0[1], first[0], first[1], first[2]];
-    let (theta5, cost5, f5) = staged_fit(|th, limit| normal(blocks, limit, th), theta5, total)?;
+    let (theta5, cost5, f5) =
+        staged_fit(|th, limit| normal::<5, 5>(blocks, limit, th), theta5, total)?;
     let cov5 = scaled_inverse(&f5)?;
     let mut theta8 = [0.0f32; P_MAX];
     theta8[..5].copy_from_slice(&theta5);
     let dof8 = (3 * total) as f32 - 8.0;
     let dof5 = (3 * total) as f32 - 5.0;
     // One evaluation decides whether the bias model is worth its fit.
-    let worth = normal(blocks, total, &theta8)
+    let worth = normal::<P_MAX, 5>(blocks, total, &theta8)
         .and_then(|(_, f, g)| score(&f, &g))
         .is_none_or(|sc| bias_worth_fitting(sc, cost5, dof5, noise_floor));
     let with_bias = if worth {
-        levenberg(|th| normal(blocks, total, th), theta8, 30, dof8)
+        levenberg(|th| normal::<P_MAX, 5>(blocks, total, th), theta8, 30, dof8)
             .and_then(|(th, cost, f)| scaled_inverse(&f).map(|c| (th, cost, c)))
     } else {
         None
     };
     if let Some((th8, cost8, cov8)) = with_bias {
         if bias_found(cost5, cost8, dof8, noise_floor) && ratios_of(th8[0], th8[1]).is_some() {
+            // The torque at the bias model's optimum: bias moved to theta[8..11].
+            let mut th11 = [0.0f32; P_TORQUE_BIAS];
+            th11[..5].copy_from_slice(&th8[..5]);
+            th11[8..].copy_from_slice(&th8[5..]);
+            let torque = torque_alternative(blocks, th11, cost8, dof8, noise_floor);
             return Some((
                 Fit {
                     theta: th8,
@@ -436,11 +548,14 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<(Fit<P_MAX>, boo
                 },
                 true,
                 8,
+                torque,
             ));
         }
     }
+    // The torque's score at the plain optimum (zero torque in theta[5..8]).
     let mut theta = [0.0f32; P_MAX];
     theta[..5].copy_from_slice(&theta5);
+    let torque = torque_alternative(blocks, theta, cost5, dof5, noise_floor);
     let mut cov = [[0.0f32; P_MAX]; P_MAX];
     for i in 0..5 {
         cov[i][..5].copy_from_slice(&cov5[i]);
@@ -453,6 +568,7 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<(Fit<P_MAX>, boo
         },
         false,
         5,
+        torque,
     ))
 }
 
@@ -495,7 +611,7 @@ impl<const N: usize> RatioFit<N> {
     pub fn close(&mut self) -> StretchOutcome {
         let noise = self.noise_std;
         self.state.close(|blocks| {
-            let (fit, biased, params) = fit_stretch(blocks, noise)?;
+            let (fit, biased, params, torque) = fit_stretch(blocks, noise)?;
             Some(StretchResult {
                 p: [fit.theta[0], fit.theta[1]],
                 cov: [
@@ -506,6 +622,7 @@ impl<const N: usize> RatioFit<N> {
                 params,
                 bias: biased.then_some([fit.theta[5], fit.theta[6], fit.theta[7]]),
                 lag1: 0.0,
+                torque,
             })
         })
     }
@@ -537,7 +654,7 @@ impl<const N: usize> RatioFit<N> {
             let j = dadp[i];
             let v = j[0] * (cov[0][0] * j[0] + cov[0][1] * j[1])
                 + j[1] * (cov[1][0] * j[0] + cov[1][1] * j[1]);
-            std_a[i] = sqrt(v);
+            std_a[i] = sqrt(v + STD_A_ROUNDING * STD_A_ROUNDING);
         }
         // Moments: d(p1, p2, 1 - p1 - p2)/dp.
         let v3 = cov[0][0] + cov[1][1] + cov[0][1] + cov[1][0];
@@ -552,6 +669,9 @@ impl<const N: usize> RatioFit<N> {
             samples: self.state.pooled.samples,
             biased: self.state.biased,
             bias: self.state.bias,
+            torque: self.state.torque,
+            cost: self.state.pooled.cost(),
+            cost_with_torque: self.state.torque_cost,
         })
     }
 
@@ -567,12 +687,29 @@ mod tests {
 
     /// RK4 in f64 at 1/20 of the sample period: the reference trajectory.
     fn simulate(m: [f64; 3], w0: [f64; 3], rate: f64, n: usize) -> Vec<[f32; 3]> {
+        simulate_with_torque(m, w0, rate, n, [0.0; 3])
+    }
+
+    /// [`simulate`] with a constant angular acceleration `c` added to (1).
+    fn simulate_with_torque(
+        m: [f64; 3],
+        w0: [f64; 3],
+        rate: f64,
+        n: usize,
+        c: [f64; 3],
+    ) -> Vec<[f32; 3]> {
         let a = [
             (m[1] - m[2]) / m[0],
             (m[2] - m[0]) / m[1],
             (m[0] - m[1]) / m[2],
         ];
-        let f = |w: [f64; 3]| [a[0] * w[1] * w[2], a[1] * w[2] * w[0], a[2] * w[0] * w[1]];
+        let f = |w: [f64; 3]| {
+            [
+                a[0] * w[1] * w[2] + c[0],
+                a[1] * w[2] * w[0] + c[1],
+                a[2] * w[0] * w[1] + c[2],
+            ]
+        };
         let h = 1.0 / rate / 20.0;
         let mut w = w0;
         let mut out = Vec::new();
@@ -613,6 +750,7 @@ mod tests {
             }
             assert_eq!(fit.close(), StretchOutcome::Fitted);
             let e = fit.estimate().unwrap();
+            assert!(!e.torque, "{rate} Hz: a torque found on a free body");
             let t = truth(m);
             std::println!(
                 "{rate} Hz: error {:?}",
@@ -666,6 +804,7 @@ mod tests {
         }
         assert_eq!(fit.close(), StretchOutcome::FittedWithBias);
         let e = fit.estimate().unwrap();
+        assert!(!e.torque, "a torque found on a free body with a gyro bias");
         let t = truth(m);
         for i in 0..3 {
             assert!(
@@ -675,6 +814,43 @@ mod tests {
                 e.std_a
             );
             assert!((e.bias[i] - b[i]).abs() < 2e-4, "{:?}", e.bias);
+        }
+    }
+
+    /// A noisy pseudo-random sequence, uniform in [-0.5, 0.5).
+    fn uniform(seed: u32) -> impl FnMut() -> f32 {
+        let mut s = seed;
+        move || {
+            s = s.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (s >> 8) as f32 / (1u32 << 24) as f32 - 0.5
+        }
+    }
+
+    #[test]
+    fn a_constant_torque_is_found_and_its_absence_is_not() {
+        let m = [0.8, 1.3, 1.7];
+        for (c, with_bias, found) in [
+            ([0.0; 3], false, false),
+            ([0.0; 3], true, false),
+            ([2e-3, -1e-3, 1.5e-3], false, true),
+            ([2e-3, -1e-3, 1.5e-3], true, true),
+        ] {
+            let ys = simulate_with_torque(m, [1.2, 0.4, 0.9], 500.0, 3000, c);
+            let b = if with_bias {
+                [2e-3f32, -1.5e-3, 1e-3]
+            } else {
+                [0.0; 3]
+            };
+            let mut fit = RatioFit::<256>::new(f32::INFINITY, 0.1, 2e-3);
+            let mut noise = uniform(7);
+            for y in &ys {
+                // Uniform noise of standard deviation 2e-3 (7e-3 / sqrt(12)).
+                let z: [f32; 3] = core::array::from_fn(|i| y[i] + b[i] + 7e-3 * noise());
+                fit.step(z, 2e-3);
+            }
+            fit.close();
+            let e = fit.estimate().unwrap();
+            assert_eq!(e.torque, found, "torque {c:?}, bias {with_bias}");
         }
     }
 

@@ -14,7 +14,10 @@
 use anyhow::{bail, Context, Result};
 use host_tests::crb_tensor::{ratio_bound_constrained_from_crb, ratio_bound_with_bias};
 use host_tests::gyro::GyroModel;
-use host_tests::rigid_body::Body;
+use host_tests::rigid_body::{rk4, Body, Trajectory};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -30,6 +33,29 @@ struct Case {
     duration: f64,
     sigma: f64,
     bias: [f64; 3],
+    /// What the torque-free model with a constant bias lacks (a trap): `None` for the
+    /// accuracy rows.
+    trap: Option<Trap>,
+}
+
+/// An effect the model lacks. On these rows the question is not the bound but whether the
+/// report says `Converged` while `a` is more than 4 of its standard deviations off.
+#[derive(Clone, Copy)]
+enum Trap {
+    /// Linear air drag, torque `-c J_i w_i` (`c` in 1/s).
+    Drag(f64),
+    /// A constant torque over the moments (rad/s^2 per axis).
+    Torque([f64; 3]),
+    /// Sampling instants jittered uniformly by this fraction of the period, logged truly.
+    JitterLogged(f64),
+    /// Sampling instants jittered by this fraction, logged at the nominal instants.
+    JitterUnlogged(f64),
+    /// This fraction of the samples missing from the log.
+    Drops(f64),
+    /// A gyro bias that random-walks (rad/s per sqrt(s)).
+    BiasWalk(f64),
+    /// Per-axis gyro scale factors.
+    Scale([f64; 3]),
 }
 
 const fn case(
@@ -48,6 +74,14 @@ const fn case(
         duration,
         sigma,
         bias: [0.0; 3],
+        trap: None,
+    }
+}
+
+const fn trap(name: &'static str, trap: Trap) -> Case {
+    Case {
+        trap: Some(trap),
+        ..case(name, [0.8, 1.3, 1.7], [1.2, 0.4, 0.9], 500.0, 6.0, 2e-3)
     }
 }
 
@@ -153,6 +187,13 @@ fn cases() -> Vec<Case> {
                 2e-3,
             )
         },
+        trap("trap-drag", Trap::Drag(0.01)),
+        trap("trap-torque", Trap::Torque([2e-3, -1e-3, 1.5e-3])),
+        trap("trap-jitter-logged", Trap::JitterLogged(0.3)),
+        trap("trap-jitter-unlogged", Trap::JitterUnlogged(0.3)),
+        trap("trap-drops", Trap::Drops(0.05)),
+        trap("trap-bias-walk", Trap::BiasWalk(2e-3)),
+        trap("trap-scale", Trap::Scale([1.0, 1.005, 0.997])),
     ]
 }
 
@@ -168,16 +209,99 @@ fn ratios(m: [f64; 3]) -> [f64; 3] {
 /// loggers write them.
 fn csv(c: &Case, seed: u64) -> String {
     let sub = ((16000.0 / c.rate_hz).ceil() as usize).max(1);
-    let tr = Body::free(c.moments).simulate(c.omega0, c.duration, c.rate_hz, sub);
+    let (tr, logged_t) = match c.trap {
+        None => {
+            let tr = Body::free(c.moments).simulate(c.omega0, c.duration, c.rate_hz, sub);
+            let t = tr.t.clone();
+            (tr, t)
+        }
+        Some(trap) => simulate_trap(c, trap, sub, seed),
+    };
     let mut g = GyroModel::noisy(c.sigma, seed);
     g.bias = c.bias;
-    let y = g.measure(&tr);
+    if let Some(Trap::Scale(k)) = c.trap {
+        g.scale = k;
+    }
+    let mut y = g.measure(&tr);
+    if let Some(Trap::BiasWalk(q)) = c.trap {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
+        let mut b = [0.0f64; 3];
+        let dt = 1.0 / c.rate_hz;
+        for w in y.iter_mut() {
+            for (bi, wi) in b.iter_mut().zip(w.iter_mut()) {
+                let z: f64 = StandardNormal.sample(&mut rng);
+                *bi += q * dt.sqrt() * z;
+                *wi += *bi;
+            }
+        }
+    }
+    let drop = match c.trap {
+        Some(Trap::Drops(f)) => f,
+        _ => 0.0,
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xd209);
     let mut s = String::with_capacity(48 * y.len() + 16);
     s.push_str("t,wx,wy,wz\n");
-    for (t, w) in tr.t.iter().zip(&y) {
+    for (t, w) in logged_t.iter().zip(&y) {
+        if drop > 0.0 && rng.gen::<f64>() < drop {
+            continue;
+        }
         let _ = writeln!(s, "{t:.6},{:.7e},{:.7e},{:.7e}", w[0], w[1], w[2]);
     }
     s
+}
+
+/// The true motion of a trap case (its own RK4: torques, jittered instants) and the times the
+/// log gives for its samples.
+fn simulate_trap(c: &Case, trap: Trap, sub: usize, seed: u64) -> (Trajectory, Vec<f64>) {
+    let m = c.moments;
+    let rhs = |w: [f64; 3]| -> [f64; 3] {
+        let free = [
+            (m[1] - m[2]) / m[0] * w[1] * w[2],
+            (m[2] - m[0]) / m[1] * w[2] * w[0],
+            (m[0] - m[1]) / m[2] * w[0] * w[1],
+        ];
+        match trap {
+            Trap::Drag(k) => std::array::from_fn(|i| free[i] - k * w[i]),
+            Trap::Torque(q) => std::array::from_fn(|i| free[i] + q[i]),
+            _ => free,
+        }
+    };
+    let n = (c.duration * c.rate_hz).round() as usize + 1;
+    let period = 1.0 / c.rate_hz;
+    let jitter = match trap {
+        Trap::JitterLogged(f) | Trap::JitterUnlogged(f) => f,
+        _ => 0.0,
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7177);
+    let nominal: Vec<f64> = (0..n).map(|k| k as f64 * period).collect();
+    let actual: Vec<f64> = nominal
+        .iter()
+        .enumerate()
+        .map(|(k, t)| {
+            if k == 0 || jitter == 0.0 {
+                *t
+            } else {
+                t + jitter * period * (rng.gen::<f64>() - 0.5)
+            }
+        })
+        .collect();
+    let mut w = c.omega0;
+    let mut omega = Vec::with_capacity(n);
+    let mut prev = 0.0;
+    for t in &actual {
+        let h = (t - prev) / sub as f64;
+        for _ in 0..sub {
+            w = rk4(rhs, w, h);
+        }
+        prev = *t;
+        omega.push(w);
+    }
+    let logged = match trap {
+        Trap::JitterUnlogged(_) => nominal,
+        _ => actual.clone(),
+    };
+    (Trajectory { t: actual, omega }, logged)
 }
 
 /// What one run of `inertia identify` reported.
@@ -254,8 +378,8 @@ fn main() -> Result<()> {
     }
     let dir = std::env::temp_dir().join(format!("sweep-identify-{}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
-    println!("| scenario | samples | RMS error (bound) | RMS error / constrained bound | RMS(error / reported std) | statuses |");
-    println!("|---|---|---|---|---|---|");
+    println!("| scenario | samples | RMS error (bound) | RMS error / constrained bound | RMS(error / reported std) | statuses | `Converged` more than 4 std off |");
+    println!("|---|---|---|---|---|---|---|");
     for c in cases() {
         if only.as_deref().is_some_and(|n| n != c.name) {
             continue;
@@ -273,10 +397,15 @@ fn main() -> Result<()> {
             .map(|s| identify(&exe, &extra, &dir, &c, s))
             .collect::<Result<_>>()?;
         let mut statuses = BTreeMap::<String, usize>::new();
+        let mut confident_wrong = 0usize;
         let (mut se, mut sz, mut m) = ([0.0f64; 3], [0.0f64; 3], 0usize);
         for r in &runs {
             *statuses.entry(r.status.clone()).or_default() += 1;
             if let (Some(a), Some(s)) = (r.a, r.std_a) {
+                let off = (0..3).any(|i| ((a[i] - truth[i]) / s[i]).abs() > 4.0);
+                if off && r.status == "Converged" {
+                    confident_wrong += 1;
+                }
                 m += 1;
                 for i in 0..3 {
                     let e = a[i] - truth[i];
@@ -289,7 +418,7 @@ fn main() -> Result<()> {
         let (re, rz) = (rms(se), rms(sz));
         let st: Vec<String> = statuses.iter().map(|(k, v)| format!("{k} {v}")).collect();
         println!(
-            "| {} | {n} | {:.1e} ({:.1e}) | {:.2}, {:.2}, {:.2} | {:.2}, {:.2}, {:.2} | {} (a on {m} of {seeds}) |",
+            "| {} | {n} | {:.1e} ({:.1e}) | {:.2}, {:.2}, {:.2} | {:.2}, {:.2}, {:.2} | {} (a on {m} of {seeds}) | {confident_wrong} |",
             c.name,
             re.iter().fold(0.0f64, |x, y| x.max(*y)),
             bound.iter().fold(0.0f64, |x, y| x.max(*y)),
