@@ -100,7 +100,8 @@
 //!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 137 / 180
 //! instructions per sample (a block sum; a merge of the 256 blocks once in a while costs up to
-//! 14 k); one fit 7.8 M instructions after 20 s at 1 kHz, 1.9 M after an 85-sample toss.
+//! 14 k); one fit 9.0 M instructions after 20 s at 1 kHz, 2.2 M after an 85-sample toss
+//! (7.8 M and 1.9 M before the torque test (T4): one evaluation with 8 sensitivity columns).
 #![allow(
     // Fixed-size loops over the 3 axes and the P <= 8 parameters read as the equations; the
     // crate's link-time no-panic check proves no bounds check survives.
