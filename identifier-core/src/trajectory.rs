@@ -93,7 +93,7 @@
 //! 2e-3 rad/s^2 on a 6 s, 500 Hz flight moved `a` by 10-15 standard deviations while the
 //! residual stayed within 1.1 of the noise (`scripts/sweep-identify.sh`, row `trap-torque`).
 //! On that sweep (100 seeds a row) no row of a free body is flagged; air drag of 0.01/s is on
-//! every seed; a gyro bias random-walking at 2e-3 rad/s/sqrt(s) on 99 (one `Converged` seed
+//! every seed; a gyro bias random-walking at 2e-3 rad/s/sqrt(s) on 99 (no seed `Converged`
 //! more than 4 standard deviations off, against 5 without the test); gyro scale factors off by
 //! (0, +0.5, -0.3) % only on 62: a scale error is mostly absorbed by `a` itself (34 seeds stay
 //! `Converged` and more than 4 standard deviations off, against 100 without the test).
