@@ -494,6 +494,55 @@ pub(crate) fn score_rejects(score: f32, cost: f32, dof: f32, noise_floor: f32) -
     s2 > 0.0 && score > BIAS_CHI2 * s2
 }
 
+/// The score statistic of the columns `extra` beyond the rest: `g^T F^-1 g` of the whole
+/// model minus the same of the model without `extra` (their rows and columns of `F` and
+/// entries of `g` taken out). At the smaller model's optimum the second term is zero; where
+/// that optimum was not reached exactly (a fit stopped at `f32` precision, a short flight) the
+/// gradient left along its own parameters is not counted against it. `None` when either
+/// matrix is not positive definite.
+pub(crate) fn score_beyond<const P: usize>(
+    f: &Sym<P>,
+    g: &[f32; P],
+    extra: &[usize],
+) -> Option<f32> {
+    let whole = score(f, g)?;
+    let mut fr = *f;
+    let mut gr = *g;
+    for &k in extra {
+        for i in 0..P {
+            if let Some(x) = fr.get_mut(k).and_then(|row| row.get_mut(i)) {
+                *x = 0.0;
+            }
+            if let Some(x) = fr.get_mut(i).and_then(|row| row.get_mut(k)) {
+                *x = 0.0;
+            }
+        }
+        if let Some(x) = fr.get_mut(k).and_then(|row| row.get_mut(k)) {
+            *x = 1.0;
+        }
+        if let Some(x) = gr.get_mut(k) {
+            *x = 0.0;
+        }
+    }
+    let rest = score(&fr, &gr)?;
+    Some(whole - rest)
+}
+
+/// [`score_rejects`] at the chi-square threshold `chi2` instead of 3 degrees of freedom's.
+pub(crate) fn score_rejects_at(
+    score: f32,
+    chi2: f32,
+    cost: f32,
+    dof: f32,
+    noise_floor: f32,
+) -> bool {
+    if !(dof > 0.0) {
+        return false;
+    }
+    let s2 = residual_variance(cost, dof, noise_floor);
+    s2 > 0.0 && score > chi2 * s2
+}
+
 /// `cost / dof`, at least `noise_floor^2`.
 fn residual_variance(cost: f32, dof: f32, noise_floor: f32) -> f32 {
     let seen = cost / dof;
@@ -632,6 +681,8 @@ pub(crate) struct StretchResult<const M: usize> {
     /// The cost with a constant torque fitted, when its score test rejected the torque-free
     /// model (`None`: not rejected, or not tested).
     pub(crate) torque: Option<f32>,
+    /// The score test of the gyro's scale factors rejected the model (false: not tested).
+    pub(crate) scale: bool,
 }
 
 /// What both fits keep between samples: the open stretch's blocks (`K` channels), the
@@ -647,6 +698,8 @@ pub(crate) struct FitState<const N: usize, const K: usize, const M: usize> {
     pub(crate) torque: bool,
     /// The pooled stretches' costs, each with the torque fitted where its test rejected.
     pub(crate) torque_cost: f32,
+    /// A closed stretch's score test found the gyro's scale factors off.
+    pub(crate) scale: bool,
     pub(crate) last: StretchOutcome,
 }
 
@@ -658,6 +711,7 @@ impl<const N: usize, const K: usize, const M: usize> FitState<N, K, M> {
         bias: [0.0; 3],
         torque: false,
         torque_cost: 0.0,
+        scale: false,
         last: StretchOutcome::Empty,
     };
 
@@ -677,6 +731,7 @@ impl<const N: usize, const K: usize, const M: usize> FitState<N, K, M> {
     fn note_torque<const M2: usize>(&mut self, r: &StretchResult<M2>) {
         self.torque |= r.torque.is_some();
         self.torque_cost += r.torque.unwrap_or(r.cost);
+        self.scale |= r.scale;
     }
 
     /// [`FitState::close`] pooling into `pooled` instead of the state's own (a fit of other

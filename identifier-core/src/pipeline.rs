@@ -415,7 +415,7 @@ impl<const N: usize> Pipeline<N> {
         let mut t = self.reported(own);
         let converged =
             |s: TensorStatus| matches!(s, TensorStatus::Converged | TensorStatus::Converging);
-        if self.torque_suspected(&own) && converged(t.status) {
+        if (self.torque_suspected(&own) || self.not_rigid(&own)) && converged(t.status) {
             t.status = TensorStatus::ModelMismatch;
         }
         if self.bias_unknown(&t) && t.status == TensorStatus::Converged {
@@ -470,7 +470,9 @@ impl<const N: usize> Pipeline<N> {
             // and the refined identifier, which trusts (1) only locally, is the safer choice.
             // A constant torque found by the fit's score test: the motion is not free, and
             // no torque-free model (the ratio fit's, the tensor's) is to be believed.
-            let fits = self.fits_to_the_noise(&fe) && !fe.torque;
+            // Ratios no rigid body has (the rigid-body test of the fit, a gyro scale-factor
+            // error most often): the same.
+            let fits = self.fits_to_the_noise(&fe) && !fe.torque && !fe.constraint_rejected;
             if fits && (principal || fe.biased) {
                 // With a gyro bias the tensor estimator (which has no bias model) takes the
                 // bias for products of inertia; the fit that explains the data to the noise is
@@ -711,7 +713,7 @@ impl<const N: usize> Pipeline<N> {
             return false;
         }
         let tf = self.tensor_fit.estimate_normalized();
-        if tf.is_some_and(|f| f.torque) {
+        if tf.is_some_and(|f| f.torque || f.scale_rejected) {
             return true;
         }
         let Some(fe) = self.trajectory.estimate().filter(|f| f.torque) else {
@@ -777,7 +779,13 @@ impl<const N: usize> Pipeline<N> {
                                 cfg * cfg
                             };
                             let products_explain = fe.cost - f.cost > chi2 * s2;
-                            return !products_explain;
+                            // Nor better than the gyro's scale factors would, where the ratio
+                            // fit's rigid-body test found ratios no rigid body has (a principal
+                            // body read 0.5 % and 0.3 % off on two axes: products found, the
+                            // tensor's `a` `Converged` and 10-35 std off).
+                            let scale_explains =
+                                fe.constraint_rejected && fe.cost_with_scale <= f.cost;
+                            return !products_explain || scale_explains;
                         }
                     }
                     return false;
@@ -785,6 +793,20 @@ impl<const N: usize> Pipeline<N> {
             }
         }
         own.model == TensorModel::Principal || own.normalized.is_none()
+    }
+
+    /// Whether the ratio fit's rigid-body test ((T5) of [`RatioFit`]) rejected a body whose
+    /// sensor axes are principal axes (gyro-only flights): its rates fit a torque-free body
+    /// only with ratios no rigid body has, which a gyro scale-factor error does (the tensor
+    /// up to scale, fitted to the same rates, inherits the error). With products of inertia
+    /// the ratio fit lacks them and its test says nothing about the tensor.
+    fn not_rigid(&self, own: &TensorEstimate) -> bool {
+        !self.rotor_seen
+            && self
+                .trajectory
+                .estimate()
+                .is_some_and(|f| f.constraint_rejected)
+            && self.principal_axes(own)
     }
 
     /// Whether the reported tensor is the equation error's while no gyro bias was measured on

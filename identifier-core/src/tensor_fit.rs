@@ -49,7 +49,19 @@
 //! L' = L x w + q,   Sigma_q' = Sigma_q x w + L x dw/dq + I,   Sigma_q(t_0) = 0        (F4)
 //! ```
 //!
-//! at `q = 0`, against 21.11 (chi-square, 3 degrees of freedom, 0.01 %).
+//! at `q = 0`, against 21.11 (chi-square, 3 degrees of freedom, 0.01 %). And by the score test
+//! of the gyro's scale-factor errors `kappa`, the gyro reading `(1 + kappa_i) w_i`:
+//!
+//! ```text
+//! ybar_i = (1 + kappa_i) (w_i(tbar) + v/2 w_i''(tbar)),   d ybar_i / d kappa_i = w_i + v/2 w_i''   (F5)
+//! ```
+//!
+//! at `kappa = 0`, scored beyond the fitted model's own columns, against 21.11. A scale error
+//! keeps the rates of a torque-free body with other ratios (see [`crate::RatioFit`]), which the
+//! products of inertia partly absorb: on a principal body with the gyro 0.5 % and 0.3 % off on
+//! two axes the products were found and the tensor's `a` said `Converged` 10-35 standard
+//! deviations off (`scripts/sweep-identify.sh`, row `trap-scale`); a sensor turned off the
+//! principal axes is the tensor's own model and passes.
 //!
 //! The fit starts from an estimate of `J` the caller gives (the pipeline gives
 //! [`crate::TensorEstimator`]'s) and the first block's rate, on all the blocks at once, and on
@@ -81,8 +93,9 @@
 )]
 
 use crate::output_error::{
-    bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, score_rejects,
-    staged_fit, substeps, Block, FitState, Normal, NormalSums, Pooled, StretchResult,
+    bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, score_beyond,
+    score_rejects, staged_fit, substeps, Block, FitState, Normal, NormalSums, Pooled,
+    StretchResult,
 };
 use crate::symmetric::{sqrt, Sym};
 use crate::trajectory::StretchOutcome;
@@ -116,6 +129,11 @@ pub struct TensorFitEstimate {
     /// any stretch fitted up to scale ([`TensorFit::close_normalized`]; the absolute fits are
     /// not tested).
     pub torque: bool,
+    /// True when the score test of the gyro's scale-factor errors ((F5)) rejected the model on
+    /// any stretch fitted up to scale: the rates fit no rigid body read by a gyro with exact
+    /// scale factors (an uncalibrated gyro, typically 0.5-1 % off, or a body that is not
+    /// rigid); the tensor's products of inertia may be soaking it up.
+    pub scale_rejected: bool,
     /// The fits' weighted cost `sum_b n_b |ybar_b - w_b|^2` summed over the pooled stretches,
     /// (rad/s)^2.
     pub cost: f32,
@@ -435,10 +453,11 @@ const fn entries_of(p: usize) -> usize {
     }
 }
 
-/// The six entries `(xx, yy, zz, xy, xz, yz)` from `theta` (see [`entries_of`]).
-fn six<const P: usize>(theta: &[f32; P], trace: f32) -> [f32; 6] {
+/// The six entries `(xx, yy, zz, xy, xz, yz)` from the first `m` of `theta` (`m` = 6, or 5
+/// with the trace held at `trace`).
+fn six<const P: usize>(theta: &[f32; P], trace: f32, m: usize) -> [f32; 6] {
     let g = |i: usize| theta.get(i).copied().unwrap_or(0.0);
-    if entries_of(P) == 6 {
+    if m == 6 {
         [g(0), g(1), g(2), g(3), g(4), g(5)]
     } else {
         [g(0), g(1), trace - g(0) - g(1), g(2), g(3), g(4)]
@@ -454,7 +473,27 @@ fn normal<const P: usize>(
     theta: &[f32; P],
     trace: f32,
 ) -> Option<Normal<P>> {
-    normal_visit::<P, P0>(blocks, limit, theta, trace, false, &mut |_, _| {})
+    normal_visit::<P, P0>(blocks, limit, theta, trace, false, false, &mut |_, _| {})
+}
+
+/// [`normal`] of the model extended by the gyro's scale-factor errors ((F5)): `theta` is the
+/// plain or bias model's parameters with the three `kappa` last (`normalized` as in
+/// [`normal_torque`]).
+fn normal_scale<const P: usize>(
+    blocks: &[Block<6>],
+    theta: &[f32; P],
+    trace: f32,
+    normalized: bool,
+) -> Option<Normal<P>> {
+    normal_visit::<P, P0>(
+        blocks,
+        blocks.len(),
+        theta,
+        trace,
+        normalized,
+        true,
+        &mut |_, _| {},
+    )
 }
 
 /// [`normal`] of the model extended by a constant torque ((F4)): `theta` is the plain or bias
@@ -472,23 +511,30 @@ fn normal_torque<const P: usize>(
         theta,
         trace,
         normalized,
+        false,
         &mut |_, _| {},
     )
 }
 
 /// [`normal`], calling `visit(axis, r)` with each block's residual on each axis in turn. With
 /// `C = 12` the parameters hold a constant torque after the initial rate (`normalized`: the
-/// trace is held, five entries; else six).
+/// trace is held, five entries; else six); with `scale` the last three are the gyro's
+/// scale-factor errors `kappa` of (F5).
 fn normal_visit<const P: usize, const C: usize>(
     blocks: &[Block<6>],
     limit: usize,
     theta: &[f32; P],
     trace: f32,
     normalized: bool,
+    scale: bool,
     visit: &mut impl FnMut(usize, f32),
 ) -> Option<Normal<P>> {
     let torque = C == C_TORQUE;
-    let m = if torque {
+    // The entry count is told by `normalized` wherever the parameter count cannot tell it: a
+    // torque (F4) or scale factors (F5) beyond the plain or bias layout (before 2026-11-25 the
+    // torque test of a biased fit up to scale, 14 parameters, read the layout as six entries
+    // and its tensor from the wrong slots, so it never ran there).
+    let m = if torque || scale {
         if normalized {
             5
         } else {
@@ -497,7 +543,7 @@ fn normal_visit<const P: usize, const C: usize>(
     } else {
         entries_of(P)
     };
-    let e6 = six(theta, trace);
+    let e6 = six(theta, trace, m);
     let j = tensor_of(&e6);
     let k = inverse_pd(&j)?;
     let g = |i: usize| theta.get(i).copied().unwrap_or(0.0);
@@ -534,7 +580,13 @@ fn normal_visit<const P: usize, const C: usize>(
     } else {
         [0.0f32; 3]
     };
-    let biased = P == m + 6 + tq;
+    let sc = if scale { 3 } else { 0 };
+    let kappa = if scale {
+        [g(P - 3), g(P - 2), g(P - 1)]
+    } else {
+        [0.0f32; 3]
+    };
+    let biased = P == m + 6 + tq + sc;
     let bias = if biased {
         [g(m + 3 + tq), g(m + 4 + tq), g(m + 5 + tq)]
     } else {
@@ -597,7 +649,14 @@ fn normal_visit<const P: usize, const C: usize>(
         let half_v = 0.5 * b.time_var();
         let y = rate_of(b);
         for i in 0..3 {
-            let r = y[i] - w[i] - half_v * w2[i] - bias[i];
+            // (F5): the gyro reads (1 + kappa_i) times the block mean of w_i.
+            let mean_w = w[i] + half_v * w2[i];
+            // Without the scale factors, the residual as it always was (the same rounding).
+            let r = if scale {
+                y[i] - (1.0 + kappa[i]) * mean_w - bias[i]
+            } else {
+                y[i] - w[i] - half_v * w2[i] - bias[i]
+            };
             visit(i, r);
             let mut row = [0.0f32; P];
             let ui = &u[i];
@@ -629,6 +688,11 @@ fn normal_visit<const P: usize, const C: usize>(
             if biased {
                 if let Some(dst) = row.get_mut(m + 3 + tq + i) {
                     *dst = 1.0;
+                }
+            }
+            if scale {
+                if let Some(dst) = row.get_mut(P - 3 + i) {
+                    *dst = mean_w;
                 }
             }
             sums.add(b.n, r, &row);
@@ -715,6 +779,9 @@ fn fit_model<const P: usize, const PB: usize, const M: usize, const PT: usize, c
                     }
                 });
                 let torque = torque_found(blocks, &th_t, trace, cost1, dof1, noise_floor);
+                // The scale factors last, after the bias (as many parameters as the torque's).
+                let th_s: [f32; PTB] = leading(&t1);
+                let scale = scale_found(blocks, &th_s, trace, cost1, dof1, noise_floor);
                 return Some(StretchResult {
                     p: leading(&t1),
                     cov: leading_block(&c1),
@@ -723,6 +790,7 @@ fn fit_model<const P: usize, const PB: usize, const M: usize, const PT: usize, c
                     bias: Some([g(M + 3), g(M + 4), g(M + 5)]),
                     lag1,
                     torque,
+                    scale,
                 });
             }
         }
@@ -734,6 +802,7 @@ fn fit_model<const P: usize, const PB: usize, const M: usize, const PT: usize, c
     };
     let th_t: [f32; PT] = leading(&th);
     let torque = torque_found(blocks, &th_t, trace, cost0, dof0, noise_floor);
+    let scale = scale_found(blocks, &th_t, trace, cost0, dof0, noise_floor);
     Some(StretchResult {
         p: leading(&th),
         cov: leading_block(&cov0),
@@ -742,6 +811,7 @@ fn fit_model<const P: usize, const PB: usize, const M: usize, const PT: usize, c
         bias: None,
         lag1,
         torque,
+        scale,
     })
 }
 
@@ -765,21 +835,47 @@ fn torque_found<const P: usize>(
     rejects.then_some(cost)
 }
 
+/// The score test of the gyro's scale-factor errors ((F5)) at a fitted model's optimum:
+/// `theta` that model's parameters with three zero `kappa` last, `cost` and `dof` its own,
+/// scored beyond the model's own columns (see `output_error::score_beyond`) against 21.11
+/// (chi-square, 3 degrees of freedom, 0.01 %). Only up to scale (the gyro-only path).
+fn scale_found<const P: usize>(
+    blocks: &[Block<6>],
+    theta: &[f32; P],
+    trace: f32,
+    cost: f32,
+    dof: f32,
+    noise_floor: f32,
+) -> bool {
+    trace > 0.0
+        && normal_scale(blocks, theta, trace, true)
+            .and_then(|(_, f, g)| score_beyond(&f, &g, &[P - 3, P - 2, P - 1]))
+            .is_some_and(|sc| score_rejects(sc, cost, dof, noise_floor))
+}
+
 /// Lag-1 autocorrelation of the block residuals at `theta` over the three axes: the sum of
 /// each block's residual times the previous block's on the same axis, over the sum of
 /// squares; 0 when the residuals cannot be computed.
 fn residual_lag1<const P: usize>(blocks: &[Block<6>], theta: &[f32; P], trace: f32) -> f32 {
     let mut prev: [Option<f32>; 3] = [None; 3];
     let (mut num, mut den) = (0.0f32, 0.0f32);
-    let ok = normal_visit::<P, P0>(blocks, blocks.len(), theta, trace, false, &mut |i, r| {
-        if let Some(slot) = prev.get_mut(i) {
-            if let Some(p) = *slot {
-                num += p * r;
+    let ok = normal_visit::<P, P0>(
+        blocks,
+        blocks.len(),
+        theta,
+        trace,
+        false,
+        false,
+        &mut |i, r| {
+            if let Some(slot) = prev.get_mut(i) {
+                if let Some(p) = *slot {
+                    num += p * r;
+                }
+                *slot = Some(r);
             }
-            *slot = Some(r);
-        }
-        den += r * r;
-    })
+            den += r * r;
+        },
+    )
     .is_some();
     if ok && den > 0.0 && num.is_finite() {
         num / den
@@ -1065,6 +1161,7 @@ impl<const N: usize> TensorFit<N> {
             biased: self.state.biased,
             bias: self.state.bias,
             torque: self.state.torque,
+            scale_rejected: self.state.scale,
             cost: self.state.pooled.cost(),
         })
     }
@@ -1105,6 +1202,7 @@ impl<const N: usize> TensorFit<N> {
             biased: self.state.biased,
             bias: self.state.bias,
             torque: self.state.torque,
+            scale_rejected: self.state.scale,
             cost: self.normalized.cost(),
         })
     }

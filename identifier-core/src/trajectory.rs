@@ -98,6 +98,32 @@
 //! (0, +0.5, -0.3) % only on 62: a scale error is mostly absorbed by `a` itself (34 seeds stay
 //! `Converged` and more than 4 standard deviations off, against 100 without the test).
 //!
+//! # Ratios no rigid body has
+//!
+//! The model holds `a1 + a2 + a3 + a1 a2 a3 = 0` by construction. A gyro whose scale factors
+//! are off by `k_i` measures `y_i = k_i w_i`, which satisfies (1) exactly with
+//! `a_i k_i / (k_j k_k)`: ratios that break the identity by about `sum a_i e_i (1 + a_j a_k)`,
+//! `e_i = dk_i - dk_j - dk_k`, while the residual stays at the noise. The alternative checked
+//! after every fit is a step `delta` off the identity along its unit normal `n`:
+//!
+//! ```text
+//! a = a(p1, p2) + delta n,   n ~ (1 + a2 a3, 1 + a3 a1, 1 + a1 a2),
+//! S_delta' = (df/dw) S_delta + (n_i w_j w_k)_i,   S_delta(tbar_0) = 0              (T5)
+//! ```
+//!
+//! scored at `delta = 0` beyond the fitted model's own columns (the gradient a fit stopped at
+//! `f32` precision leaves along them is not counted) against 15.14 (chi-square, 1 degree of
+//! freedom, 0.01 %); when it rejects, [`RatioFitEstimate::constraint_rejected`] is set and the
+//! pipeline does not call the ratios `Converged`. The model is then fitted once more with the
+//! gyro's scale-factor errors `kappa` free,
+//!
+//! ```text
+//! ybar_i = (1 + kappa_i) (w_i(tbar) + v/2 w_i''(tbar)),   d ybar_i / d kappa_i = w_i + v/2 w_i''   (T6)
+//! ```
+//!
+//! and its cost ([`RatioFitEstimate::cost_with_scale`]) is what the products of inertia of the
+//! tensor must beat to be believed: they absorb part of a scale error too.
+//!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 137 / 180
 //! instructions per sample (a block sum; a merge of the 256 blocks once in a while costs up to
 //! 14 k); one fit 9.0 M instructions after 20 s at 1 kHz, 2.2 M after an 85-sample toss
@@ -112,8 +138,9 @@
 )]
 
 use crate::output_error::{
-    bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, score_rejects,
-    staged_fit, substeps, Block, FitState, Normal, NormalSums, StretchResult,
+    bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, score_beyond,
+    score_rejects, score_rejects_at, staged_fit, substeps, Block, FitState, Normal, NormalSums,
+    StretchResult,
 };
 use crate::symmetric::{sqrt, Sym};
 
@@ -145,6 +172,17 @@ pub struct RatioFitEstimate {
     /// are not principal axes (this model lacks the products of inertia); `a` is not to be
     /// trusted however small its standard deviation.
     pub torque: bool,
+    /// True when the score test of a step off the rigid-body constraint ((T5)) rejected the
+    /// fitted model on any stretch: the rates are those of a torque-free body, but with ratios
+    /// no rigid body has; the gyro's scale factors (or axes) are not what the data say (a scale
+    /// error `k_i` turns `a_i` into `a_i k_i / (k_j k_k)`), or the sensor axes are not principal
+    /// axes (this model lacks the products of inertia). `a` is not to be trusted however small
+    /// its standard deviation.
+    pub constraint_rejected: bool,
+    /// [`RatioFitEstimate::cost`] with the gyro's scale factors fitted ((T6)) on the stretches
+    /// whose rigid-body test rejected (the alternative the pipeline weighs against the
+    /// tensor's products of inertia).
+    pub cost_with_scale: f32,
     /// The fits' weighted cost `sum_b n_b |ybar_b - w_b|^2` summed over the stretches, (rad/s)^2.
     pub cost: f32,
     /// The same with the constant torque fitted on the stretches whose test rejected (the
@@ -203,6 +241,11 @@ pub struct RatioFit<const N: usize> {
     full_scale: f32,
     max_dt: f32,
     noise_std: f32,
+    /// A pooled stretch's rigid-body test ((T5)) rejected its fit.
+    constraint_rejected: bool,
+    /// The pooled stretches' costs, each with the scale factors fitted ((T6)) where the
+    /// rigid-body test rejected.
+    scale_cost: f32,
 }
 
 /// The block buffer used by the pipeline: 256 blocks (10 KB in all). With 128 blocks (156 ms
@@ -226,6 +269,17 @@ const C_TORQUE: usize = 8;
 
 /// Parameters of the torque alternative to the bias model (bias model 8, torque 3).
 const P_TORQUE_BIAS: usize = 11;
+
+/// Sensitivity columns with the step off the rigid-body constraint ((T5)): moments 2, initial
+/// rates 3, the step 1.
+const C_RIGID: usize = 6;
+
+/// Parameters of the rigid-body alternative to the bias model (bias model 8, the step 1).
+const P_RIGID_BIAS: usize = 9;
+
+/// Chi-square with 1 degree of freedom that the score of a step off the rigid-body
+/// constraint must exceed: 15.14, 0.01 %.
+const RIGID_CHI2: f32 = 15.14;
 
 /// One fit's result.
 #[derive(Clone, Copy, Debug)]
@@ -283,7 +337,7 @@ fn jac(a: &[f32; 3], w: &[f32; 3]) -> [[f32; 3]; 3] {
 
 /// The right-hand side of (T3) (and of (T4) when `C = 8`: `w' = f(w) + c`, the torque's
 /// sensitivity forced by the identity).
-fn deriv<const C: usize>(a: &[f32; 3], dadp: &[[f32; 2]; 3], c: &[f32; 3], x: &Aug<C>) -> Aug<C> {
+fn deriv<const C: usize>(a: &[f32; 3], dadp: &[[f32; 3]; 3], c: &[f32; 3], x: &Aug<C>) -> Aug<C> {
     let w = &x.w;
     let j = jac(a, w);
     let prod = [w[1] * w[2], w[2] * w[0], w[0] * w[1]];
@@ -296,6 +350,9 @@ fn deriv<const C: usize>(a: &[f32; 3], dadp: &[[f32; 2]; 3], c: &[f32; 3], x: &A
         s[i][1] += prod[i] * dadp[i][1];
         if C == C_TORQUE {
             s[i][5 + i] += 1.0;
+        }
+        if C == C_RIGID {
+            s[i][5] += prod[i] * dadp[i][2];
         }
     }
     Aug {
@@ -323,7 +380,7 @@ fn axpy<const C: usize>(x: &Aug<C>, k: &Aug<C>, h: f32) -> Aug<C> {
 /// One classical RK4 step of (T3) (or (T4)) with the constant torque `c`.
 fn rk4<const C: usize>(
     a: &[f32; 3],
-    dadp: &[[f32; 2]; 3],
+    dadp: &[[f32; 3]; 3],
     c: &[f32; 3],
     x: &Aug<C>,
     h: f32,
@@ -345,14 +402,40 @@ fn rk4<const C: usize>(
 
 /// The weighted cost and normal equations of the first `limit` blocks at `theta`: `C = 5`
 /// sensitivity columns `(p1, p2, w0)`, or `C = 8` with a constant torque in `theta[5..8]`
-/// ((T4)); and when `P = C + 3`, a gyro bias in `theta[C..C + 3]`. `None` when the moments
+/// ((T4)), or `C = 6` with a step `theta[5]` off the rigid-body constraint ((T5)); and when
+/// `P = C + 3`, a gyro bias in `theta[C..C + 3]`. `None` when the moments
 /// are not positive or anything is not finite.
 fn normal<const P: usize, const C: usize>(
     blocks: &[Block<3>],
     limit: usize,
     theta: &[f32; P],
 ) -> Option<Normal<P>> {
-    let (a, dadp) = ratios_of(theta[0], theta[1])?;
+    normal_with::<P, C>(blocks, limit, theta, false)
+}
+
+/// [`normal`], with `scale` the gyro's scale-factor errors `kappa` as the last three
+/// parameters ((T6): the gyro reads `(1 + kappa_i)` times the block mean of `w_i`).
+fn normal_with<const P: usize, const C: usize>(
+    blocks: &[Block<3>],
+    limit: usize,
+    theta: &[f32; P],
+    scale: bool,
+) -> Option<Normal<P>> {
+    let (mut a, d2) = ratios_of(theta[0], theta[1])?;
+    // Third column: the unit normal `n` of the rigid-body constraint at `a` ((T5)), and `a`
+    // moved by `delta n` (`delta = theta[5]`) when that column is asked for.
+    let mut dadp = [[0.0f32; 3]; 3];
+    for (row, d) in dadp.iter_mut().zip(d2.iter()) {
+        row[0] = d[0];
+        row[1] = d[1];
+    }
+    if C == C_RIGID {
+        let n = constraint_normal(&a);
+        for ((row, ai), ni) in dadp.iter_mut().zip(a.iter_mut()).zip(n.iter()) {
+            row[2] = *ni;
+            *ai += theta[5] * ni;
+        }
+    }
     let amax = a
         .iter()
         .fold(0.0f32, |m, x| if x.abs() > m { x.abs() } else { m });
@@ -367,7 +450,12 @@ fn normal<const P: usize, const C: usize>(
     if C == C_TORQUE {
         torque = [theta[5], theta[6], theta[7]];
     }
-    let has_bias = P == C + 3;
+    let sc = if scale { 3 } else { 0 };
+    let has_bias = P == C + 3 + sc;
+    let mut kappa = [0.0f32; 3];
+    if scale {
+        kappa = [theta[P - 3], theta[P - 2], theta[P - 1]];
+    }
     let mut bias = [0.0f32; 3];
     if has_bias {
         bias = [theta[C], theta[C + 1], theta[C + 2]];
@@ -397,11 +485,25 @@ fn normal<const P: usize, const C: usize>(
         let y = [b.mean(0), b.mean(1), b.mean(2)];
         for i in 0..3 {
             let w2 = j[i][0] * fw[0] + j[i][1] * fw[1] + j[i][2] * fw[2];
-            let r = y[i] - x.w[i] - half_v * w2 - bias[i];
+            let mean_w = x.w[i] + half_v * w2;
             let mut row = [0.0f32; P];
-            row[..C].copy_from_slice(&x.s[i]);
+            // Without the scale factors, the residual and row as they always were (the same
+            // rounding: the other fits' results unchanged to the bit).
+            let r = if scale {
+                let gain = 1.0 + kappa[i];
+                for (dst, src) in row.iter_mut().zip(x.s[i].iter()) {
+                    *dst = gain * src;
+                }
+                y[i] - gain * mean_w - bias[i]
+            } else {
+                row[..C].copy_from_slice(&x.s[i]);
+                y[i] - x.w[i] - half_v * w2 - bias[i]
+            };
             if has_bias {
                 row[C + i] = 1.0;
+            }
+            if scale {
+                row[P - 3 + i] = mean_w;
             }
             sums.add(b.n, r, &row);
         }
@@ -505,14 +607,76 @@ fn torque_alternative<const P: usize>(
     })
 }
 
-/// Fits the stretch in `blocks`: the plain model on growing prefixes, then the bias model from
-/// its result. Returns the chosen fit (unit-noise covariance), whether it has the bias, its
-/// parameter count, and the cost with a constant torque when the torque's score test
-/// rejected the chosen model.
-fn fit_stretch(
+/// The unit normal of the rigid-body constraint `a1 + a2 + a3 + a1 a2 a3 = 0` at `a`:
+/// `(1 + a2 a3, 1 + a3 a1, 1 + a1 a2)` over its length (`(1, 1, 1) / sqrt 3` if that is 0).
+fn constraint_normal(a: &[f32; 3]) -> [f32; 3] {
+    let g = [1.0 + a[1] * a[2], 1.0 + a[2] * a[0], 1.0 + a[0] * a[1]];
+    let len = sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+    if len > 0.0 && len.is_finite() {
+        [g[0] / len, g[1] / len, g[2] / len]
+    } else {
+        let k = 1.0 / sqrt(3.0);
+        [k, k, k]
+    }
+}
+
+/// Whether the score test of a step off the rigid-body constraint ((T5)) rejects the fitted
+/// model at `theta` (`P` = 6: the plain model's five and a zero step; 9: and the bias last),
+/// `cost` and `dof` that model's.
+fn rigid_rejected<const P: usize>(
     blocks: &[Block<3>],
+    theta: [f32; P],
+    cost: f32,
+    dof: f32,
     noise_floor: f32,
-) -> Option<(Fit<P_MAX>, bool, usize, Option<f32>)> {
+) -> bool {
+    normal::<P, C_RIGID>(blocks, blocks.len(), &theta)
+        .and_then(|(_, f, g)| score_beyond(&f, &g, &[5]))
+        .is_some_and(|sc| score_rejects_at(sc, RIGID_CHI2, cost, dof, noise_floor))
+}
+
+/// The gyro-scale alternative ((T6)) of a model the rigid-body test rejected: the model at
+/// `theta` (`P` = 8: the plain model's five and three zero `kappa`; 11: the bias model's eight
+/// and the `kappa`) fitted with the scale factors free; its cost (`cost`, the model's own, if
+/// that fit fails or is not lower), for the pipeline to weigh against the tensor's products of
+/// inertia, which absorb part of a scale error.
+fn scale_alternative<const P: usize>(
+    blocks: &[Block<3>],
+    theta: [f32; P],
+    cost: f32,
+    dof: f32,
+) -> f32 {
+    let total = blocks.len();
+    let fitted = levenberg(
+        |th| normal_with::<P, 5>(blocks, total, th, true),
+        theta,
+        30,
+        dof - 3.0,
+    );
+    match fitted {
+        Some((_, c, _)) if c < cost => c,
+        _ => cost,
+    }
+}
+
+/// What [`fit_stretch`] found in one stretch.
+struct StretchFit {
+    /// The chosen fit (unit-noise covariance).
+    fit: Fit<P_MAX>,
+    /// Whether it has the bias.
+    biased: bool,
+    /// Its parameter count.
+    params: usize,
+    /// The cost with a constant torque when the torque's score test ((T4)) rejected the fit.
+    torque: Option<f32>,
+    /// The cost with the gyro's scale factors free ((T6)) when the rigid-body test ((T5))
+    /// rejected the fit.
+    scale: Option<f32>,
+}
+
+/// Fits the stretch in `blocks`: the plain model on growing prefixes, then the bias model from
+/// its result, then the tests of what the model lacks.
+fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
     let total = blocks.len();
     let first = blocks.first().map(|b| [b.mean(0), b.mean(1), b.mean(2)])?;
     let p0 = initial_a(blocks).map_or([1.0 / 3.0, 1.0 / 3.0], moments_of);
@@ -541,36 +705,50 @@ fn fit_stretch(
             th11[..5].copy_from_slice(&th8[..5]);
             th11[8..].copy_from_slice(&th8[5..]);
             let torque = torque_alternative(blocks, th11, cost8, dof8, noise_floor);
-            return Some((
-                Fit {
+            let mut th9 = [0.0f32; P_RIGID_BIAS];
+            th9[..5].copy_from_slice(&th8[..5]);
+            th9[6..].copy_from_slice(&th8[5..]);
+            let rigid = rigid_rejected(blocks, th9, cost8, dof8, noise_floor).then(|| {
+                let mut th11 = [0.0f32; P_TORQUE_BIAS];
+                th11[..8].copy_from_slice(&th8);
+                scale_alternative(blocks, th11, cost8, dof8)
+            });
+            return Some(StretchFit {
+                fit: Fit {
                     theta: th8,
                     cost: cost8,
                     cov: cov8,
                 },
-                true,
-                8,
+                biased: true,
+                params: 8,
                 torque,
-            ));
+                scale: rigid,
+            });
         }
     }
     // The torque's score at the plain optimum (zero torque in theta[5..8]).
     let mut theta = [0.0f32; P_MAX];
     theta[..5].copy_from_slice(&theta5);
     let torque = torque_alternative(blocks, theta, cost5, dof5, noise_floor);
+    let mut th6 = [0.0f32; C_RIGID];
+    th6[..5].copy_from_slice(&theta5);
+    let rigid = rigid_rejected(blocks, th6, cost5, dof5, noise_floor)
+        .then(|| scale_alternative(blocks, theta, cost5, dof5));
     let mut cov = [[0.0f32; P_MAX]; P_MAX];
     for i in 0..5 {
         cov[i][..5].copy_from_slice(&cov5[i]);
     }
-    Some((
-        Fit {
+    Some(StretchFit {
+        fit: Fit {
             theta,
             cost: cost5,
             cov,
         },
-        false,
-        5,
+        biased: false,
+        params: 5,
         torque,
-    ))
+        scale: rigid,
+    })
 }
 
 impl<const N: usize> RatioFit<N> {
@@ -585,6 +763,8 @@ impl<const N: usize> RatioFit<N> {
             full_scale,
             max_dt,
             noise_std,
+            constraint_rejected: false,
+            scale_cost: 0.0,
         }
     }
 
@@ -611,8 +791,16 @@ impl<const N: usize> RatioFit<N> {
     /// ([`RatioFit::last_outcome`]).
     pub fn close(&mut self) -> StretchOutcome {
         let noise = self.noise_std;
-        self.state.close(|blocks| {
-            let (fit, biased, params, torque) = fit_stretch(blocks, noise)?;
+        let mut rigid: Option<(Option<f32>, f32)> = None;
+        let outcome = self.state.close(|blocks| {
+            let StretchFit {
+                fit,
+                biased,
+                params,
+                torque,
+                scale,
+            } = fit_stretch(blocks, noise)?;
+            rigid = Some((scale, fit.cost));
             Some(StretchResult {
                 p: [fit.theta[0], fit.theta[1]],
                 cov: [
@@ -624,8 +812,19 @@ impl<const N: usize> RatioFit<N> {
                 bias: biased.then_some([fit.theta[5], fit.theta[6], fit.theta[7]]),
                 lag1: 0.0,
                 torque,
+                scale: false,
             })
-        })
+        });
+        if matches!(
+            outcome,
+            StretchOutcome::Fitted | StretchOutcome::FittedWithBias
+        ) {
+            if let Some((scale, cost)) = rigid {
+                self.constraint_rejected |= scale.is_some();
+                self.scale_cost += scale.unwrap_or(cost);
+            }
+        }
+        outcome
     }
 
     /// Drops the open stretch without fitting it.
@@ -671,6 +870,8 @@ impl<const N: usize> RatioFit<N> {
             biased: self.state.biased,
             bias: self.state.bias,
             torque: self.state.torque,
+            constraint_rejected: self.constraint_rejected,
+            cost_with_scale: self.scale_cost,
             cost: self.state.pooled.cost(),
             cost_with_torque: self.state.torque_cost,
         })
@@ -852,6 +1053,36 @@ mod tests {
             fit.close();
             let e = fit.estimate().unwrap();
             assert_eq!(e.torque, found, "torque {c:?}, bias {with_bias}");
+        }
+    }
+
+    #[test]
+    fn ratios_no_rigid_body_has_are_found_and_a_rigid_body_passes() {
+        let m = [0.8, 1.3, 1.7];
+        let ys = simulate(m, [1.2, 0.4, 0.9], 500.0, 3000);
+        for (k, with_bias, found) in [
+            ([1.0f32; 3], false, false),
+            ([1.0; 3], true, false),
+            ([1.0, 1.005, 0.997], false, true),
+            ([1.0, 1.005, 0.997], true, true),
+        ] {
+            let b = if with_bias {
+                [2e-3f32, -1.5e-3, 1e-3]
+            } else {
+                [0.0; 3]
+            };
+            let mut fit = RatioFit::<256>::new(f32::INFINITY, 0.1, 2e-3);
+            let mut noise = uniform(11);
+            for y in &ys {
+                let z: [f32; 3] = core::array::from_fn(|i| k[i] * y[i] + b[i] + 7e-3 * noise());
+                fit.step(z, 2e-3);
+            }
+            fit.close();
+            let e = fit.estimate().unwrap();
+            assert_eq!(
+                e.constraint_rejected, found,
+                "scale {k:?}, bias {with_bias}"
+            );
         }
     }
 
