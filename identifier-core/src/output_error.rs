@@ -506,9 +506,22 @@ pub(crate) fn score_beyond<const P: usize>(
     extra: &[usize],
 ) -> Option<f32> {
     let whole = score(f, g)?;
+    let (fr, gr) = without(f, g, extra);
+    let rest = score(&fr, &gr)?;
+    Some(whole - rest)
+}
+
+/// `F` and `g` of the model without the parameters `drop`: their rows and columns of `F`
+/// replaced by those of the identity and their entries of `g` by zeros (a block-diagonal `F`
+/// whose score is the smaller model's).
+pub(crate) fn without<const P: usize>(
+    f: &Sym<P>,
+    g: &[f32; P],
+    drop: &[usize],
+) -> (Sym<P>, [f32; P]) {
     let mut fr = *f;
     let mut gr = *g;
-    for &k in extra {
+    for &k in drop {
         for i in 0..P {
             if let Some(x) = fr.get_mut(k).and_then(|row| row.get_mut(i)) {
                 *x = 0.0;
@@ -524,8 +537,7 @@ pub(crate) fn score_beyond<const P: usize>(
             *x = 0.0;
         }
     }
-    let rest = score(&fr, &gr)?;
-    Some(whole - rest)
+    (fr, gr)
 }
 
 /// [`score_rejects`] at the chi-square threshold `chi2` instead of 3 degrees of freedom's.

@@ -80,8 +80,8 @@
 //!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 225 / 303
 //! instructions per sample; one fit of a 0.6 s throw at 2 kHz 32 M / 37 M instructions, about
-//! 0.2 s at 168 MHz; up to scale, 20 s of a slow tumble at 1 kHz 41 M / 46 M (0.25-0.27 s) and a
-//! 0.85 s toss at 100 Hz 29 M / 33 M (35 / 40 M and 24 / 28 M before the torque test (F4)): far too long for one gyro period, which is why the
+//! 0.2 s at 168 MHz; up to scale, 20 s of a slow tumble at 1 kHz 44 M / 50 M (0.26-0.30 s) and a
+//! 0.85 s toss at 100 Hz 33 M / 37 M (35 / 40 M and 24 / 28 M before the tests (F4), (F5)): far too long for one gyro period, which is why the
 //! pipeline runs it in [`crate::Pipeline::fit_ended_flight`], outside its per-sample step.
 #![allow(
     // Fixed-size loops over the 3 axes and the parameters read as the equations; the crate's

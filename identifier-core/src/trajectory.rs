@@ -95,8 +95,9 @@
 //! On that sweep (100 seeds a row) no row of a free body is flagged; air drag of 0.01/s is on
 //! every seed; a gyro bias random-walking at 2e-3 rad/s/sqrt(s) on 99 (no seed `Converged`
 //! more than 4 standard deviations off, against 5 without the test); gyro scale factors off by
-//! (0, +0.5, -0.3) % only on 62: a scale error is mostly absorbed by `a` itself (34 seeds stay
-//! `Converged` and more than 4 standard deviations off, against 100 without the test).
+//! (0, +0.5, -0.3) % only on 62: a scale error is mostly absorbed by `a` itself (34 seeds stayed
+//! `Converged` and more than 4 standard deviations off, against 100 without the test; 1 with
+//! the rigid-body test below and the tensor fit's scale test).
 //!
 //! # Ratios no rigid body has
 //!
@@ -126,8 +127,9 @@
 //!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 137 / 180
 //! instructions per sample (a block sum; a merge of the 256 blocks once in a while costs up to
-//! 14 k); one fit 9.0 M instructions after 20 s at 1 kHz, 2.2 M after an 85-sample toss
-//! (7.8 M and 1.9 M before the torque test (T4): one evaluation with 8 sensitivity columns).
+//! 14 k); one fit 9.9 M instructions after 20 s at 1 kHz, 2.4 M after an 85-sample toss
+//! (7.8 M and 1.9 M before the tests (T4), (T5): one evaluation each, with 8 and 6
+//! sensitivity columns; (T6) fits only where (T5) rejected).
 #![allow(
     // Fixed-size loops over the 3 axes and the P <= 8 parameters read as the equations; the
     // crate's link-time no-panic check proves no bounds check survives.
@@ -139,8 +141,8 @@
 
 use crate::output_error::{
     bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, score_beyond,
-    score_rejects, score_rejects_at, staged_fit, substeps, Block, FitState, Normal, NormalSums,
-    StretchResult,
+    score_rejects, score_rejects_at, staged_fit, substeps, without, Block, FitState, Normal,
+    NormalSums, StretchResult,
 };
 use crate::symmetric::{sqrt, Sym};
 
@@ -270,12 +272,12 @@ const C_TORQUE: usize = 8;
 /// Parameters of the torque alternative to the bias model (bias model 8, torque 3).
 const P_TORQUE_BIAS: usize = 11;
 
-/// Sensitivity columns with the step off the rigid-body constraint ((T5)): moments 2, initial
-/// rates 3, the step 1.
-const C_RIGID: usize = 6;
+/// Sensitivity columns of the tests after a fit, in one pass: moments 2, initial rates 3, a
+/// constant torque 3 ((T4)), the step off the rigid-body constraint 1 ((T5)).
+const C_TESTS: usize = 9;
 
-/// Parameters of the rigid-body alternative to the bias model (bias model 8, the step 1).
-const P_RIGID_BIAS: usize = 9;
+/// Parameters of the tests of the bias model (bias model 8, torque 3, the step 1).
+const P_TESTS_BIAS: usize = 12;
 
 /// Chi-square with 1 degree of freedom that the score of a step off the rigid-body
 /// constraint must exceed: 15.14, 0.01 %.
@@ -348,11 +350,11 @@ fn deriv<const C: usize>(a: &[f32; 3], dadp: &[[f32; 3]; 3], c: &[f32; 3], x: &A
         }
         s[i][0] += prod[i] * dadp[i][0];
         s[i][1] += prod[i] * dadp[i][1];
-        if C == C_TORQUE {
+        if C == C_TORQUE || C == C_TESTS {
             s[i][5 + i] += 1.0;
         }
-        if C == C_RIGID {
-            s[i][5] += prod[i] * dadp[i][2];
+        if C == C_TESTS {
+            s[i][8] += prod[i] * dadp[i][2];
         }
     }
     Aug {
@@ -402,7 +404,8 @@ fn rk4<const C: usize>(
 
 /// The weighted cost and normal equations of the first `limit` blocks at `theta`: `C = 5`
 /// sensitivity columns `(p1, p2, w0)`, or `C = 8` with a constant torque in `theta[5..8]`
-/// ((T4)), or `C = 6` with a step `theta[5]` off the rigid-body constraint ((T5)); and when
+/// ((T4)), or `C = 9` with the torque and a step `theta[8]` off the rigid-body constraint
+/// ((T5)); and when
 /// `P = C + 3`, a gyro bias in `theta[C..C + 3]`. `None` when the moments
 /// are not positive or anything is not finite.
 fn normal<const P: usize, const C: usize>(
@@ -429,11 +432,11 @@ fn normal_with<const P: usize, const C: usize>(
         row[0] = d[0];
         row[1] = d[1];
     }
-    if C == C_RIGID {
+    if C == C_TESTS {
         let n = constraint_normal(&a);
         for ((row, ai), ni) in dadp.iter_mut().zip(a.iter_mut()).zip(n.iter()) {
             row[2] = *ni;
-            *ai += theta[5] * ni;
+            *ai += theta[8] * ni;
         }
     }
     let amax = a
@@ -447,7 +450,7 @@ fn normal_with<const P: usize, const C: usize>(
     x.s[1][3] = 1.0;
     x.s[2][4] = 1.0;
     let mut torque = [0.0f32; 3];
-    if C == C_TORQUE {
+    if C == C_TORQUE || C == C_TESTS {
         torque = [theta[5], theta[6], theta[7]];
     }
     let sc = if scale { 3 } else { 0 };
@@ -576,35 +579,27 @@ fn moments_of(a: [f32; 3]) -> [f32; 2] {
     }
 }
 
-/// The constant-torque alternative ((T4)) at a fitted model's optimum `theta` (`P` = 8: the
-/// plain model's five and a zero torque; 11: and the bias last), `cost` and `dof` that
-/// model's: `None` when the score test does not reject it, else the cost of the model with the
-/// torque fitted (`cost` itself if that fit fails), for the pipeline to weigh it against the
-/// tensor's products of inertia.
+/// The constant-torque alternative ((T4)) of a model the torque's score test rejected: the
+/// model at `theta` (`P` = 8: the plain model's five and a zero torque; 11: and the bias last)
+/// fitted with the torque free; its cost (`cost`, the model's own, if that fit fails or is not
+/// lower), for the pipeline to weigh against the tensor's products of inertia.
 fn torque_alternative<const P: usize>(
     blocks: &[Block<3>],
     theta: [f32; P],
     cost: f32,
     dof: f32,
-    noise_floor: f32,
-) -> Option<f32> {
+) -> f32 {
     let total = blocks.len();
-    let rejects = normal::<P, C_TORQUE>(blocks, total, &theta)
-        .and_then(|(_, f, g)| score(&f, &g))
-        .is_some_and(|sc| score_rejects(sc, cost, dof, noise_floor));
-    if !rejects {
-        return None;
-    }
     let fitted = levenberg(
         |th| normal::<P, C_TORQUE>(blocks, total, th),
         theta,
         30,
         dof - 3.0,
     );
-    Some(match fitted {
+    match fitted {
         Some((_, c, _)) if c < cost => c,
         _ => cost,
-    })
+    }
 }
 
 /// The unit normal of the rigid-body constraint `a1 + a2 + a3 + a1 a2 a3 = 0` at `a`:
@@ -620,19 +615,27 @@ fn constraint_normal(a: &[f32; 3]) -> [f32; 3] {
     }
 }
 
-/// Whether the score test of a step off the rigid-body constraint ((T5)) rejects the fitted
-/// model at `theta` (`P` = 6: the plain model's five and a zero step; 9: and the bias last),
-/// `cost` and `dof` that model's.
-fn rigid_rejected<const P: usize>(
+/// The score tests after a fit, from one evaluation at the fitted model's optimum `theta`
+/// (`P` = 9: the plain model's five, a zero torque and a zero step off the constraint; 12: and
+/// the bias last), `cost` and `dof` that model's: whether a constant torque ((T4): `g^T F^-1 g`
+/// of the model with the torque, against 21.11) and whether a step off the rigid-body
+/// constraint ((T5): scored beyond the model's own columns, against 15.14) reject it.
+fn tests_reject<const P: usize>(
     blocks: &[Block<3>],
     theta: [f32; P],
     cost: f32,
     dof: f32,
     noise_floor: f32,
-) -> bool {
-    normal::<P, C_RIGID>(blocks, blocks.len(), &theta)
-        .and_then(|(_, f, g)| score_beyond(&f, &g, &[5]))
-        .is_some_and(|sc| score_rejects_at(sc, RIGID_CHI2, cost, dof, noise_floor))
+) -> (bool, bool) {
+    let Some((_, f, g)) = normal::<P, C_TESTS>(blocks, blocks.len(), &theta) else {
+        return (false, false);
+    };
+    let (ft, gt) = without(&f, &g, &[8]);
+    let torque = score(&ft, &gt).is_some_and(|sc| score_rejects(sc, cost, dof, noise_floor));
+    let (fr, gr) = without(&f, &g, &[5, 6, 7]);
+    let rigid = score_beyond(&fr, &gr, &[8])
+        .is_some_and(|sc| score_rejects_at(sc, RIGID_CHI2, cost, dof, noise_floor));
+    (torque, rigid)
 }
 
 /// The gyro-scale alternative ((T6)) of a model the rigid-body test rejected: the model at
@@ -700,15 +703,20 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
     };
     if let Some((th8, cost8, cov8)) = with_bias {
         if bias_found(cost5, cost8, dof8, noise_floor) && ratios_of(th8[0], th8[1]).is_some() {
-            // The torque at the bias model's optimum: bias moved to theta[8..11].
-            let mut th11 = [0.0f32; P_TORQUE_BIAS];
-            th11[..5].copy_from_slice(&th8[..5]);
-            th11[8..].copy_from_slice(&th8[5..]);
-            let torque = torque_alternative(blocks, th11, cost8, dof8, noise_floor);
-            let mut th9 = [0.0f32; P_RIGID_BIAS];
-            th9[..5].copy_from_slice(&th8[..5]);
-            th9[6..].copy_from_slice(&th8[5..]);
-            let rigid = rigid_rejected(blocks, th9, cost8, dof8, noise_floor).then(|| {
+            // The tests at the bias model's optimum: bias moved to theta[9..12].
+            let mut th12 = [0.0f32; P_TESTS_BIAS];
+            th12[..5].copy_from_slice(&th8[..5]);
+            th12[9..].copy_from_slice(&th8[5..]);
+            let (torque, rigid) = tests_reject(blocks, th12, cost8, dof8, noise_floor);
+            let torque = torque.then(|| {
+                // The torque's layout: bias at theta[8..11].
+                let mut th11 = [0.0f32; P_TORQUE_BIAS];
+                th11[..5].copy_from_slice(&th8[..5]);
+                th11[8..].copy_from_slice(&th8[5..]);
+                torque_alternative(blocks, th11, cost8, dof8)
+            });
+            let rigid = rigid.then(|| {
+                // The scale factors' layout: the bias model's eight, then kappa.
                 let mut th11 = [0.0f32; P_TORQUE_BIAS];
                 th11[..8].copy_from_slice(&th8);
                 scale_alternative(blocks, th11, cost8, dof8)
@@ -726,14 +734,14 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
             });
         }
     }
-    // The torque's score at the plain optimum (zero torque in theta[5..8]).
+    // The tests at the plain optimum (zero torque in theta[5..8], zero step in theta[8]).
     let mut theta = [0.0f32; P_MAX];
     theta[..5].copy_from_slice(&theta5);
-    let torque = torque_alternative(blocks, theta, cost5, dof5, noise_floor);
-    let mut th6 = [0.0f32; C_RIGID];
-    th6[..5].copy_from_slice(&theta5);
-    let rigid = rigid_rejected(blocks, th6, cost5, dof5, noise_floor)
-        .then(|| scale_alternative(blocks, theta, cost5, dof5));
+    let mut th9 = [0.0f32; C_TESTS];
+    th9[..5].copy_from_slice(&theta5);
+    let (torque, rigid) = tests_reject(blocks, th9, cost5, dof5, noise_floor);
+    let torque = torque.then(|| torque_alternative(blocks, theta, cost5, dof5));
+    let rigid = rigid.then(|| scale_alternative(blocks, theta, cost5, dof5));
     let mut cov = [[0.0f32; P_MAX]; P_MAX];
     for i in 0..5 {
         cov[i][..5].copy_from_slice(&cov5[i]);
