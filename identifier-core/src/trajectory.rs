@@ -127,9 +127,9 @@
 //!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 137 / 180
 //! instructions per sample (a block sum; a merge of the 256 blocks once in a while costs up to
-//! 14 k); one fit 9.9 M instructions after 20 s at 1 kHz, 2.4 M after an 85-sample toss
-//! (7.8 M and 1.9 M before the tests (T4), (T5): one evaluation each, with 8 and 6
-//! sensitivity columns; (T6) fits only where (T5) rejected).
+//! 14 k); one fit 9.2 M instructions after 20 s at 1 kHz, 2.2 M after an 85-sample toss
+//! (7.8 M and 1.9 M before the tests (T4), (T5): one evaluation for both, with 9 sensitivity
+//! columns; (T6) fits only where (T5) rejected).
 #![allow(
     // Fixed-size loops over the 3 axes and the P <= 8 parameters read as the equations; the
     // crate's link-time no-panic check proves no bounds check survives.
