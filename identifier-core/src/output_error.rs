@@ -487,11 +487,7 @@ pub(crate) fn bias_worth_fitting(
 /// sample but never below `noise_floor^2`. Asymptotically the likelihood-ratio test, without
 /// fitting the extended model. False when `dof` is not positive.
 pub(crate) fn score_rejects(score: f32, cost: f32, dof: f32, noise_floor: f32) -> bool {
-    if !(dof > 0.0) {
-        return false;
-    }
-    let s2 = residual_variance(cost, dof, noise_floor);
-    s2 > 0.0 && score > BIAS_CHI2 * s2
+    score_rejects_at(score, BIAS_CHI2, cost, dof, noise_floor)
 }
 
 /// The score statistic of the columns `extra` beyond the rest: `g^T F^-1 g` of the whole

@@ -415,13 +415,15 @@ impl<const N: usize> Pipeline<N> {
         let mut t = self.reported(own);
         let converged =
             |s: TensorStatus| matches!(s, TensorStatus::Converged | TensorStatus::Converging);
-        if (self.torque_suspected(&own) || self.not_rigid(&own)) && converged(t.status) {
+        // Whether the sensor axes are principal axes, asked once for everything below.
+        let principal = self.principal_axes(&own);
+        if (self.torque_suspected(principal) || self.not_rigid(principal)) && converged(t.status) {
             t.status = TensorStatus::ModelMismatch;
         }
         if self.bias_unknown(&t) && t.status == TensorStatus::Converged {
             t.status = TensorStatus::Converging;
         }
-        let r = self.ratios_from(&t, &own);
+        let r = self.ratios_from(&t, principal);
         let unmodelled_bias =
             r.source == RatioSource::RefinedBias && t.method == TensorMethod::EquationError;
         if unmodelled_bias && converged(t.status) {
@@ -430,8 +432,9 @@ impl<const N: usize> Pipeline<N> {
         (t, r)
     }
 
-    /// The ratios given the reported tensor estimate `t` and the estimator's own `own`.
-    fn ratios_from(&self, t: &TensorEstimate, own: &TensorEstimate) -> Ratios {
+    /// The ratios given the reported tensor estimate `t` and whether the sensor axes are
+    /// principal axes ([`Pipeline::principal_axes`] of the estimator's own estimate).
+    fn ratios_from(&self, t: &TensorEstimate, principal: bool) -> Ratios {
         if self.rotor_seen {
             return Ratios {
                 a: t.a,
@@ -440,13 +443,12 @@ impl<const N: usize> Pipeline<N> {
                 source: RatioSource::Tensor,
             };
         }
-        // Whether the sensor axes are principal axes: a Wald test on the products of inertia
-        // (`TensorSettings::products_chi2`). Once a flight has ended `t` is the output-error
-        // fit up to scale, which always estimates the products; its `a` is far less precise
-        // than the principal-axis ratio fit's where two moments are close (the principal axes
-        // are then barely defined: 125x the constrained bound on a1 of the near-symmetric body
-        // at 2 kHz, 2-8x on the tosses, when it was used for every body).
-        let principal = self.principal_axes(own);
+        // `principal`: a Wald test on the products of inertia (`TensorSettings::products_chi2`).
+        // Once a flight has ended `t` is the output-error fit up to scale, which always
+        // estimates the products; its `a` is far less precise than the principal-axis ratio
+        // fit's where two moments are close (the principal axes are then barely defined: 125x
+        // the constrained bound on a1 of the near-symmetric body at 2 kHz, 2-8x on the tosses,
+        // when it was used for every body).
         let trust = self.refined.trust();
         let status = match trust {
             Trust::NoInformation | Trust::TooFewSamples => TensorStatus::TooFewSamples,
@@ -666,7 +668,7 @@ impl<const N: usize> Pipeline<N> {
         let e = self.estimator.estimate();
         if self.rotor_seen {
             // A bias measured on the bench was removed from every sample: none is looked for.
-            if self.gate.bias().is_some() || self.bias_removed {
+            if self.bias_measured() {
                 self.tensor_fit.close_without_bias(e.tensor);
             } else {
                 self.tensor_fit.close(e.tensor);
@@ -708,7 +710,7 @@ impl<const N: usize> Pipeline<N> {
     /// 4 standard deviations off on 100 of 100 seeds, now on none). A gyro mounted off the principal axes
     /// makes the ratio fit's test reject too (it lacks the products), with or without a bias;
     /// there the products explain the data and the torque does not.
-    fn torque_suspected(&self, own: &TensorEstimate) -> bool {
+    fn torque_suspected(&self, principal: bool) -> bool {
         if self.rotor_seen {
             return false;
         }
@@ -719,18 +721,13 @@ impl<const N: usize> Pipeline<N> {
         let Some(fe) = self.trajectory.estimate().filter(|f| f.torque) else {
             return false;
         };
-        if self.principal_axes(own) {
+        if principal {
             return true;
         }
         let Some(tf) = tf else {
             return true;
         };
-        let cfg = self.settings.tensor.noise_std;
-        let s2 = if fe.noise > cfg {
-            fe.noise * fe.noise
-        } else {
-            cfg * cfg
-        };
+        let s2 = self.fit_variance(&fe);
         // NaN anywhere leaves the torque suspected.
         let products_explain =
             tf.cost + self.settings.tensor.products_chi2 * s2 < fe.cost_with_torque;
@@ -773,11 +770,7 @@ impl<const N: usize> Pipeline<N> {
                     // from the tensor, 0.13 off on a3 where the ratio fit was 0.003 off).
                     if let Some(fe) = self.trajectory.estimate() {
                         if fe.biased == f.biased {
-                            let s2 = if fe.noise > cfg {
-                                fe.noise * fe.noise
-                            } else {
-                                cfg * cfg
-                            };
+                            let s2 = self.fit_variance(&fe);
                             let products_explain = fe.cost - f.cost > chi2 * s2;
                             // Nor better than the gyro's scale factors would, where the ratio
                             // fit's rigid-body test found ratios no rigid body has (a principal
@@ -800,13 +793,30 @@ impl<const N: usize> Pipeline<N> {
     /// only with ratios no rigid body has, which a gyro scale-factor error does (the tensor
     /// up to scale, fitted to the same rates, inherits the error). With products of inertia
     /// the ratio fit lacks them and its test says nothing about the tensor.
-    fn not_rigid(&self, own: &TensorEstimate) -> bool {
+    fn not_rigid(&self, principal: bool) -> bool {
         !self.rotor_seen
+            && principal
             && self
                 .trajectory
                 .estimate()
                 .is_some_and(|f| f.constraint_rejected)
-            && self.principal_axes(own)
+    }
+
+    /// The ratio fit's residual variance per sample, never below the configured gyro noise's
+    /// (the variance its own and the tensor's tests are scaled by).
+    fn fit_variance(&self, fe: &RatioFitEstimate) -> f32 {
+        let cfg = self.settings.tensor.noise_std;
+        if fe.noise > cfg {
+            fe.noise * fe.noise
+        } else {
+            cfg * cfg
+        }
+    }
+
+    /// Whether a gyro bias was measured on a still stretch (and is removed from every sample
+    /// fed) or the caller removed one ([`Pipeline::set_bias_removed`]).
+    fn bias_measured(&self) -> bool {
+        self.gate.bias().is_some() || self.bias_removed
     }
 
     /// Whether the reported tensor is the equation error's while no gyro bias was measured on
@@ -820,8 +830,7 @@ impl<const N: usize> Pipeline<N> {
     /// with `a` 4 standard deviations off (principal model), and 6 s in 38 off (products), on 3
     /// of 4 seeds, until the refined identifiers' bias test caught up.
     fn bias_unknown(&self, t: &TensorEstimate) -> bool {
-        let measured = self.gate.bias().is_some() || self.bias_removed;
-        t.method == TensorMethod::EquationError && !measured
+        t.method == TensorMethod::EquationError && !self.bias_measured()
     }
 
     /// True when the ratio fit's residual is at most [`TRAJECTORY_FIT_RATIO`] times the

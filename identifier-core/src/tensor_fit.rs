@@ -476,42 +476,22 @@ fn normal<const P: usize>(
     normal_visit::<P, P0>(blocks, limit, theta, trace, false, false, &mut |_, _| {})
 }
 
-/// [`normal`] of the model extended by the gyro's scale-factor errors ((F5)): `theta` is the
-/// plain or bias model's parameters with the three `kappa` last (`normalized` as in
-/// [`normal_torque`]).
-fn normal_scale<const P: usize>(
+/// [`normal`] of the fit up to scale extended for its tests: `C = 12` a constant torque
+/// ((F4)), inserted after the initial rate; `scale` the gyro's scale-factor errors ((F5)),
+/// last. `theta` is the plain or bias model's parameters with those added.
+fn normal_extended<const P: usize, const C: usize>(
     blocks: &[Block<6>],
     theta: &[f32; P],
     trace: f32,
-    normalized: bool,
+    scale: bool,
 ) -> Option<Normal<P>> {
-    normal_visit::<P, P0>(
+    normal_visit::<P, C>(
         blocks,
         blocks.len(),
         theta,
         trace,
-        normalized,
         true,
-        &mut |_, _| {},
-    )
-}
-
-/// [`normal`] of the model extended by a constant torque ((F4)): `theta` is the plain or bias
-/// model's parameters with the torque's three inserted after the initial rate (`P` = 11, 12,
-/// 14 or 15; `normalized` tells the trace-held layouts apart).
-fn normal_torque<const P: usize>(
-    blocks: &[Block<6>],
-    theta: &[f32; P],
-    trace: f32,
-    normalized: bool,
-) -> Option<Normal<P>> {
-    normal_visit::<P, C_TORQUE>(
-        blocks,
-        blocks.len(),
-        theta,
-        trace,
-        normalized,
-        false,
+        scale,
         &mut |_, _| {},
     )
 }
@@ -828,7 +808,7 @@ fn torque_found<const P: usize>(
     noise_floor: f32,
 ) -> Option<f32> {
     let rejects = trace > 0.0
-        && normal_torque(blocks, theta, trace, true)
+        && normal_extended::<P, C_TORQUE>(blocks, theta, trace, false)
             .and_then(|(_, f, g)| score(&f, &g))
             .is_some_and(|sc| score_rejects(sc, cost, dof, noise_floor));
     // The pipeline only asks whether it rejected: no torque fit.
@@ -848,7 +828,7 @@ fn scale_found<const P: usize>(
     noise_floor: f32,
 ) -> bool {
     trace > 0.0
-        && normal_scale(blocks, theta, trace, true)
+        && normal_extended::<P, P0>(blocks, theta, trace, true)
             .and_then(|(_, f, g)| score_beyond(&f, &g, &[P - 3, P - 2, P - 1]))
             .is_some_and(|sc| score_rejects(sc, cost, dof, noise_floor))
 }

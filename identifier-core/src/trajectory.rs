@@ -579,24 +579,18 @@ fn moments_of(a: [f32; 3]) -> [f32; 2] {
     }
 }
 
-/// The constant-torque alternative ((T4)) of a model the torque's score test rejected: the
-/// model at `theta` (`P` = 8: the plain model's five and a zero torque; 11: and the bias last)
-/// fitted with the torque free; its cost (`cost`, the model's own, if that fit fails or is not
-/// lower), for the pipeline to weigh against the tensor's products of inertia.
-fn torque_alternative<const P: usize>(
-    blocks: &[Block<3>],
+/// The cost of the model at `theta` refitted with three more parameters free (`normal` its
+/// normal equations; `dof` the model's own degrees of freedom): a constant torque ((T4)) or
+/// the gyro's scale factors ((T6)) where their test rejected it; `cost`, the model's own, if
+/// that fit fails or is not lower. The pipeline weighs it against the tensor's products of
+/// inertia, which absorb part of either.
+fn refit_cost<const P: usize>(
+    normal: impl Fn(&[f32; P]) -> Option<Normal<P>>,
     theta: [f32; P],
     cost: f32,
     dof: f32,
 ) -> f32 {
-    let total = blocks.len();
-    let fitted = levenberg(
-        |th| normal::<P, C_TORQUE>(blocks, total, th),
-        theta,
-        30,
-        dof - 3.0,
-    );
-    match fitted {
+    match levenberg(normal, theta, 30, dof - 3.0) {
         Some((_, c, _)) if c < cost => c,
         _ => cost,
     }
@@ -636,30 +630,6 @@ fn tests_reject<const P: usize>(
     let rigid = score_beyond(&fr, &gr, &[8])
         .is_some_and(|sc| score_rejects_at(sc, RIGID_CHI2, cost, dof, noise_floor));
     (torque, rigid)
-}
-
-/// The gyro-scale alternative ((T6)) of a model the rigid-body test rejected: the model at
-/// `theta` (`P` = 8: the plain model's five and three zero `kappa`; 11: the bias model's eight
-/// and the `kappa`) fitted with the scale factors free; its cost (`cost`, the model's own, if
-/// that fit fails or is not lower), for the pipeline to weigh against the tensor's products of
-/// inertia, which absorb part of a scale error.
-fn scale_alternative<const P: usize>(
-    blocks: &[Block<3>],
-    theta: [f32; P],
-    cost: f32,
-    dof: f32,
-) -> f32 {
-    let total = blocks.len();
-    let fitted = levenberg(
-        |th| normal_with::<P, 5>(blocks, total, th, true),
-        theta,
-        30,
-        dof - 3.0,
-    );
-    match fitted {
-        Some((_, c, _)) if c < cost => c,
-        _ => cost,
-    }
 }
 
 /// What [`fit_stretch`] found in one stretch.
@@ -713,13 +683,23 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
                 let mut th11 = [0.0f32; P_TORQUE_BIAS];
                 th11[..5].copy_from_slice(&th8[..5]);
                 th11[8..].copy_from_slice(&th8[5..]);
-                torque_alternative(blocks, th11, cost8, dof8)
+                refit_cost(
+                    |th| normal::<P_TORQUE_BIAS, C_TORQUE>(blocks, blocks.len(), th),
+                    th11,
+                    cost8,
+                    dof8,
+                )
             });
             let rigid = rigid.then(|| {
                 // The scale factors' layout: the bias model's eight, then kappa.
                 let mut th11 = [0.0f32; P_TORQUE_BIAS];
                 th11[..8].copy_from_slice(&th8);
-                scale_alternative(blocks, th11, cost8, dof8)
+                refit_cost(
+                    |th| normal_with::<P_TORQUE_BIAS, 5>(blocks, blocks.len(), th, true),
+                    th11,
+                    cost8,
+                    dof8,
+                )
             });
             return Some(StretchFit {
                 fit: Fit {
@@ -740,8 +720,14 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
     let mut th9 = [0.0f32; C_TESTS];
     th9[..5].copy_from_slice(&theta5);
     let (torque, rigid) = tests_reject(blocks, th9, cost5, dof5, noise_floor);
-    let torque = torque.then(|| torque_alternative(blocks, theta, cost5, dof5));
-    let rigid = rigid.then(|| scale_alternative(blocks, theta, cost5, dof5));
+    let torque = torque.then(|| {
+        let normal_torque = |th: &[f32; P_MAX]| normal::<P_MAX, C_TORQUE>(blocks, total, th);
+        refit_cost(normal_torque, theta, cost5, dof5)
+    });
+    let rigid = rigid.then(|| {
+        let normal_scale = |th: &[f32; P_MAX]| normal_with::<P_MAX, 5>(blocks, total, th, true);
+        refit_cost(normal_scale, theta, cost5, dof5)
+    });
     let mut cov = [[0.0f32; P_MAX]; P_MAX];
     for i in 0..5 {
         cov[i][..5].copy_from_slice(&cov5[i]);
