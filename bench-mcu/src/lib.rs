@@ -628,29 +628,31 @@ impl Ekf32Sparse {
 }
 
 /// For the profile of the tensor step: the part that accumulates, per sample and per axis, the
-/// upper triangle of the outer product of a six-entry row with itself (21 entries), the row,
-/// the row times the right-hand side and the right-hand side and its square, written the way
-/// `identifier_core::tensor` does it (three axes, a stretch-anchor row subtracted first). Not
-/// the core's code itself (its sums are private): a stand-in with the same arithmetic.
+/// upper triangle of the outer product of the row's five kept entries with itself (15 entries;
+/// the sixth entry of each row of (T3) is minus another), the row, the row times the
+/// right-hand side and the right-hand side and its square, written the way
+/// `identifier_core::tensor` does it (three axes, a stretch-anchor row subtracted first where
+/// it is not zero by construction). Not the core's code itself (its sums are private): a
+/// stand-in with the same arithmetic.
 #[derive(Clone, Copy, Debug)]
 pub struct RowSums3 {
-    pp: [[f32; 21]; 3],
-    p: [[f32; 6]; 3],
-    py: [[f32; 6]; 3],
+    pp: [[f32; 15]; 3],
+    p: [[f32; 5]; 3],
+    py: [[f32; 5]; 3],
     y: [f32; 3],
     yy: [f32; 3],
-    p0: [[f32; 6]; 3],
+    p0: [[f32; 5]; 3],
 }
 
 impl RowSums3 {
     /// Empty sums.
     pub const ZERO: RowSums3 = RowSums3 {
-        pp: [[0.0; 21]; 3],
-        p: [[0.0; 6]; 3],
-        py: [[0.0; 6]; 3],
+        pp: [[0.0; 15]; 3],
+        p: [[0.0; 5]; 3],
+        py: [[0.0; 5]; 3],
         y: [0.0; 3],
         yy: [0.0; 3],
-        p0: [[0.0; 6]; 3],
+        p0: [[0.0; 5]; 3],
     };
 
     /// One sample: the three rows at `w` with integrals `q` (xx, yy, zz, xy, xz, yz).
@@ -658,25 +660,23 @@ impl RowSums3 {
     pub fn add_sample(&mut self, w: [f32; 3], q: &[f32; 6]) {
         let [wx, wy, wz] = w;
         let [qxx, qyy, qzz, qxy, qxz, qyz] = *q;
+        let [[x0, _, x2, x3, _], [_, y1, y2, _, y4], [_, z1, _, z3, z4]] = self.p0;
         let rows = [
-            [wx, -qyz, qyz, wy - qxz, wz + qxy, qyy - qzz],
-            [qxz, wy, -qxz, wx + qyz, qzz - qxx, wz - qxy],
-            [-qxy, qxy, wz, qxx - qyy, wx - qyz, wy + qxz],
+            [wx - x0, qyz, wy - qxz - x2, wz + qxy - x3, qyy - qzz],
+            [qxz, wy - y1, wx + qyz - y2, qzz - qxx, wz - qxy - y4],
+            [qxy, wz - z1, qxx - qyy, wx - qyz - z3, wy + qxz - z4],
         ];
         for r in 0..3 {
-            let mut d = [0.0f32; 6];
-            for i in 0..6 {
-                d[i] = rows[r][i] - self.p0[r][i];
-            }
+            let d = rows[r];
             let dy = -w[r];
             let mut k = 0;
-            for i in 0..6 {
-                for j in i..6 {
+            for i in 0..5 {
+                for j in i..5 {
                     self.pp[r][k] += d[i] * d[j];
                     k += 1;
                 }
             }
-            for i in 0..6 {
+            for i in 0..5 {
                 self.p[r][i] += d[i];
                 self.py[r][i] += d[i] * dy;
             }

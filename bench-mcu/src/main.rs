@@ -578,7 +578,7 @@ fn main() -> ! {
     worst(
         "profile-outer-products",
         m,
-        "Cortex-M4F QEMU -icount; bench-mcu replica of the three per-axis outer-product sums of one tensor step (rows, 21+6+6+2 multiply-adds per axis)",
+        "Cortex-M4F QEMU -icount; bench-mcu replica of the three per-axis outer-product sums of one tensor step (rows, 15+5+5+2 multiply-adds per axis: five kept entries of six)",
     );
     // The output-error fit of the ratios (`FlightRatioFit = RatioFit<256>`, what the pipeline
     // runs): per sample it adds to a block sum (and when the 256 blocks are full merges them

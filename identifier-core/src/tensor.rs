@@ -296,11 +296,62 @@ pub struct TensorCounters {
     pub implausible: u32,
 }
 
+/// Entries kept of one axis's row (T3): in every row one entry is exactly minus another (x:
+/// Jyy's coefficient `-Qyz` is minus Jzz's `Qyz`; y: Jzz's `-Qxz` minus Jxx's; z: Jxx's `-Qxy`
+/// minus Jyy's), so only five are summed per sample, which takes the outer product from 21
+/// to 15 multiply-adds per axis. [`RowSums::expanded`] gives back the six-entry sums; negation
+/// is exact in floating point, so they are, to the bit, the sums of the six-entry rows.
+const KEPT: usize = 5;
+
+/// Per axis and per entry `i` of the six-entry row: which kept entry it is and whether it is
+/// negated (see [`KEPT`]).
+const EXPAND: [[(usize, bool); 6]; 3] = [
+    [
+        (0, false),
+        (1, true),
+        (1, false),
+        (2, false),
+        (3, false),
+        (4, false),
+    ],
+    [
+        (0, false),
+        (1, false),
+        (0, true),
+        (2, false),
+        (3, false),
+        (4, false),
+    ],
+    [
+        (0, true),
+        (0, false),
+        (1, false),
+        (2, false),
+        (3, false),
+        (4, false),
+    ],
+];
+
+/// Position of `(i, j)`, `i <= j`, in an upper triangle of order `n` stored by rows.
+const fn upper(n: usize, i: usize, j: usize) -> usize {
+    i * n - i * (i + 1) / 2 + j
+}
+
 /// Sums of one axis's rows (T3) over samples, relative to the stretch's first row
-/// (`dP = P - P0`, `dy = y - y0`: the intercept absorbs the shift and the sums stay small).
+/// (`dP = P - P0`, `dy = y - y0`: the intercept absorbs the shift and the sums stay small),
+/// over the [`KEPT`] entries of the row.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 struct RowSums {
+    pp: [f32; 15],
+    p: [f32; KEPT],
+    py: [f32; KEPT],
+    y: f32,
+    yy: f32,
+}
+
+/// The sums of the six-entry rows of one axis, from [`RowSums::expanded`].
+struct FullRowSums {
     pp: [f32; 21],
     p: [f32; 6],
     py: [f32; 6],
@@ -310,9 +361,9 @@ struct RowSums {
 
 impl RowSums {
     const ZERO: RowSums = RowSums {
-        pp: [0.0; 21],
-        p: [0.0; 6],
-        py: [0.0; 6],
+        pp: [0.0; 15],
+        p: [0.0; KEPT],
+        py: [0.0; KEPT],
         y: 0.0,
         yy: 0.0,
     };
@@ -321,47 +372,38 @@ impl RowSums {
     /// `yy += dy^2`. Written out term by term: this runs three times per sample, and the
     /// firmware's link-time optimisation (at opt-level "s") does not unroll the loops it was
     /// written as (the tensor step cost 1 149 instructions there against 732 at opt-level 3).
-    /// Same operations in the same order, so the same bits.
     #[inline(always)]
-    fn add(&mut self, d: &[f32; 6], dy: f32) {
-        let [d0, d1, d2, d3, d4, d5] = *d;
-        let [p00, p01, p02, p03, p04, p05, p11, p12, p13, p14, p15, p22, p23, p24, p25, p33, p34, p35, p44, p45, p55] =
+    fn add(&mut self, d: &[f32; KEPT], dy: f32) {
+        let [d0, d1, d2, d3, d4] = *d;
+        let [p00, p01, p02, p03, p04, p11, p12, p13, p14, p22, p23, p24, p33, p34, p44] =
             &mut self.pp;
         *p00 += d0 * d0;
         *p01 += d0 * d1;
         *p02 += d0 * d2;
         *p03 += d0 * d3;
         *p04 += d0 * d4;
-        *p05 += d0 * d5;
         *p11 += d1 * d1;
         *p12 += d1 * d2;
         *p13 += d1 * d3;
         *p14 += d1 * d4;
-        *p15 += d1 * d5;
         *p22 += d2 * d2;
         *p23 += d2 * d3;
         *p24 += d2 * d4;
-        *p25 += d2 * d5;
         *p33 += d3 * d3;
         *p34 += d3 * d4;
-        *p35 += d3 * d5;
         *p44 += d4 * d4;
-        *p45 += d4 * d5;
-        *p55 += d5 * d5;
-        let [s0, s1, s2, s3, s4, s5] = &mut self.p;
+        let [s0, s1, s2, s3, s4] = &mut self.p;
         *s0 += d0;
         *s1 += d1;
         *s2 += d2;
         *s3 += d3;
         *s4 += d4;
-        *s5 += d5;
-        let [y0, y1, y2, y3, y4, y5] = &mut self.py;
+        let [y0, y1, y2, y3, y4] = &mut self.py;
         *y0 += d0 * dy;
         *y1 += d1 * dy;
         *y2 += d2 * dy;
         *y3 += d3 * dy;
         *y4 += d4 * dy;
-        *y5 += d5 * dy;
         self.y += dy;
         self.yy += dy * dy;
     }
@@ -379,6 +421,55 @@ impl RowSums {
         self.y += o.y;
         self.yy += o.yy;
     }
+
+    /// The sums of axis `axis`'s six-entry rows: entry `i` is kept entry `k` or its negative
+    /// ([`EXPAND`]), so `sum P_i P_j = s_i s_j sum d_k d_l` with signs `s = +-1`.
+    fn expanded(&self, axis: usize) -> FullRowSums {
+        let (vec, outer) = match axis {
+            0 => (&EXPAND[0], &EXPAND_OUTER[0]),
+            1 => (&EXPAND[1], &EXPAND_OUTER[1]),
+            _ => (&EXPAND[2], &EXPAND_OUTER[2]),
+        };
+        let pick = |v: &[f32], (k, neg): (usize, bool)| {
+            let x = v.get(k).copied().unwrap_or(0.0);
+            if neg {
+                -x
+            } else {
+                x
+            }
+        };
+        FullRowSums {
+            pp: outer.map(|m| pick(&self.pp, m)),
+            p: vec.map(|m| pick(&self.p, m)),
+            py: vec.map(|m| pick(&self.py, m)),
+            y: self.y,
+            yy: self.yy,
+        }
+    }
+}
+
+/// [`EXPAND`] for the upper triangle of the outer product: per axis and per entry `(i, j)`,
+/// `i <= j`, of the six-entry triangle, the entry of the kept triangle and whether it is negated.
+const EXPAND_OUTER: [[(usize, bool); 21]; 3] = [
+    expand_outer(&EXPAND[0]),
+    expand_outer(&EXPAND[1]),
+    expand_outer(&EXPAND[2]),
+];
+
+const fn expand_outer(map: &[(usize, bool); 6]) -> [(usize, bool); 21] {
+    let mut out = [(0, false); 21];
+    let mut i = 0;
+    while i < 6 {
+        let mut j = i;
+        while j < 6 {
+            let ((ki, ni), (kj, nj)) = (map[i], map[j]);
+            let (lo, hi) = if ki <= kj { (ki, kj) } else { (kj, ki) };
+            out[upper(6, i, j)] = (upper(KEPT, lo, hi), ni != nj);
+            j += 1;
+        }
+        i += 1;
+    }
+    out
 }
 
 /// Normal equations `Lambda j = eta` with `yy = sum w y^2` and the number of equations.
@@ -401,7 +492,7 @@ impl Normal {
 
     /// Adds one stretch's rows of axis `r` with weight `w`, its intercept eliminated:
     /// `Lambda += w (sum dP dP^T - s s^T / n)`, `eta += w (sum dP dy - s sum dy / n)`.
-    fn add_stretch(&mut self, rows: &RowSums, n: f32, w: f32) {
+    fn add_stretch(&mut self, rows: &FullRowSums, n: f32, w: f32) {
         let inv_n = 1.0 / n;
         let mut k = 0;
         for i in 0..6 {
@@ -461,7 +552,7 @@ struct Stretch {
     /// `integral w x h dt`.
     wh: [f32; 3],
     /// Rows and right-hand side at the anchor.
-    p0: [[f32; 6]; 3],
+    p0: [[f32; KEPT]; 3],
     y0: [f32; 3],
     /// `sum dt^2 |w|^2`, the integral's noise variance over `sigma^2`.
     drift: f32,
@@ -476,7 +567,7 @@ impl Stretch {
         last: None,
         q: [0.0; 6],
         wh: [0.0; 3],
-        p0: [[0.0; 6]; 3],
+        p0: [[0.0; KEPT]; 3],
         y0: [0.0; 3],
         drift: 0.0,
         n: 0,
@@ -494,15 +585,16 @@ impl Stretch {
     }
 }
 
-/// Rows (T3) at `w` with integrals `q`.
+/// The [`KEPT`] entries of the rows (T3) at `w` with integrals `q` (x: all but Jyy's, y: all
+/// but Jzz's, z: all but Jxx's; [`EXPAND`] restores them).
 #[inline(always)]
-fn rows(w: [f32; 3], q: &[f32; 6]) -> [[f32; 6]; 3] {
+fn rows(w: [f32; 3], q: &[f32; 6]) -> [[f32; KEPT]; 3] {
     let [wx, wy, wz] = w;
     let [qxx, qyy, qzz, qxy, qxz, qyz] = *q;
     [
-        [wx, -qyz, qyz, wy - qxz, wz + qxy, qyy - qzz],
-        [qxz, wy, -qxz, wx + qyz, qzz - qxx, wz - qxy],
-        [-qxy, qxy, wz, qxx - qyy, wx - qyz, wy + qxz],
+        [wx, qyz, wy - qxz, wz + qxy, qyy - qzz],
+        [qxz, wy, wx + qyz, qzz - qxx, wz - qxy],
+        [qxy, wz, qxx - qyy, wx - qyz, wy + qxz],
     ]
 }
 
@@ -686,24 +778,24 @@ impl TensorEstimator {
         for ((s, a), b) in whc.iter_mut().zip(ca.iter()).zip(cb.iter()) {
             *s -= k * (b - a);
         }
-        let p = rows(omega, &qc);
-        for r in 0..3 {
-            let (Some(pr), Some(p0), Some(&y0), Some(&hr), Some(&whr), Some(blk)) = (
-                p.get(r),
-                st.p0.get(r),
-                st.y0.get(r),
-                h.get(r),
-                whc.get(r),
-                st.block.get_mut(r),
-            ) else {
-                continue;
-            };
-            let mut d = [0.0f32; 6];
-            for ((di, a), b) in d.iter_mut().zip(pr.iter()).zip(p0.iter()) {
-                *di = a - b;
-            }
-            blk.add(&d, -(hr + whr) - y0);
-        }
+        // The rows relative to the anchor's, `dP = P - P0`. At the anchor the integrals are
+        // zero, so two kept entries of each anchor row are zero by construction and are not
+        // subtracted (`x - 0 = x` exactly: the same bits as subtracting them).
+        let [px, py, pz] = rows(omega, &qc);
+        let [[x0, _, x2, x3, _], [_, y1, y2, _, y4], [_, z1, _, z3, z4]] = st.p0;
+        let [b0, b1, b2] = &mut st.block;
+        b0.add(
+            &[px[0] - x0, px[1], px[2] - x2, px[3] - x3, px[4]],
+            -(h[0] + whc[0]) - st.y0[0],
+        );
+        b1.add(
+            &[py[0], py[1] - y1, py[2] - y2, py[3], py[4] - y4],
+            -(h[1] + whc[1]) - st.y0[1],
+        );
+        b2.add(
+            &[pz[0], pz[1] - z1, pz[2], pz[3] - z3, pz[4] - z4],
+            -(h[2] + whc[2]) - st.y0[2],
+        );
         st.n += 1;
         st.block_n += 1;
         st.drift += dt * dt * (omega[0] * omega[0] + omega[1] * omega[1] + omega[2] * omega[2]);
@@ -728,8 +820,14 @@ impl TensorEstimator {
         if self.stretch.n >= 2 {
             let mut add = Normal::ZERO;
             let n = self.stretch.n as f32;
-            for (rows, &w) in self.stretch.sums.iter().zip(self.weights.iter()) {
-                add.add_stretch(rows, n, w);
+            for (axis, (rows, &w)) in self
+                .stretch
+                .sums
+                .iter()
+                .zip(self.weights.iter())
+                .enumerate()
+            {
+                add.add_stretch(&rows.expanded(axis), n, w);
             }
             add.equations = 3 * (self.stretch.n - 1);
             self.closed.add(&add);
@@ -757,8 +855,8 @@ impl TensorEstimator {
         if st.n >= 2 {
             let n = st.n as f32;
             let mut add = Normal::ZERO;
-            for (rows, &w) in st.sums.iter().zip(self.weights.iter()) {
-                add.add_stretch(rows, n, w);
+            for (axis, (rows, &w)) in st.sums.iter().zip(self.weights.iter()).enumerate() {
+                add.add_stretch(&rows.expanded(axis), n, w);
             }
             add.equations = 3 * (st.n - 1);
             nrm.add(&add);
