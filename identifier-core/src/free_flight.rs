@@ -298,10 +298,10 @@ impl FreeFlightGate {
             self.break_window();
             return None;
         }
-        let still = {
+        // The rates first: in flight they are never small, and the square root is skipped.
+        let still = omega.iter().all(|w| w.abs() < self.settings.still_rate) && {
             let fa = sqrt(accel[0] * accel[0] + accel[1] * accel[1] + accel[2] * accel[2]);
             (fa - G).abs() < self.settings.still_accel
-                && omega.iter().all(|w| w.abs() < self.settings.still_rate)
         };
         self.open.still &= still;
         for ((s, q), w) in self
