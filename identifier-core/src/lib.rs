@@ -79,6 +79,7 @@
 )]
 
 pub mod convergence;
+mod exact;
 pub mod extended;
 pub mod free_flight;
 pub mod identifier;

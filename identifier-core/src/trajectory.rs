@@ -39,6 +39,9 @@
 //! and `ybar_b` has noise variance `sigma^2 / n_b`, so the log-likelihood is the weighted sum
 //! `sum_b n_b |ybar_b - w(tbar_b) - v_b/2 w''(tbar_b) - b|^2`. While a block is short against
 //! the motion almost no information is lost (the sensitivities are nearly constant over it).
+//! A long, fast flight makes long blocks span a large angle; the expansion is then carried to
+//! sixth order ((T2'), `block_mean_correction`), with the times' fourth and sixth moments of
+//! equally spaced samples.
 //!
 //! # The fit
 //!
@@ -54,14 +57,28 @@
 //! ```
 //!
 //! and Gauss-Newton with Levenberg damping (Jacobi-scaled normal equations, solved by
-//! Cholesky) minimises the weighted cost. A long record is fitted on growing prefixes (16
+//! Cholesky) minimises the weighted cost.
+//!
+//! `f32` and long flights: a trajectory of hundreds of radians must be integrated to better
+//! than `f32` rounding, or the fit's cost moves by units of log-likelihood for one ulp of a
+//! parameter and the optimum is lost in that noise. So the rates are a compensated sum (their
+//! rounding carried from step to step), the initial rates are fitted as offsets from the first
+//! block's mean (held in the compensated part), the two quadratic invariants of (1) are held
+//! at their starting values after each block (`Invariants`: they set the motion's
+//! frequencies, and rounding random-walks them), the block times are differenced in two parts
+//! (`Block::since`), the residuals are taken from the block sums unrounded
+//! (`Block::deviation`), and the step count comes from the data, not the parameters (so the
+//! cost is a smooth function of them). What is left, the `f32` resolution of the ratios
+//! themselves, is put into the reported uncertainty ((T7), `resolution_factor`). A long record is fitted on growing prefixes (16
 //! blocks, then doubling) so that the phase of the trajectory is never far from the data; the
 //! start is the per-axis least-squares fit of the integrated (1) on the block means.
 //!
 //! # Uncertainty, bias, pooling
 //!
 //! `sigma^2 = cost / (3 B - P)` (B blocks, P parameters) from the fit's own residual; the
-//! covariance is `sigma^2 F^-1`, `F = sum_b n_b S_b^T S_b`. The bias model (`P = 8`) replaces
+//! covariance is `sigma^2 F^-1`, `F = sum_b n_b S_b^T S_b`, times the factor of (T7) for the
+//! fit's own `f32` resolution (1 on most flights; 1.3-2.4 on a body turning at 12 rad/s for
+//! 4-8 s at 1 kHz). The bias model (`P = 8`) replaces
 //! the plain one (`P = 5`) when `(cost_5 - cost_8) / sigma_8^2 > 21.11` (chi-square, 3 degrees
 //! of freedom, 0.01 %: at 0.1 % one false alarm in 400 short noisy tosses, whose `a_3` then
 //! came out nine times the bound, made the scenario's RMS error 1.13x the bound, 1.04x at
@@ -139,6 +156,7 @@
     clippy::neg_cmp_op_on_partial_ord
 )]
 
+use crate::exact::{two_sum, weighted_squares};
 use crate::output_error::{
     bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, score_beyond,
     score_rejects, score_rejects_at, staged_fit, substeps, without, Block, FitState, Normal,
@@ -297,6 +315,9 @@ struct Fit<const P: usize> {
 #[derive(Clone, Copy, Debug)]
 struct Aug<const C: usize> {
     w: [f32; 3],
+    /// What the rounding of `w` left out, carried to the next step (compensated sum: the true
+    /// state is `w - w_lo`).
+    w_lo: [f32; 3],
     s: [[f32; C]; 3],
 }
 
@@ -323,9 +344,185 @@ fn ratios_of(p1: f32, p2: f32) -> Option<([f32; 3], [[f32; 2]; 3])> {
     a.iter().all(|x| x.is_finite()).then_some((a, j))
 }
 
-/// `f(w)` of (1).
-fn rhs(a: &[f32; 3], w: &[f32; 3]) -> [f32; 3] {
-    [a[0] * w[1] * w[2], a[1] * w[2] * w[0], a[2] * w[0] * w[1]]
+/// The block mean of `w` minus `w(tbar)`, to sixth order in the block's time spread:
+///
+/// ```text
+/// mean w = sum_k c_k E[tau^k] = c_0 + v c_2 + mu4 c_4 + mu6 c_6                  (T2')
+/// c_0 = w(tbar),  c_(n+1),i = a_i / (n + 1) sum_(m=0..n) c_m,j c_(n-m),k   ((i, j, k) cyclic)
+/// ```
+///
+/// (the Taylor coefficients of the solution of (1) through `w` at `tbar`, by the Cauchy product
+/// of its quadratic right-hand side; `c_2 = w''/2`, so the first term is (T2)'s `v/2 w''`).
+/// The terms beyond (T2) matter when a block spans a large angle: a body turning at 10 rad/s
+/// over 20 s at 1 kHz fills the 256 blocks with 128 samples each, 0.8 rad, where (T2) alone
+/// left a model error above the gyro noise.
+fn block_mean_correction(a: &[f32; 3], w: &[f32; 3], moments: &[f32; 3]) -> [f32; 3] {
+    let [v, mu4, mu6] = *moments;
+    if !(v > 0.0) {
+        return [0.0; 3];
+    }
+    let mut c = [[0.0f32; 3]; 7];
+    c[0] = *w;
+    let mut order = 6;
+    for n in 0..6 {
+        if n >= order {
+            break;
+        }
+        let inv = 1.0 / (n + 1) as f32;
+        // Cauchy product of the coefficients `0..=n` of w_j and w_k.
+        let mut s = [0.0f32; 3];
+        for (cm, cr) in c.iter().take(n + 1).zip(c.iter().take(n + 1).rev()) {
+            s[0] += cm[1] * cr[2];
+            s[1] += cm[2] * cr[0];
+            s[2] += cm[0] * cr[1];
+        }
+        if let Some(next) = c.get_mut(n + 1) {
+            *next = [a[0] * inv * s[0], a[1] * inv * s[1], a[2] * inv * s[2]];
+        }
+        if n == 1 {
+            order = higher_orders(mu4, mu6, norm2(&c[0]), norm2(&c[2]));
+        }
+    }
+    let [_, _, c2, _, c4, _, c6] = c;
+    [
+        v * c2[0] + mu4 * c4[0] + mu6 * c6[0],
+        v * c2[1] + mu4 * c4[1] + mu6 * c6[1],
+        v * c2[2] + mu4 * c4[2] + mu6 * c6[2],
+    ]
+}
+
+/// How far the block mean's expansion must go (2, 4 or 6): its terms fall roughly like
+/// `(|c_2| / |c_0|)^k mu_2k`, and a term below 1e-8 of `|w|` is under the `f32` rounding of `w`
+/// itself. Short blocks (most flights) stop at (T2)'s term; `|c|^2` in, squared ratios compared.
+pub(crate) fn higher_orders(mu4: f32, mu6: f32, w2: f32, c2: f32) -> usize {
+    let r = if w2 > 0.0 { c2 / w2 } else { 0.0 };
+    if !(mu4 * mu4 * r * r > 1e-16) {
+        2
+    } else if !(mu6 * mu6 * r * r * r > 1e-16) {
+        4
+    } else {
+        6
+    }
+}
+
+/// `|x|^2`.
+fn norm2(x: &[f32; 3]) -> f32 {
+    x[0] * x[0] + x[1] * x[1] + x[2] * x[2]
+}
+
+/// Two quadratic invariants of (1), held along the integrated trajectory.
+///
+/// `I_c(w) = sum c_i w_i^2` is constant along (1) for every `c` with `c . a = 0` (its
+/// derivative is `2 w1 w2 w3 (c . a)`; for a rigid body `c = A` gives twice the energy, `c =
+/// A^2` the squared angular momentum). In `f32` each RK4 step changes the invariants by a
+/// rounding of the increment (about 1e-7 rad/s per step on a body turning at 12 rad/s); they
+/// set the motion's frequencies, so the integrated phase drifts like `t^(3/2)` and the fit's
+/// cost is noisy at the scale of a unit of log-likelihood on a long, fast flight. After each
+/// block's steps the state is moved back onto the invariants' values at the start along their
+/// gradients (`c_k w`). The `c` are two of `(0, a3, -a2)`, `(a3, 0, -a1)`, `(a2, -a1, 0)` (the
+/// two largest): orthogonal to the `f32` ratios actually integrated, exactly, with no rounding
+/// in their entries (the invariants of the moments `A` are not quite conserved by the rounded
+/// ratios, and holding those distorted a spin near the major axis, whose nutation is the small
+/// difference of the two). The invariants are evaluated to twice the `f32` precision
+/// ([`crate::exact`]; in plain `f32` their own rounding, with `|w|^2` in the hundreds, sets a
+/// wrong orbit). Not used with a torque ((T4)), which has none.
+struct Invariants {
+    c: [[(f32, f32); 3]; 2],
+    value: [(f32, f32); 2],
+}
+
+impl Invariants {
+    fn new(a: &[f32; 3], w0: &[f32; 3], w0_lo: &[f32; 3]) -> Self {
+        let u = [[0.0, a[2], -a[1]], [a[2], 0.0, -a[0]], [a[1], -a[0], 0.0]];
+        // Drop the vector without the largest |a_i| (the shortest of the three).
+        let big = if a[0].abs() >= a[1].abs() && a[0].abs() >= a[2].abs() {
+            0
+        } else if a[1].abs() >= a[2].abs() {
+            1
+        } else {
+            2
+        };
+        let (i, j) = match big {
+            0 => (1, 2),
+            1 => (0, 2),
+            _ => (0, 1),
+        };
+        let pair = |v: [f32; 3]| v.map(|x| (x, 0.0f32));
+        let c = [pair(u[i]), pair(u[j])];
+        let value = c.map(|c| weighted_squares(&c, w0, w0_lo));
+        Invariants { c, value }
+    }
+
+    /// Moves the state `w - w_lo` by `alpha g_1 + beta g_2` (`g_k = c_k w`, half the
+    /// gradients) so that both invariants take their values to first order. The 2x2 system
+    /// is ill-conditioned for a spin about a principal axis (the gradients are then nearly
+    /// parallel): a ridge of 1e-6 of its trace keeps the correction the least-norm one.
+    fn restore(&self, w: &[f32; 3], w_lo: &mut [f32; 3]) {
+        let [c0, c1] = &self.c;
+        let [(v0h, v0l), (v1h, v1l)] = self.value;
+        let (h0, l0) = weighted_squares(c0, w, w_lo);
+        let (h1, l1) = weighted_squares(c1, w, w_lo);
+        let r = [
+            0.5 * ((v0h - h0) + (v0l - l0)),
+            0.5 * ((v1h - h1) + (v1l - l1)),
+        ];
+        let g = self
+            .c
+            .map(|c| [c[0].0 * w[0], c[1].0 * w[1], c[2].0 * w[2]]);
+        let dot = |x: &[f32; 3], y: &[f32; 3]| x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
+        let (g11, g12, g22) = (dot(&g[0], &g[0]), dot(&g[0], &g[1]), dot(&g[1], &g[1]));
+        let ridge = 1e-6 * (g11 + g22);
+        let (m11, m22) = (g11 + ridge, g22 + ridge);
+        let det = m11 * m22 - g12 * g12;
+        if !(det > 0.0 && det.is_finite()) {
+            return;
+        }
+        let alpha = (r[0] * m22 - r[1] * g12) / det;
+        let beta = (m11 * r[1] - g12 * r[0]) / det;
+        for i in 0..3 {
+            // The true state is `w - w_lo`: moving it by `d` is `w_lo -= d`.
+            w_lo[i] -= alpha * g[0][i] + beta * g[1][i];
+        }
+    }
+}
+
+/// The variance factor for the `f32` representation of the fit itself ((T7)):
+///
+/// ```text
+/// kappa^2 = eps^2 (p1^2 F_11 + p2^2 F_22) / sigma^2,   factor = 1 + RESOLUTION kappa^2     (T7)
+/// ```
+///
+/// `F` the fit's information (unit noise), `sigma^2` its residual variance, `eps` the `f32`
+/// epsilon: `kappa^2` is how many units of log-likelihood a relative change of `eps` in the
+/// moments moves the cost by, the resolution below which the `f32` parameters (and the ratios
+/// computed from them, a frequency) cannot place the optimum. It is negligible on most flights
+/// and grows with the phase a long, fast flight accumulates. [`RESOLUTION`] is measured.
+fn resolution_factor<const P: usize>(f: &Sym<P>, theta: &[f32; P], cost: f32, dof: f32) -> f32 {
+    if !(cost > 0.0 && dof > 0.0) {
+        return 1.0;
+    }
+    let s2 = cost / dof;
+    let e2 = f32::EPSILON * f32::EPSILON;
+    let k2 = e2 * (theta[0] * theta[0] * f[0][0] + theta[1] * theta[1] * f[1][1]) / s2;
+    let k = 1.0 + RESOLUTION * k2;
+    if k.is_finite() {
+        k
+    } else {
+        1.0
+    }
+}
+
+/// The constant of (T7). Measured on a body turning at 12 rad/s at 1 kHz (moments 1, 2.1,
+/// 2.9; 40 seeds each): after 4 s `kappa^2 = 26` and the fit's error variance was 1.23x the
+/// `f64` maximum likelihood's, after 8 s `kappa^2 = 141` and 2.77x (0.0087 and 0.0126 per
+/// unit of `kappa^2`). The paper's body spinning at 8 rad/s near its major axis for 20 s has
+/// `kappa^2 = 1.6` (a factor of 1.016), the benchmark's flights less.
+const RESOLUTION: f32 = 0.01;
+
+/// `|ybar|` of a block: with `|a_i| <= 1` a bound on how fast (1) turns there.
+fn speed_bound(b: &Block<3>) -> f32 {
+    let y = [b.mean(0), b.mean(1), b.mean(2)];
+    sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2])
 }
 
 /// `df/dw` of (T3).
@@ -358,6 +555,7 @@ fn deriv<const C: usize>(a: &[f32; 3], dadp: &[[f32; 3]; 3], c: &[f32; 3], x: &A
         }
     }
     Aug {
+        w_lo: [0.0; 3],
         w: [
             a[0] * prod[0] + c[0],
             a[1] * prod[1] + c[1],
@@ -394,7 +592,14 @@ fn rk4<const C: usize>(
     let mut y = *x;
     let h6 = h / 6.0;
     for i in 0..3 {
-        y.w[i] += h6 * (k1.w[i] + 2.0 * k2.w[i] + 2.0 * k3.w[i] + k4.w[i]);
+        // Compensated: half an ulp of `w` lost per step random-walks the motion's invariants
+        // (energy, momentum) and so its frequencies, and the integrated trajectory's phase drifts
+        // like `t^(3/2)`; carried instead, only the increment's own rounding (a tenth of
+        // that) is lost.
+        let d = h6 * (k1.w[i] + 2.0 * k2.w[i] + 2.0 * k3.w[i] + k4.w[i]) - x.w_lo[i];
+        let sum = x.w[i] + d;
+        y.w_lo[i] = (sum - x.w[i]) - d;
+        y.w[i] = sum;
         for k in 0..C {
             y.s[i][k] += h6 * (k1.s[i][k] + 2.0 * k2.s[i][k] + 2.0 * k3.s[i][k] + k4.s[i][k]);
         }
@@ -442,8 +647,23 @@ fn normal_with<const P: usize, const C: usize>(
     let amax = a
         .iter()
         .fold(0.0f32, |m, x| if x.abs() > m { x.abs() } else { m });
+    // The initial rates are `theta[2..5]` added to the first block's mean: as a compensated
+    // state (`w - w_lo`) they keep the digits an `f32` rate of 12 rad/s would round away (one
+    // ulp of an initial rate moved the cost of an 8 s flight at that speed by one unit of
+    // log-likelihood: the optimum could not be represented).
+    let start = blocks
+        .first()
+        .map_or([0.0; 3], |b| [b.mean(0), b.mean(1), b.mean(2)]);
+    // `w = start + offset` rounded, `w_lo` what the rounding left (the derivatives are taken
+    // at `w`, so it must be the sum itself, not `start`).
+    let sum = [
+        two_sum(start[0], theta[2]),
+        two_sum(start[1], theta[3]),
+        two_sum(start[2], theta[4]),
+    ];
     let mut x = Aug::<C> {
-        w: [theta[2], theta[3], theta[4]],
+        w: sum.map(|(s, _)| s),
+        w_lo: sum.map(|(_, e)| -e),
         s: [[0.0; C]; 3],
     };
     x.s[0][2] = 1.0;
@@ -453,6 +673,10 @@ fn normal_with<const P: usize, const C: usize>(
     if C == C_TORQUE || C == C_TESTS {
         torque = [theta[5], theta[6], theta[7]];
     }
+    let invariants = torque
+        .iter()
+        .all(|c| *c == 0.0)
+        .then(|| Invariants::new(&a, &x.w, &x.w_lo));
     let sc = if scale { 3 } else { 0 };
     let has_bias = P == C + 3 + sc;
     let mut kappa = [0.0f32; 3];
@@ -464,43 +688,47 @@ fn normal_with<const P: usize, const C: usize>(
         bias = [theta[C], theta[C + 1], theta[C + 2]];
     }
     let mut sums = NormalSums::<P>::EMPTY;
-    let mut prev: Option<f32> = None;
+    let mut prev: Option<&Block<3>> = None;
     for b in blocks.iter().take(limit) {
-        let t = b.mean_time();
-        if let Some(tp) = prev {
-            let span = t - tp;
+        if let Some(bp) = prev {
+            let span = b.since(bp);
             if span > 0.0 {
-                let w = &x.w;
-                let speed = amax * sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+                // The step count from the data (the faster of the two block means, `|a_i| <= 1`
+                // for a rigid body), not from the parameters: a count that changed with them
+                // would make the cost jump (the RK4 error of one step count against another)
+                // where the fit needs it smooth. Measured on a 4 s flight at 12 rad/s: one ulp
+                // of an initial rate moved the cost by up to 3 % with the count from `x.w`.
+                let speed = speed_bound(bp).max(speed_bound(b)) * amax.max(1.0);
                 let steps = substeps(span, speed);
                 let h = span / steps as f32;
                 for _ in 0..steps {
                     x = rk4(&a, &dadp, &torque, &x, h);
                 }
+                if let Some(inv) = &invariants {
+                    inv.restore(&x.w, &mut x.w_lo);
+                }
             }
         }
-        prev = Some(t);
-        // (T2): the block mean of w is w(tbar) + v/2 w''(tbar) (the torque's part of w'' is
-        // left out: it is zero where the test evaluates it).
-        let fw = rhs(&a, &x.w);
-        let j = jac(&a, &x.w);
-        let half_v = 0.5 * b.time_var();
-        let y = [b.mean(0), b.mean(1), b.mean(2)];
+        prev = Some(b);
+        // (T2): the block mean of w is w(tbar) + v/2 w''(tbar) + ... (the torque's part of
+        // the derivatives is left out: it is zero where the test evaluates it).
+        let corr = block_mean_correction(&a, &x.w, &b.time_moments());
         for i in 0..3 {
-            let w2 = j[i][0] * fw[0] + j[i][1] * fw[1] + j[i][2] * fw[2];
-            let mean_w = x.w[i] + half_v * w2;
+            // The state is `w - w_lo` (compensated: the initial rates' offsets live in `w_lo`),
+            // the block mean `y0 + dy / n`: the residual from the deviation keeps both.
+            let mean_w = (x.w[i] - x.w_lo[i]) + corr[i];
+            let plain = (b.deviation(i, x.w[i]) + x.w_lo[i]) - corr[i] - bias[i];
             let mut row = [0.0f32; P];
-            // Without the scale factors, the residual and row as they always were (the same
-            // rounding: the other fits' results unchanged to the bit).
             let r = if scale {
+                // (T6): y - (1 + kappa) mean_w - b.
                 let gain = 1.0 + kappa[i];
                 for (dst, src) in row.iter_mut().zip(x.s[i].iter()) {
                     *dst = gain * src;
                 }
-                y[i] - gain * mean_w - bias[i]
+                plain - kappa[i] * mean_w
             } else {
                 row[..C].copy_from_slice(&x.s[i]);
-                y[i] - x.w[i] - half_v * w2 - bias[i]
+                plain
             };
             if has_bias {
                 row[C + i] = 1.0;
@@ -645,15 +873,18 @@ struct StretchFit {
     /// The cost with the gyro's scale factors free ((T6)) when the rigid-body test ((T5))
     /// rejected the fit.
     scale: Option<f32>,
+    /// The variance factor of (T7).
+    resolution: f32,
 }
 
 /// Fits the stretch in `blocks`: the plain model on growing prefixes, then the bias model from
 /// its result, then the tests of what the model lacks.
 fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
     let total = blocks.len();
-    let first = blocks.first().map(|b| [b.mean(0), b.mean(1), b.mean(2)])?;
+    blocks.first()?;
     let p0 = initial_a(blocks).map_or([1.0 / 3.0, 1.0 / 3.0], moments_of);
-    let theta5 = [p0[0], p0[1], first[0], first[1], first[2]];
+    // Initial rates as offsets from the first block's mean (see `normal_with`).
+    let theta5 = [p0[0], p0[1], 0.0, 0.0, 0.0];
     let (theta5, cost5, f5) =
         staged_fit(|th, limit| normal::<5, 5>(blocks, limit, th), theta5, total)?;
     let cov5 = scaled_inverse(&f5)?;
@@ -666,12 +897,16 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
         .and_then(|(_, f, g)| score(&f, &g))
         .is_none_or(|sc| bias_worth_fitting(sc, cost5, dof5, noise_floor));
     let with_bias = if worth {
-        levenberg(|th| normal::<P_MAX, 5>(blocks, total, th), theta8, 30, dof8)
-            .and_then(|(th, cost, f)| scaled_inverse(&f).map(|c| (th, cost, c)))
+        levenberg(|th| normal::<P_MAX, 5>(blocks, total, th), theta8, 30, dof8).and_then(
+            |(th, cost, f)| {
+                let k = resolution_factor(&f, &th, cost, dof8);
+                scaled_inverse(&f).map(|c| (th, cost, c, k))
+            },
+        )
     } else {
         None
     };
-    if let Some((th8, cost8, cov8)) = with_bias {
+    if let Some((th8, cost8, cov8, k8)) = with_bias {
         if bias_found(cost5, cost8, dof8, noise_floor) && ratios_of(th8[0], th8[1]).is_some() {
             // The tests at the bias model's optimum: bias moved to theta[9..12].
             let mut th12 = [0.0f32; P_TESTS_BIAS];
@@ -711,6 +946,7 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
                 params: 8,
                 torque,
                 scale: rigid,
+                resolution: k8,
             });
         }
     }
@@ -742,6 +978,7 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
         params: 5,
         torque,
         scale: rigid,
+        resolution: resolution_factor(&f5, &theta5, cost5, dof5),
     })
 }
 
@@ -793,13 +1030,14 @@ impl<const N: usize> RatioFit<N> {
                 params,
                 torque,
                 scale,
+                resolution: k,
             } = fit_stretch(blocks, noise)?;
             rigid = Some((scale, fit.cost));
             Some(StretchResult {
                 p: [fit.theta[0], fit.theta[1]],
                 cov: [
-                    [fit.cov[0][0], fit.cov[0][1]],
-                    [fit.cov[1][0], fit.cov[1][1]],
+                    [k * fit.cov[0][0], k * fit.cov[0][1]],
+                    [k * fit.cov[1][0], k * fit.cov[1][1]],
                 ],
                 cost: fit.cost,
                 params,

@@ -1,0 +1,79 @@
+//! Error-free transformations of `f32` arithmetic (Knuth's two-sum, Dekker's two-product):
+//! a sum or product as the rounded result and the exact rounding error, for the few
+//! quantities that must be known to better than `f32` precision (the invariants of a long,
+//! fast trajectory, see [`crate::trajectory`]). No fused multiply-add is assumed: `core` has
+//! none without `std`, and Rust never contracts `a * b + c` on its own.
+
+/// `a + b = s + e` exactly, `s` the rounded sum.
+#[inline(always)]
+pub(crate) fn two_sum(a: f32, b: f32) -> (f32, f32) {
+    let s = a + b;
+    let bb = s - a;
+    (s, (a - (s - bb)) + (b - bb))
+}
+
+/// Veltkamp's split: `a = hi + lo` with both halves of 12 significant bits.
+#[inline(always)]
+fn split(a: f32) -> (f32, f32) {
+    let c = 4097.0 * a;
+    let hi = c - (c - a);
+    (hi, a - hi)
+}
+
+/// `a b = p + e` exactly, `p` the rounded product (for `|a b|` well inside the `f32` range).
+#[inline(always)]
+pub(crate) fn two_prod(a: f32, b: f32) -> (f32, f32) {
+    let p = a * b;
+    let (ah, al) = split(a);
+    let (bh, bl) = split(b);
+    (p, ((ah * bh - p) + ah * bl + al * bh) + al * bl)
+}
+
+/// `sum_i c_i x_i^2` to about twice the `f32` precision, with each `x_i = hi_i - lo_i` given as
+/// a compensated pair and each `c_i = c_i.0 + c_i.1`; returned as `(hi, lo)`, value `hi + lo`.
+pub(crate) fn weighted_squares(c: &[(f32, f32); 3], hi: &[f32; 3], lo: &[f32; 3]) -> (f32, f32) {
+    let (mut s, mut e) = (0.0f32, 0.0f32);
+    for ((&(c0, c1), &h), &l) in c.iter().zip(hi.iter()).zip(lo.iter()) {
+        // x^2 = h^2 - 2 h l (+ l^2, below the precision kept).
+        let (p, pe) = two_prod(h, h);
+        let pe = pe - 2.0 * h * l;
+        // c x^2 = c0 p + (c0 pe + c1 p).
+        let (q, qe) = two_prod(c0, p);
+        let qe = qe + c0 * pe + c1 * p;
+        let (t, te) = two_sum(s, q);
+        s = t;
+        e += te + qe;
+    }
+    two_sum(s, e)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn two_sum_and_two_prod_are_exact() {
+        let (a, b) = (1.0f32 + f32::EPSILON, 3.0e-8f32);
+        let (s, e) = two_sum(a, b);
+        assert_eq!(f64::from(s) + f64::from(e), f64::from(a) + f64::from(b));
+        let (x, y) = (1.234_567_9f32, 7.654_321f32);
+        let (p, e) = two_prod(x, y);
+        assert_eq!(f64::from(p) + f64::from(e), f64::from(x) * f64::from(y));
+    }
+
+    #[test]
+    fn weighted_squares_is_twice_as_precise() {
+        let c = [(0.3f32, 1e-9f32), (0.5, -2e-9), (0.2, 0.0)];
+        let hi = [12.345_678f32, -3.210_987, 0.987_654_3];
+        let lo = [3e-7f32, -1e-7, 2e-8];
+        let (s, e) = weighted_squares(&c, &hi, &lo);
+        let exact: f64 = (0..3)
+            .map(|i| {
+                let x = f64::from(hi[i]) - f64::from(lo[i]);
+                (f64::from(c[i].0) + f64::from(c[i].1)) * x * x
+            })
+            .sum();
+        let got = f64::from(s) + f64::from(e);
+        assert!(((got - exact) / exact).abs() < 1e-12, "{got} vs {exact}");
+    }
+}
