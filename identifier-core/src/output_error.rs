@@ -45,10 +45,10 @@ use crate::trajectory::StretchOutcome;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Block<const K: usize> {
     pub(crate) n: f32,
+    /// The first sample's time, rounded; `st` and `stt` are sums of the samples' exact times
+    /// less `t0` (the compensated time's low part included), so a span between blocks is
+    /// taken in two parts ([`Block::since`]).
     pub(crate) t0: f32,
-    /// The low part of the first sample's time (`t0 - t0_lo` is the compensated time): spans
-    /// between blocks are taken from both parts ([`Block::since`]).
-    t0_lo: f32,
     pub(crate) st: f32,
     pub(crate) stt: f32,
     y0: [f32; K],
@@ -59,7 +59,6 @@ impl<const K: usize> Block<K> {
     pub(crate) const EMPTY: Block<K> = Block {
         n: 0.0,
         t0: 0.0,
-        t0_lo: 0.0,
         st: 0.0,
         stt: 0.0,
         y0: [0.0; K],
@@ -74,10 +73,10 @@ impl<const K: usize> Block<K> {
     /// Time from `earlier`'s mean time to this block's, s. Not the difference of the two
     /// [`Block::mean_time`]s: each is rounded to the `f32` ulp of the time since the stretch
     /// began (0.5 us after 8 s), which at 12 rad/s and 130 rad/s^2 put 7e-5 rad/s of model
-    /// error into every block mean; the starts' high and low parts are differenced apart.
+    /// error into every block mean; the rounded starts are differenced apart from the mean
+    /// offsets, which hold the low parts.
     pub(crate) fn since(&self, earlier: &Block<K>) -> f32 {
-        ((self.t0 - earlier.t0) - (self.t0_lo - earlier.t0_lo))
-            + (self.st / self.n - earlier.st / earlier.n)
+        (self.t0 - earlier.t0) + (self.st / self.n - earlier.st / earlier.n)
     }
 
     /// Variance of the block's sample times, `v` of (B1).
@@ -136,7 +135,7 @@ impl<const K: usize> Block<K> {
     /// This block and the later `o` as one, sums referred to this block's start and first
     /// sample.
     fn merge(&self, o: &Block<K>) -> Block<K> {
-        let d = (o.t0 - self.t0) - (o.t0_lo - self.t0_lo);
+        let d = o.t0 - self.t0;
         let mut dy = self.dy;
         for k in 0..K {
             dy[k] += o.dy[k] + o.n * (o.y0[k] - self.y0[k]);
@@ -144,7 +143,6 @@ impl<const K: usize> Block<K> {
         Block {
             n: self.n + o.n,
             t0: self.t0,
-            t0_lo: self.t0_lo,
             st: self.st + o.st + o.n * d,
             stt: self.stt + o.stt + 2.0 * d * o.st + o.n * d * d,
             y0: self.y0,
@@ -210,10 +208,10 @@ impl<const N: usize, const K: usize> BlockBuffer<N, K> {
         let c = &mut self.cur;
         if c.n == 0.0 {
             c.t0 = self.t;
-            c.t0_lo = self.t_lo;
             c.y0 = *y;
         }
-        let tb = (self.t - c.t0) - (self.t_lo - c.t0_lo);
+        // The sample's exact time (`t - t_lo`) less the block's rounded start.
+        let tb = (self.t - c.t0) - self.t_lo;
         c.n += 1.0;
         c.st += tb;
         c.stt += tb * tb + spread;
