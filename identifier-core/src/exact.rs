@@ -22,24 +22,35 @@ fn split(a: f32) -> (f32, f32) {
 
 /// `a b = p + e` exactly, `p` the rounded product (for `|a b|` well inside the `f32` range).
 #[inline(always)]
-pub(crate) fn two_prod(a: f32, b: f32) -> (f32, f32) {
+fn two_prod(a: f32, b: f32) -> (f32, f32) {
     let p = a * b;
     let (ah, al) = split(a);
     let (bh, bl) = split(b);
     (p, ((ah * bh - p) + ah * bl + al * bh) + al * bl)
 }
 
+/// `x += d` for `x` kept as a compensated sum (Kahan): `hi` the rounded running value, `lo`
+/// what its rounding left out so far (the true value is `hi - lo`), carried into the next
+/// addition instead of being lost.
+#[inline(always)]
+pub(crate) fn compensated_add(hi: &mut f32, lo: &mut f32, d: f32) {
+    let y = d - *lo;
+    let s = *hi + y;
+    *lo = (s - *hi) - y;
+    *hi = s;
+}
+
 /// `sum_i c_i x_i^2` to about twice the `f32` precision, with each `x_i = hi_i - lo_i` given as
-/// a compensated pair and each `c_i = c_i.0 + c_i.1`; returned as `(hi, lo)`, value `hi + lo`.
-pub(crate) fn weighted_squares(c: &[(f32, f32); 3], hi: &[f32; 3], lo: &[f32; 3]) -> (f32, f32) {
+/// a compensated pair and the weights `c_i` exact; returned as `(hi, lo)`, value `hi + lo`.
+pub(crate) fn weighted_squares(c: &[f32; 3], hi: &[f32; 3], lo: &[f32; 3]) -> (f32, f32) {
     let (mut s, mut e) = (0.0f32, 0.0f32);
-    for ((&(c0, c1), &h), &l) in c.iter().zip(hi.iter()).zip(lo.iter()) {
+    for ((&c, &h), &l) in c.iter().zip(hi.iter()).zip(lo.iter()) {
         // x^2 = h^2 - 2 h l (+ l^2, below the precision kept).
         let (p, pe) = two_prod(h, h);
         let pe = pe - 2.0 * h * l;
-        // c x^2 = c0 p + (c0 pe + c1 p).
-        let (q, qe) = two_prod(c0, p);
-        let qe = qe + c0 * pe + c1 * p;
+        // c x^2 = c p + c pe.
+        let (q, qe) = two_prod(c, p);
+        let qe = qe + c * pe;
         let (t, te) = two_sum(s, q);
         s = t;
         e += te + qe;
@@ -62,15 +73,31 @@ mod tests {
     }
 
     #[test]
+    fn compensated_add_keeps_what_rounding_drops() {
+        let (mut hi, mut lo) = (1.0f32, 0.0f32);
+        for _ in 0..1000 {
+            compensated_add(&mut hi, &mut lo, 1e-8);
+        }
+        let got = f64::from(hi) - f64::from(lo);
+        assert!((got - (1.0 + 1e-5)).abs() < 1e-12, "{got}");
+        // Plain f32 addition loses every one of them.
+        let mut plain = 1.0f32;
+        for _ in 0..1000 {
+            plain += 1e-8;
+        }
+        assert_eq!(plain, 1.0);
+    }
+
+    #[test]
     fn weighted_squares_is_twice_as_precise() {
-        let c = [(0.3f32, 1e-9f32), (0.5, -2e-9), (0.2, 0.0)];
+        let c = [0.3f32, 0.5, 0.2];
         let hi = [12.345_678f32, -3.210_987, 0.987_654_3];
         let lo = [3e-7f32, -1e-7, 2e-8];
         let (s, e) = weighted_squares(&c, &hi, &lo);
         let exact: f64 = (0..3)
             .map(|i| {
                 let x = f64::from(hi[i]) - f64::from(lo[i]);
-                (f64::from(c[i].0) + f64::from(c[i].1)) * x * x
+                f64::from(c[i]) * x * x
             })
             .sum();
         let got = f64::from(s) + f64::from(e);

@@ -92,13 +92,13 @@
     clippy::neg_cmp_op_on_partial_ord
 )]
 
+use crate::exact::compensated_add;
 use crate::output_error::{
-    bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, score_beyond,
-    score_rejects, staged_fit, substeps, Block, FitState, Normal, NormalSums, Pooled,
+    bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, scaled_inverse, score,
+    score_beyond, score_rejects, staged_fit, substeps, Block, FitState, Normal, NormalSums, Pooled,
     StretchResult,
 };
 use crate::symmetric::{sqrt, Sym};
-use crate::trajectory::higher_orders;
 use crate::trajectory::StretchOutcome;
 
 type Mat3 = [[f32; 3]; 3];
@@ -396,8 +396,7 @@ fn block_mean_correction(k: &Mat3, l0: [f32; 3], h: [[f32; 3]; 3], moments: &[f3
             *wn = mul(k, sub(ln, hcoef));
         }
         if n == 2 {
-            let sq = |x: &[f32; 3]| x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
-            order = higher_orders(mu4, mu6, sq(&w[0]), sq(&w[2]));
+            order = higher_orders(mu4, mu6, &w[0], &w[2]);
         }
         if n >= order || n >= 6 {
             break;
@@ -439,10 +438,8 @@ fn rk4<const C: usize>(
     let mut y = *x;
     let d6 = dt / 6.0;
     for i in 0..3 {
-        let inc = d6 * (k1.l[i] + 2.0 * k2.l[i] + 2.0 * k3.l[i] + k4.l[i]) - x.lc[i];
-        let sum = x.l[i] + inc;
-        y.lc[i] = (sum - x.l[i]) - inc;
-        y.l[i] = sum;
+        let inc = d6 * (k1.l[i] + 2.0 * k2.l[i] + 2.0 * k3.l[i] + k4.l[i]);
+        compensated_add(&mut y.l[i], &mut y.lc[i], inc);
         for c in 0..C {
             y.s[i][c] += d6 * (k1.s[i][c] + 2.0 * k2.s[i][c] + 2.0 * k3.s[i][c] + k4.s[i][c]);
         }

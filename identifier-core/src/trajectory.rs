@@ -64,7 +64,7 @@
 //! parameter and the optimum is lost in that noise. So the rates are a compensated sum (their
 //! rounding carried from step to step), the initial rates are fitted as offsets from the first
 //! block's mean (held in the compensated part), the two quadratic invariants of (1) are held
-//! at their starting values after each block (`Invariants`: they set the motion's
+//! at their starting values every few blocks (`Invariants`: they set the motion's
 //! frequencies, and rounding random-walks them), the block times are differenced in two parts
 //! (`Block::since`), the residuals are taken from the block sums unrounded
 //! (`Block::deviation`), and the step count comes from the data, not the parameters (so the
@@ -156,11 +156,12 @@
     clippy::neg_cmp_op_on_partial_ord
 )]
 
-use crate::exact::{two_sum, weighted_squares};
+use crate::exact::{compensated_add, two_sum, weighted_squares};
+use crate::linalg::dot;
 use crate::output_error::{
-    bias_found, bias_worth_fitting, levenberg, mean_spread, scaled_inverse, score, score_beyond,
-    score_rejects, score_rejects_at, staged_fit, substeps, without, Block, FitState, Normal,
-    NormalSums, StretchResult,
+    bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, scaled_inverse, score,
+    score_beyond, score_rejects, score_rejects_at, staged_fit, substeps, without, Block, FitState,
+    Normal, NormalSums, StretchResult,
 };
 use crate::symmetric::{sqrt, Sym};
 
@@ -380,7 +381,7 @@ fn block_mean_correction(a: &[f32; 3], w: &[f32; 3], moments: &[f32; 3]) -> [f32
             *next = [a[0] * inv * s[0], a[1] * inv * s[1], a[2] * inv * s[2]];
         }
         if n == 1 {
-            order = higher_orders(mu4, mu6, norm2(&c[0]), norm2(&c[2]));
+            order = higher_orders(mu4, mu6, &c[0], &c[2]);
         }
     }
     let [_, _, c2, _, c4, _, c6] = c;
@@ -391,28 +392,6 @@ fn block_mean_correction(a: &[f32; 3], w: &[f32; 3], moments: &[f32; 3]) -> [f32
     ]
 }
 
-/// How far the block mean's expansion must go (2, 4 or 6): its terms fall roughly like
-/// `(|c_2| / |c_0|)^k mu_2k`, and a term below 1e-6 of `|w|` is left out (a gyro's noise on a
-/// block mean is hundreds of times more; with 1e-8, the `f32` rounding of `w`, the paper's
-/// 20 s flight took every term to sixth order and its fit cost 8 % more for nothing the
-/// benchmark could see). Short blocks (most flights) stop at (T2)'s term; `|c|^2` in, squared
-/// ratios compared.
-pub(crate) fn higher_orders(mu4: f32, mu6: f32, w2: f32, c2: f32) -> usize {
-    let r = if w2 > 0.0 { c2 / w2 } else { 0.0 };
-    if !(mu4 * mu4 * r * r > 1e-12) {
-        2
-    } else if !(mu6 * mu6 * r * r * r > 1e-12) {
-        4
-    } else {
-        6
-    }
-}
-
-/// `|x|^2`.
-fn norm2(x: &[f32; 3]) -> f32 {
-    x[0] * x[0] + x[1] * x[1] + x[2] * x[2]
-}
-
 /// Two quadratic invariants of (1), held along the integrated trajectory.
 ///
 /// `I_c(w) = sum c_i w_i^2` is constant along (1) for every `c` with `c . a = 0` (its
@@ -420,9 +399,9 @@ fn norm2(x: &[f32; 3]) -> f32 {
 /// A^2` the squared angular momentum). In `f32` each RK4 step changes the invariants by a
 /// rounding of the increment (about 1e-7 rad/s per step on a body turning at 12 rad/s); they
 /// set the motion's frequencies, so the integrated phase drifts like `t^(3/2)` and the fit's
-/// cost is noisy at the scale of a unit of log-likelihood on a long, fast flight. After each
-/// block's steps the state is moved back onto the invariants' values at the start along their
-/// gradients (`c_k w`). The `c` are two of `(0, a3, -a2)`, `(a3, 0, -a1)`, `(a2, -a1, 0)` (the
+/// cost is noisy at the scale of a unit of log-likelihood on a long, fast flight. Every
+/// [`RESTORE_EVERY`] blocks the state is moved back onto the invariants' values at the start
+/// along their gradients (`c_k w`). The `c` are two of `(0, a3, -a2)`, `(a3, 0, -a1)`, `(a2, -a1, 0)` (the
 /// two largest): orthogonal to the `f32` ratios actually integrated, exactly, with no rounding
 /// in their entries (the invariants of the moments `A` are not quite conserved by the rounded
 /// ratios, and holding those distorted a spin near the major axis, whose nutation is the small
@@ -430,28 +409,22 @@ fn norm2(x: &[f32; 3]) -> f32 {
 /// ([`crate::exact`]; in plain `f32` their own rounding, with `|w|^2` in the hundreds, sets a
 /// wrong orbit). Not used with a torque ((T4)), which has none.
 struct Invariants {
-    c: [[(f32, f32); 3]; 2],
+    c: [[f32; 3]; 2],
     value: [(f32, f32); 2],
 }
 
 impl Invariants {
     fn new(a: &[f32; 3], w0: &[f32; 3], w0_lo: &[f32; 3]) -> Self {
         let u = [[0.0, a[2], -a[1]], [a[2], 0.0, -a[0]], [a[1], -a[0], 0.0]];
-        // Drop the vector without the largest |a_i| (the shortest of the three).
-        let big = if a[0].abs() >= a[1].abs() && a[0].abs() >= a[2].abs() {
-            0
+        // Drop the vector without the largest |a_i| (`u[k]` lacks `a_k`: the shortest).
+        let [u0, u1, u2] = u;
+        let c = if a[0].abs() >= a[1].abs() && a[0].abs() >= a[2].abs() {
+            [u1, u2]
         } else if a[1].abs() >= a[2].abs() {
-            1
+            [u0, u2]
         } else {
-            2
+            [u0, u1]
         };
-        let (i, j) = match big {
-            0 => (1, 2),
-            1 => (0, 2),
-            _ => (0, 1),
-        };
-        let pair = |v: [f32; 3]| v.map(|x| (x, 0.0f32));
-        let c = [pair(u[i]), pair(u[j])];
         let value = c.map(|c| weighted_squares(&c, w0, w0_lo));
         Invariants { c, value }
     }
@@ -469,11 +442,8 @@ impl Invariants {
             0.5 * ((v0h - h0) + (v0l - l0)),
             0.5 * ((v1h - h1) + (v1l - l1)),
         ];
-        let g = self
-            .c
-            .map(|c| [c[0].0 * w[0], c[1].0 * w[1], c[2].0 * w[2]]);
-        let dot = |x: &[f32; 3], y: &[f32; 3]| x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
-        let (g11, g12, g22) = (dot(&g[0], &g[0]), dot(&g[0], &g[1]), dot(&g[1], &g[1]));
+        let g = self.c.map(|c| [c[0] * w[0], c[1] * w[1], c[2] * w[2]]);
+        let (g11, g12, g22) = (dot(g[0], g[0]), dot(g[0], g[1]), dot(g[1], g[1]));
         let ridge = 1e-6 * (g11 + g22);
         let (m11, m22) = (g11 + ridge, g22 + ridge);
         let det = m11 * m22 - g12 * g12;
@@ -602,10 +572,8 @@ fn rk4<const C: usize>(
         // (energy, momentum) and so its frequencies, and the integrated trajectory's phase drifts
         // like `t^(3/2)`; carried instead, only the increment's own rounding (a tenth of
         // that) is lost.
-        let d = h6 * (k1.w[i] + 2.0 * k2.w[i] + 2.0 * k3.w[i] + k4.w[i]) - x.w_lo[i];
-        let sum = x.w[i] + d;
-        y.w_lo[i] = (sum - x.w[i]) - d;
-        y.w[i] = sum;
+        let d = h6 * (k1.w[i] + 2.0 * k2.w[i] + 2.0 * k3.w[i] + k4.w[i]);
+        compensated_add(&mut y.w[i], &mut y.w_lo[i], d);
         for k in 0..C {
             y.s[i][k] += h6 * (k1.s[i][k] + 2.0 * k2.s[i][k] + 2.0 * k3.s[i][k] + k4.s[i][k]);
         }
