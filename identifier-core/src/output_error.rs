@@ -400,7 +400,8 @@ pub(crate) fn substeps(span: f32, rate: f32) -> u32 {
 
 /// Levenberg-Marquardt on growing prefixes of `total` blocks: 16 blocks, then doubling, up to
 /// 10 steps each and 30 on the whole record, so the trajectory's phase is never far from the
-/// data. `normal(theta, limit)` evaluates the first `limit` blocks. Returns the parameters,
+/// data. A prefix is done at [`STAGE_TOLERANCE`] (the next one moves the optimum by about a
+/// standard deviation anyway), the whole record at [`TOLERANCE`]. `normal(theta, limit)` evaluates the first `limit` blocks. Returns the parameters,
 /// cost and normal matrix on all blocks.
 pub(crate) fn staged_fit<const P: usize>(
     normal: impl Fn(&[f32; P], usize) -> Option<Normal<P>>,
@@ -412,7 +413,12 @@ pub(crate) fn staged_fit<const P: usize>(
     loop {
         let last = limit == total;
         let dof = (3 * limit) as f32 - P as f32;
-        let (t, cost, f) = levenberg(|p| normal(p, limit), theta, if last { 30 } else { 10 }, dof)?;
+        let (iters, tol) = if last {
+            (30, TOLERANCE)
+        } else {
+            (10, STAGE_TOLERANCE)
+        };
+        let (t, cost, f) = levenberg(|p| normal(p, limit), theta, iters, dof, tol)?;
         theta = t;
         if last {
             return Some((theta, cost, f));
@@ -421,18 +427,38 @@ pub(crate) fn staged_fit<const P: usize>(
     }
 }
 
+/// Where a fit of the whole record stops: the Gauss-Newton step is predicted to lower the cost
+/// by less than this many residual variances (`TOLERANCE / 2` units of log-likelihood, a tenth
+/// of a standard deviation along the worst direction: at most 1 % more variance).
+pub(crate) const TOLERANCE: f32 = 0.01;
+
+/// Where a fit of a prefix stops ([`staged_fit`]), in the units of [`TOLERANCE`].
+pub(crate) const STAGE_TOLERANCE: f32 = 1.0;
+
+/// The damping (on the normal matrix scaled to a unit diagonal) of the first step, and its
+/// floor. Small: the fits start near their optimum (a prefix's, the plain model's), and the
+/// scaled matrices are ill-conditioned (the moments and the initial rates are correlated), so
+/// a damping of 1e-3 shortened the steps along the weak directions tenfold per iteration
+/// (measured on the paper's 20 s flight: five evaluations on the whole record where two reach
+/// the optimum). A step that raises the cost is refused and the damping raised.
+const MU_START: f32 = 1e-7;
+
 /// Levenberg-Marquardt from `theta` on the cost `normal` evaluates (`None` where the
 /// parameters are not admissible), at most `iters` steps; `dof` is the number of residuals
-/// minus `P`. Returns the final parameters, cost and normal matrix.
+/// minus `P`. Converged when the Gauss-Newton model predicts a fall of the cost below `tol`
+/// residual variances (cost over `dof`): that last step is taken without another evaluation
+/// (whatever it gains, at most `tol` is left). Returns the final parameters, and the cost and
+/// normal matrix of the last point evaluated (the step before them when converged).
 pub(crate) fn levenberg<const P: usize>(
     normal: impl Fn(&[f32; P]) -> Option<Normal<P>>,
     theta: [f32; P],
     iters: u32,
     dof: f32,
+    tol: f32,
 ) -> Option<([f32; P], f32, Sym<P>)> {
     let (mut cost, mut f, mut g) = normal(&theta)?;
     let mut theta = theta;
-    let mut mu = 1e-3f32;
+    let mut mu = MU_START;
     for _ in 0..iters {
         let mut d = [0.0f32; P];
         for i in 0..P {
@@ -463,9 +489,7 @@ pub(crate) fn levenberg<const P: usize>(
         for i in 0..P {
             step[i] = z[i] * d[i];
         }
-        // The Gauss-Newton model's predicted fall of the cost, `2 delta^T g - delta^T F delta`:
-        // below 1e-4 of one unit of log-likelihood there is nothing left to gain (and in `f32`
-        // the cost's own rounding would refuse the step anyway).
+        // The Gauss-Newton model's predicted fall of the cost, `2 delta^T g - delta^T F delta`.
         let mut pred = 0.0f32;
         for i in 0..P {
             let mut fs = 0.0f32;
@@ -475,14 +499,16 @@ pub(crate) fn levenberg<const P: usize>(
             pred += step[i] * (2.0 * g[i] - fs);
         }
         let per = if dof > 0.0 { cost / dof } else { cost };
-        // Only a (nearly) undamped step says the optimum is reached: a damped one is short
-        // because of the damping.
-        if pred < 1e-4 * per && mu <= 1e-2 {
-            break;
-        }
         let mut cand = theta;
         for i in 0..P {
             cand[i] += step[i];
+        }
+        // Only a (nearly) undamped step says the optimum is reached: a damped one is short
+        // because of the damping. Below `tol` the cost's `f32` rounding (about 1e-4 of itself
+        // from one evaluation to the next) would often refuse the step on noise.
+        if pred < tol * per && mu <= 1e-2 {
+            theta = cand;
+            break;
         }
         match normal(&cand) {
             Some((c2, f2, g2)) if c2 < cost => {
@@ -490,7 +516,11 @@ pub(crate) fn levenberg<const P: usize>(
                 cost = c2;
                 f = f2;
                 g = g2;
-                mu = if mu > 1e-6 { mu * 0.1 } else { 1e-7 };
+                mu = if mu > 10.0 * MU_START {
+                    mu * 0.1
+                } else {
+                    MU_START
+                };
             }
             _ => {
                 // A refused, (nearly) undamped step that was to gain under 0.025 of a unit of

@@ -96,7 +96,7 @@ use crate::exact::compensated_add;
 use crate::output_error::{
     bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, scaled_inverse, score,
     score_beyond, score_rejects, staged_fit, substeps, Block, FitState, Normal, NormalSums, Pooled,
-    StretchResult,
+    StretchResult, TOLERANCE,
 };
 use crate::symmetric::{sqrt, Sym};
 use crate::trajectory::StretchOutcome;
@@ -753,7 +753,7 @@ fn fit_model<const P: usize, const PB: usize, const M: usize, const PT: usize, c
 ) -> Option<StretchResult<M>> {
     let total = blocks.len();
     let dof0 = (3 * total) as f32 - P as f32;
-    let direct = levenberg(|p| normal(blocks, total, p, trace), th, 30, dof0);
+    let direct = levenberg(|p| normal(blocks, total, p, trace), th, 30, dof0, TOLERANCE);
     let fits = 4.0 * noise_floor * noise_floor * dof0;
     let plain = match direct {
         Some(d) if d.1 <= fits => Some(d),
@@ -775,7 +775,13 @@ fn fit_model<const P: usize, const PB: usize, const M: usize, const PT: usize, c
             .and_then(|(_, f, g)| score(&f, &g))
             .is_none_or(|sc| bias_worth_fitting(sc, cost0, dof0, noise_floor));
     let with_bias = if worth {
-        levenberg(|p| normal(blocks, total, p, trace), th1, 30, dof1)
+        levenberg(
+            |p| normal(blocks, total, p, trace),
+            th1,
+            30,
+            dof1,
+            TOLERANCE,
+        )
     } else {
         None
     };

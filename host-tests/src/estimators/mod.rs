@@ -55,7 +55,8 @@ impl Scenario {
     }
 
     /// The scenarios added for issue 11: a near-symmetric body at 2 kHz, short tosses at
-    /// 100-200 Hz with quiet and noisy gyros, and a constant gyro bias. (A body near a
+    /// 100-200 Hz with quiet and noisy gyros, a fast tumble (where `f32` limits the on-board
+    /// fits) and a constant gyro bias. (A body near a
     /// principal axis is `major-axis` above; the flywheel throw is a tensor scenario of its
     /// own in `bench-estimators`.)
     pub fn issue11() -> Vec<Scenario> {
@@ -98,6 +99,16 @@ impl Scenario {
                 rate_hz: 200.0,
                 duration: 0.5,
                 sigma: 1e-2,
+                bias: [0.0; 3],
+            },
+            Scenario {
+                name: "fast-tumble",
+                description: "A=(1.0,2.1,2.9) tumbling from omega0=(3,12,2) (48 rad turned), 1 kHz, 4 s, sigma 2e-3: the f32 resolution of a long, fast trajectory",
+                inertia: [1.0, 2.1, 2.9],
+                omega0: [3.0, 12.0, 2.0],
+                rate_hz: 1000.0,
+                duration: 4.0,
+                sigma: 2e-3,
                 bias: [0.0; 3],
             },
             Scenario {
