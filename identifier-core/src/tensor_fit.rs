@@ -78,10 +78,10 @@
 //! [`crate::RatioFit`] (which assumes principal axes) and is pooled apart from the absolute
 //! fits.
 //!
-//! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 225 / 303
-//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 32 M / 37 M instructions, about
-//! 0.2 s at 168 MHz; up to scale, 20 s of a slow tumble at 1 kHz 44 M / 50 M (0.26-0.30 s) and a
-//! 0.85 s toss at 100 Hz 33 M / 37 M (35 / 40 M and 24 / 28 M before the tests (F4), (F5)): far too long for one gyro period, which is why the
+//! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 225 / 308
+//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 22 M / 24 M instructions, about
+//! 0.15 s at 168 MHz; up to scale, 20 s of a slow tumble at 1 kHz from a first guess 2 % off
+//! 47 M / 53 M (0.28-0.31 s) and a 0.85 s toss at 100 Hz 29 M / 33 M: far too long for one gyro period, which is why the
 //! pipeline runs it in [`crate::Pipeline::fit_ended_flight`], outside its per-sample step.
 #![allow(
     // Fixed-size loops over the 3 axes and the parameters read as the equations; the crate's
@@ -96,7 +96,7 @@ use crate::exact::compensated_add;
 use crate::output_error::{
     bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, scaled_inverse, score,
     score_beyond, score_rejects, staged_fit, substeps, Block, FitState, Normal, NormalSums, Pooled,
-    StretchResult, TOLERANCE,
+    Start, StretchResult, TOLERANCE,
 };
 use crate::symmetric::{sqrt, Sym};
 use crate::trajectory::StretchOutcome;
@@ -753,7 +753,14 @@ fn fit_model<const P: usize, const PB: usize, const M: usize, const PT: usize, c
 ) -> Option<StretchResult<M>> {
     let total = blocks.len();
     let dof0 = (3 * total) as f32 - P as f32;
-    let direct = levenberg(|p| normal(blocks, total, p, trace), th, 30, dof0, TOLERANCE);
+    let direct = levenberg(
+        |p| normal(blocks, total, p, trace),
+        th,
+        30,
+        dof0,
+        TOLERANCE,
+        Start::Cold,
+    );
     let fits = 4.0 * noise_floor * noise_floor * dof0;
     let plain = match direct {
         Some(d) if d.1 <= fits => Some(d),
@@ -781,6 +788,7 @@ fn fit_model<const P: usize, const PB: usize, const M: usize, const PT: usize, c
             30,
             dof1,
             TOLERANCE,
+            Start::Warm,
         )
     } else {
         None

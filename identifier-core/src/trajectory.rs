@@ -145,11 +145,11 @@
 //! and its cost ([`RatioFitEstimate::cost_with_scale`]) is what the products of inertia of the
 //! tensor must beat to be believed: they absorb part of a scale error too.
 //!
-//! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 137 / 180
+//! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 138 / 183
 //! instructions per sample (a block sum; a merge of the 256 blocks once in a while costs up to
-//! 14 k); one fit 9.2 M instructions after 20 s at 1 kHz, 2.2 M after an 85-sample toss
-//! (7.8 M and 1.9 M before the tests (T4), (T5): one evaluation for both, with 9 sensitivity
-//! columns; (T6) fits only where (T5) rejected).
+//! 14 k); one fit 5.96 / 6.55 M instructions after 20 s at 1 kHz, 1.53 / 1.66 M after an
+//! 85-sample toss (the tests (T4), (T5) are one evaluation with 9 sensitivity columns; (T6)
+//! and the torque's refit run only where their score test rejected).
 #![allow(
     // Fixed-size loops over the 3 axes and the P <= 8 parameters read as the equations; the
     // crate's link-time no-panic check proves no bounds check survives.
@@ -164,7 +164,7 @@ use crate::linalg::dot;
 use crate::output_error::{
     bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, scaled_inverse, score,
     score_beyond, score_rejects, score_rejects_at, staged_fit, substeps, without, Block, FitState,
-    Normal, NormalSums, StretchResult, TOLERANCE,
+    Normal, NormalSums, Start, StretchResult, TOLERANCE,
 };
 use crate::symmetric::{sqrt, Sym};
 
@@ -803,7 +803,7 @@ fn refit_cost<const P: usize>(
     cost: f32,
     dof: f32,
 ) -> Option<f32> {
-    levenberg(normal, theta, 30, dof - 3.0, TOLERANCE).map(|(_, c, _)| c.min(cost))
+    levenberg(normal, theta, 30, dof - 3.0, TOLERANCE, Start::Warm).map(|(_, c, _)| c.min(cost))
 }
 
 /// The torque's verdict once its score test rejected the torque-free fit (`cost`, `dof`): the
@@ -901,6 +901,7 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
             30,
             dof8,
             TOLERANCE,
+            Start::Warm,
         )
         .and_then(|(th, cost, f)| {
             let k = resolution_factor(&f, &th, cost, dof8);
