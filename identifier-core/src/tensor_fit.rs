@@ -79,9 +79,9 @@
 //! fits.
 //!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 225 / 308
-//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 22 M / 24 M instructions, about
-//! 0.15 s at 168 MHz; up to scale, 20 s of a slow tumble at 1 kHz from a first guess 2 % off
-//! 47 M / 53 M (0.28-0.31 s) and a 0.85 s toss at 100 Hz 29 M / 33 M: far too long for one gyro period, which is why the
+//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 34 M / 36 M instructions, about
+//! 0.2 s at 168 MHz; up to scale, 20 s of a slow tumble at 1 kHz from a first guess 2 % off
+//! 43 M / 48 M (0.26-0.29 s) and a 0.85 s toss at 100 Hz 30 M / 34 M: far too long for one gyro period, which is why the
 //! pipeline runs it in [`crate::Pipeline::fit_ended_flight`], outside its per-sample step.
 #![allow(
     // Fixed-size loops over the 3 axes and the parameters read as the equations; the crate's

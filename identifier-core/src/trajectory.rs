@@ -147,7 +147,7 @@
 //!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 138 / 183
 //! instructions per sample (a block sum; a merge of the 256 blocks once in a while costs up to
-//! 14 k); one fit 5.96 / 6.55 M instructions after 20 s at 1 kHz, 1.53 / 1.66 M after an
+//! 14 k); one fit 5.97 / 6.56 M instructions after 20 s at 1 kHz, 1.53 / 1.66 M after an
 //! 85-sample toss (the tests (T4), (T5) are one evaluation with 9 sensitivity columns; (T6)
 //! and the torque's refit run only where their score test rejected).
 #![allow(
