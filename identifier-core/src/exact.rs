@@ -58,6 +58,36 @@ pub(crate) fn weighted_squares(c: &[f32; 3], hi: &[f32; 3], lo: &[f32; 3]) -> (f
     two_sum(s, e)
 }
 
+/// `x^T K x` for a symmetric `K` (its upper triangle read) to about twice the `f32`
+/// precision, with each `x_i = hi_i - lo_i` a compensated pair; returned as `(hi, lo)`,
+/// value `hi + lo`. The entries of `K` are taken as exact.
+pub(crate) fn quadratic_form(k: &[[f32; 3]; 3], hi: &[f32; 3], lo: &[f32; 3]) -> (f32, f32) {
+    let [x0, x1, x2] = *hi;
+    let [l0, l1, l2] = *lo;
+    let [[k00, k01, k02], [_, k11, k12], [_, _, k22]] = *k;
+    // Off the diagonal each entry counts twice.
+    let terms = [
+        (k00, (x0, l0), (x0, l0)),
+        (k11, (x1, l1), (x1, l1)),
+        (k22, (x2, l2), (x2, l2)),
+        (2.0 * k01, (x0, l0), (x1, l1)),
+        (2.0 * k02, (x0, l0), (x2, l2)),
+        (2.0 * k12, (x1, l1), (x2, l2)),
+    ];
+    let (mut s, mut e) = (0.0f32, 0.0f32);
+    for (kij, (xi, li), (xj, lj)) in terms {
+        // x_i x_j = hi_i hi_j - hi_i lo_j - lo_i hi_j (+ lo lo, below the precision kept).
+        let (p, pe) = two_prod(xi, xj);
+        let pe = pe - xi * lj - li * xj;
+        let (q, qe) = two_prod(kij, p);
+        let qe = qe + kij * pe;
+        let (t, te) = two_sum(s, q);
+        s = t;
+        e += te + qe;
+    }
+    two_sum(s, e)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -86,6 +116,27 @@ mod tests {
             plain += 1e-8;
         }
         assert_eq!(plain, 1.0);
+    }
+
+    #[test]
+    fn quadratic_form_is_twice_as_precise() {
+        let k = [
+            [0.7f32, -0.123_456_7, 0.031_415_9],
+            [-0.123_456_7, 0.45, 0.011_111_1],
+            [0.031_415_9, 0.011_111_1, 0.333_333_3],
+        ];
+        let hi = [12.345_678f32, -3.210_987, 0.987_654_3];
+        let lo = [3e-7f32, -1e-7, 2e-8];
+        let (s, e) = quadratic_form(&k, &hi, &lo);
+        let x: [f64; 3] = core::array::from_fn(|i| f64::from(hi[i]) - f64::from(lo[i]));
+        let mut exact = 0.0f64;
+        for i in 0..3 {
+            for j in 0..3 {
+                exact += f64::from(k[i.min(j)][i.max(j)]) * x[i] * x[j];
+            }
+        }
+        let got = f64::from(s) + f64::from(e);
+        assert!(((got - exact) / exact).abs() < 1e-12, "{got} vs {exact}");
     }
 
     #[test]

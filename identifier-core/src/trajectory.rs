@@ -162,9 +162,10 @@
 use crate::exact::{compensated_add, two_sum, weighted_squares};
 use crate::linalg::dot;
 use crate::output_error::{
-    bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, scaled_inverse, score,
-    score_beyond, score_rejects, score_rejects_at, staged_fit, substeps, without, Block, FitState,
-    Normal, NormalSums, Start, StretchResult, TOLERANCE,
+    bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, refit_cost,
+    scaled_inverse, score, score_beyond, score_rejects, score_rejects_at, staged_fit, substeps,
+    torque_confirmed, without, Block, FitState, Normal, NormalSums, Start, StretchResult,
+    TOLERANCE,
 };
 use crate::symmetric::{sqrt, Sym};
 
@@ -789,34 +790,6 @@ fn moments_of(a: [f32; 3]) -> [f32; 2] {
         [p1, p2]
     } else {
         [1.0 / 3.0, 1.0 / 3.0]
-    }
-}
-
-/// The cost of the model at `theta` refitted with three more parameters free (`normal` its
-/// normal equations; `dof` the model's own degrees of freedom): a constant torque ((T4)) or
-/// the gyro's scale factors ((T6)) where their test rejected it; `cost`, the model's own, if
-/// that fit is not lower; `None` if it fails. The pipeline weighs it against the tensor's
-/// products of inertia, which absorb part of either.
-fn refit_cost<const P: usize>(
-    normal: impl Fn(&[f32; P]) -> Option<Normal<P>>,
-    theta: [f32; P],
-    cost: f32,
-    dof: f32,
-) -> Option<f32> {
-    levenberg(normal, theta, 30, dof - 3.0, TOLERANCE, Start::Warm).map(|(_, c, _)| c.min(cost))
-}
-
-/// The torque's verdict once its score test rejected the torque-free fit (`cost`, `dof`): the
-/// cost with the torque fitted (`refit`) when the likelihood ratio `cost - refit` rejects too
-/// ((T4) against the same threshold), or when that fit failed (the score's verdict stands).
-/// The score is the likelihood ratio's approximation at the exact optimum; on a fast 8 s
-/// flight the `f32` fit stops where a step of one ulp moves the cost by units of
-/// log-likelihood, and the score called a free body's torque significant on 5 of 100 seeds
-/// whose refit gained under one unit.
-fn torque_confirmed(refit: Option<f32>, cost: f32, dof: f32, noise_floor: f32) -> Option<f32> {
-    match refit {
-        None => Some(cost),
-        Some(c) => score_rejects(cost - c, cost, dof, noise_floor).then_some(c),
     }
 }
 
