@@ -34,13 +34,17 @@
 //! Sigma_c(t_0) = E_c w(t_0) (entries of J),  J e_k (initial rate k)
 //! ```
 //!
-//! integrated with (F1) by RK4 between block means (steps of at most `0.1 / (|J^-1|_F |L|)`
-//! s: the rates turn at up to `|J^-1| |L|`, several times `|w|` when the moments differ), `h(t)`
-//! quadratic between block means (through the block means corrected by (B1), with their second
+//! integrated with (F1) by RK4 between block means (steps of at most `0.1 / rate`, `rate =
+//! max(1, a_max) |w| + sqrt(h^T J h / det J)` from the data and the first guess: how fast Euler's
+//! equation turns the rates and the rotor's nutation, see `StepRule`), `h(t)` quadratic between
+//! block means (through the block means corrected by (B1), with their second
 //! differences as curvature). A block's mean rate is predicted by (B1) of the block buffer
 //! with `w'' = J^-1 ((L x w) x w + L x w')`, `w' = J^-1 (L x w - h')` (`h''` neglected). The
 //! bias model (`b`, three more parameters) replaces the plain one by the likelihood-ratio test;
-//! stretches are pooled by the information on the six entries (see `output_error`).
+//! stretches are pooled by the information on the six entries (see `output_error`). Without
+//! rotor momentum the integrated momentum is held on the two invariants `|L|^2` and `L . J^-1 L`
+//! of (F1) ((F6), every eight blocks, evaluated to twice the `f32` precision): on a fast 8 s
+//! tumble the `f32` drift of the motion's phase had left the fit up to scale 1.1-1.4x its bound.
 //!
 //! Up to scale (below), each fit is followed by the score test of a constant torque `q` that
 //! the free flight should not have (as [`crate::RatioFit`]'s, see there):
@@ -49,7 +53,8 @@
 //! L' = L x w + q,   Sigma_q' = Sigma_q x w + L x dw/dq + I,   Sigma_q(t_0) = 0        (F4)
 //! ```
 //!
-//! at `q = 0`, against 21.11 (chi-square, 3 degrees of freedom, 0.01 %). And by the score test
+//! at `q = 0`, against 21.11 (chi-square, 3 degrees of freedom, 0.01 %), a rejection confirmed
+//! by the likelihood ratio of the model refitted with the torque. And by the score test
 //! of the gyro's scale-factor errors `kappa`, the gyro reading `(1 + kappa_i) w_i`:
 //!
 //! ```text
@@ -79,10 +84,13 @@
 //! fits.
 //!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 225 / 308
-//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 34 M / 36 M instructions, about
-//! 0.2 s at 168 MHz; up to scale, 20 s of a slow tumble at 1 kHz from a first guess 2 % off
-//! 43 M / 48 M (0.26-0.29 s) and a 0.85 s toss at 100 Hz 30 M / 34 M: far too long for one gyro period, which is why the
-//! pipeline runs it in [`crate::Pipeline::fit_ended_flight`], outside its per-sample step.
+//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 12.2 M / 11.4 M instructions,
+//! about 0.07 s at 168 MHz (30 M / 28 M when the model does not fit to the noise and
+//! the fit from the rotor's spin-up follows); up to scale, 20 s of a slow tumble at 1 kHz from a
+//! first guess 2 % off 17.0 M / 17.0 M (0.1 s) and a 0.85 s toss at 100 Hz 3.4 M / 3.5 M
+//! (34, 50, 43 and 30 M in release before 2026-11-26): too long for one gyro period, which is
+//! why the pipeline runs it in [`crate::Pipeline::fit_ended_flight`], outside its per-sample
+//! step.
 #![allow(
     // Fixed-size loops over the 3 axes and the parameters read as the equations; the crate's
     // link-time no-panic check proves no bounds check survives.
@@ -97,7 +105,7 @@ use crate::linalg::dot;
 use crate::output_error::{
     bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, refit_cost,
     scaled_inverse, score, score_beyond, score_rejects, staged_fit, substeps, torque_confirmed,
-    Block, FitState, Normal, NormalSums, Pooled, Start, StretchResult, TOLERANCE,
+    without, Block, FitState, Normal, NormalSums, Pooled, Start, StretchResult, TOLERANCE,
 };
 use crate::symmetric::{eigen_symmetric3, sqrt, Sym};
 use crate::trajectory::StretchOutcome;
@@ -977,7 +985,15 @@ fn leading_block<const A: usize, const M: usize>(c: &[[f32; A]; A]) -> Sym<M> {
 /// up to scale so poorly that the staged fit left the right basin on about 1 flight in 25.
 /// On the simulated flywheel throw the absolute fit is as accurate as staged alone, at two
 /// thirds of the cost.
-fn fit_model<const P: usize, const PB: usize, const M: usize, const PT: usize, const PTB: usize>(
+fn fit_model<
+    const P: usize,
+    const PB: usize,
+    const M: usize,
+    const PT: usize,
+    const PTB: usize,
+    const PTS: usize,
+    const PTBS: usize,
+>(
     blocks: &[Block<6>],
     th: [f32; P],
     trace: f32,
@@ -1046,10 +1062,8 @@ fn fit_model<const P: usize, const PB: usize, const M: usize, const PT: usize, c
                         g(i - 3)
                     }
                 });
-                let torque = torque_found(blocks, &rule, &th_t, trace, cost1, dof1, noise_floor);
-                // The scale factors last, after the bias (as many parameters as the torque's).
-                let th_s: [f32; PTB] = leading(&t1);
-                let scale = scale_found(blocks, &rule, &th_s, trace, cost1, dof1, noise_floor);
+                let (torque, scale) =
+                    tests_found::<PTB, PTBS>(blocks, &rule, &th_t, trace, cost1, dof1, noise_floor);
                 return Some(StretchResult {
                     p: leading(&t1),
                     cov: leading_block(&c1),
@@ -1069,8 +1083,8 @@ fn fit_model<const P: usize, const PB: usize, const M: usize, const PT: usize, c
         0.0
     };
     let th_t: [f32; PT] = leading(&th);
-    let torque = torque_found(blocks, &rule, &th_t, trace, cost0, dof0, noise_floor);
-    let scale = scale_found(blocks, &rule, &th_t, trace, cost0, dof0, noise_floor);
+    let (torque, scale) =
+        tests_found::<PT, PTS>(blocks, &rule, &th_t, trace, cost0, dof0, noise_floor);
     Some(StretchResult {
         p: leading(&th),
         cov: leading_block(&cov0),
@@ -1083,54 +1097,60 @@ fn fit_model<const P: usize, const PB: usize, const M: usize, const PT: usize, c
     })
 }
 
-/// The score test of a constant torque ((F4)) at a fitted model's optimum: `theta` that
-/// model's parameters with a zero torque inserted after the initial rate, `cost` and `dof` its
-/// own (see `output_error::score_rejects`), confirmed by the likelihood ratio of the model
-/// refitted with the torque ([`torque_confirmed`]: only where the score rejected, so a free
-/// flight pays one evaluation). Only up to scale (`trace` > 0, the gyro-only path): with a
-/// rotor the model's error is the rotor's and the status says so already.
-fn torque_found<const P: usize>(
+/// The score tests at a fitted model's optimum, from one evaluation: `theta` that model's
+/// parameters with a zero torque inserted after the initial rate (`PT` of them; `PS = PT + 3`
+/// with three zero `kappa` appended), `cost` and `dof` its own. Only up to scale (`trace` > 0,
+/// the gyro-only path): with a rotor the model's error is the rotor's and the status says so
+/// already. Returns
+///
+/// - a constant torque ((F4)): its score `g^T F^-1 g` (the scale factors dropped) against 21.11
+///   (chi-square, 3 degrees of freedom, 0.01 %, see `output_error::score_rejects`), a rejection
+///   confirmed by the likelihood ratio of the model refitted with the torque
+///   ([`torque_confirmed`]; that fit runs only where the score rejected): the cost with it;
+/// - the gyro's scale-factor errors ((F5)): scored beyond the model's own columns (the torque
+///   dropped, see `output_error::score_beyond`) against 21.11.
+///
+/// The two tests were two evaluations (12 and 9 sensitivity columns) until 2026-11-26; the
+/// columns are integrated independently, so one evaluation with the torque's and the scale
+/// factors' columns gives both the same sums.
+fn tests_found<const PT: usize, const PS: usize>(
     blocks: &[Block<6>],
     rule: &StepRule,
-    theta: &[f32; P],
+    theta: &[f32; PT],
     trace: f32,
     cost: f32,
     dof: f32,
     noise_floor: f32,
-) -> Option<f32> {
-    let extended = |th: &[f32; P]| normal_extended::<P, C_TORQUE>(blocks, rule, th, trace, false);
-    let rejects = trace > 0.0
-        && extended(theta)
-            .and_then(|(_, f, g)| score(&f, &g))
-            .is_some_and(|sc| score_rejects(sc, cost, dof, noise_floor));
-    if !rejects {
-        return None;
+) -> (Option<f32>, bool) {
+    if !(trace > 0.0) {
+        return (None, false);
     }
-    torque_confirmed(
-        refit_cost(extended, *theta, cost, dof),
-        cost,
-        dof,
-        noise_floor,
-    )
-}
-
-/// The score test of the gyro's scale-factor errors ((F5)) at a fitted model's optimum:
-/// `theta` that model's parameters with three zero `kappa` last, `cost` and `dof` its own,
-/// scored beyond the model's own columns (see `output_error::score_beyond`) against 21.11
-/// (chi-square, 3 degrees of freedom, 0.01 %). Only up to scale (the gyro-only path).
-fn scale_found<const P: usize>(
-    blocks: &[Block<6>],
-    rule: &StepRule,
-    theta: &[f32; P],
-    trace: f32,
-    cost: f32,
-    dof: f32,
-    noise_floor: f32,
-) -> bool {
-    trace > 0.0
-        && normal_extended::<P, P0>(blocks, rule, theta, trace, true)
-            .and_then(|(_, f, g)| score_beyond(&f, &g, &[P - 3, P - 2, P - 1]))
-            .is_some_and(|sc| score_rejects(sc, cost, dof, noise_floor))
+    let both: [f32; PS] = leading(theta);
+    let Some((_, f, g)) = normal_extended::<PS, C_TORQUE>(blocks, rule, &both, trace, true) else {
+        return (None, false);
+    };
+    // Layout: five entries, the initial rate, the torque, [the bias], the scale factors.
+    let torque_cols = [8, 9, 10];
+    let kappa = [PS - 3, PS - 2, PS - 1];
+    let (ft, gt) = without(&f, &g, &kappa);
+    let torque_rejects =
+        score(&ft, &gt).is_some_and(|sc| score_rejects(sc, cost, dof, noise_floor));
+    let (fs, gs) = without(&f, &g, &torque_cols);
+    let scale =
+        score_beyond(&fs, &gs, &kappa).is_some_and(|sc| score_rejects(sc, cost, dof, noise_floor));
+    let torque = if torque_rejects {
+        let extended =
+            |th: &[f32; PT]| normal_extended::<PT, C_TORQUE>(blocks, rule, th, trace, false);
+        torque_confirmed(
+            refit_cost(extended, *theta, cost, dof),
+            cost,
+            dof,
+            noise_floor,
+        )
+    } else {
+        None
+    };
+    (torque, scale)
 }
 
 /// Lag-1 autocorrelation of the block residuals at `theta` over the three axes: the sum of
@@ -1209,7 +1229,13 @@ fn fit_stretch(
             init[0][0], init[1][1], init[2][2], init[0][1], init[0][2], init[1][2], w0[0], w0[1],
             w0[2],
         ];
-        fit_model::<P0, P1, 6, { P0 + 3 }, { P1 + 3 }>(blocks, th, 0.0, noise_floor, test_bias)
+        fit_model::<P0, P1, 6, { P0 + 3 }, { P1 + 3 }, { P0 + 6 }, { P1 + 6 }>(
+            blocks,
+            th,
+            0.0,
+            noise_floor,
+            test_bias,
+        )
     };
     let whole = from(blocks, init)?;
     let per_dof = |r: &StretchResult<6>, n: usize| r.cost / ((3 * n) as f32 - r.params as f32);
@@ -1303,13 +1329,14 @@ fn fit_stretch_normalized(
         }
     }
     let (th, tr, _) = best?;
-    let mut r = fit_model::<{ P0 - 1 }, { P1 - 1 }, 5, { P0 + 2 }, { P1 + 2 }>(
-        blocks,
-        th,
-        tr,
-        noise_floor,
-        test_bias,
-    )?;
+    let mut r =
+        fit_model::<{ P0 - 1 }, { P1 - 1 }, 5, { P0 + 2 }, { P1 + 2 }, { P0 + 5 }, { P1 + 5 }>(
+            blocks,
+            th,
+            tr,
+            noise_floor,
+            test_bias,
+        )?;
     let k = 1.0 / tr;
     r.p = r.p.map(|x| x * k);
     r.cov = r.cov.map(|row| row.map(|x| x * k * k));
