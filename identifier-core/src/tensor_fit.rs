@@ -1664,6 +1664,36 @@ mod tests {
         }
     }
 
+    /// A first guess far off in scale (the step count comes from it, see `StepRule`): the
+    /// fit still integrates finely enough for the tensor it ends at.
+    #[test]
+    fn a_first_guess_far_off_in_scale_still_gives_the_tensor() {
+        let rate = 2000.0;
+        let (ws, hs, j) = throw(rate, 0.8);
+        for k in [0.25f32, 4.0] {
+            let mut fit = TensorFit::<256>::new(f32::INFINITY, 0.1, 1e-3);
+            for (w, h) in ws.iter().zip(&hs) {
+                fit.step(*w, *h, (1.0 / rate) as f32);
+            }
+            let init = [
+                [2.3e-4 * k, 0.0, 0.0],
+                [0.0, 2.6e-4 * k, 0.0],
+                [0.0, 0.0, 3.9e-4 * k],
+            ];
+            let o = fit.close(Some(init));
+            let e = fit.estimate().unwrap();
+            std::println!("x{k}: {o:?} noise {} tensor {:?}", e.noise, e.tensor);
+            assert_eq!(o, StretchOutcome::Fitted, "x{k}");
+            assert!(e.noise < 1e-3, "x{k}: residual {} rad/s", e.noise);
+            for r in 0..3 {
+                for c in 0..3 {
+                    let err = (e.tensor[r][c] as f64 - j[r][c]).abs();
+                    assert!(err < 2e-4 * 3.6e-4, "x{k}: {:?} vs {j:?}", e.tensor);
+                }
+            }
+        }
+    }
+
     /// A rotor at rest at the release, spun up and stopped again: the momentum is held on its
     /// invariants only while no rotor momentum has been seen (the motor does work on the body,
     /// so the start's energy is wrong once it has turned, even after it stops).
