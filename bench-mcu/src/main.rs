@@ -170,6 +170,35 @@ fn flight_close(
     (ticks, outcome, fit.estimate())
 }
 
+/// `samples` of `sig` (gyro only, no rotor) through a fresh `FlightPipeline` set up for the
+/// signal's rate and noise (untimed), then one timed `end_stretch()`: the end-of-flight fits
+/// as the pipeline runs them (the ratio fit's close, then the tensor fit's up to scale from the
+/// better of the equation-error tensor and the ratio fit's moments). Returns the ticks, the
+/// ratios reported and the normalised tensor's first entries. Not inlined (the 36 KiB
+/// pipeline stays out of `main`'s frame).
+#[inline(never)]
+fn pipeline_end_of_flight(
+    syst: &mut SYST,
+    mut sig: Signal,
+    samples: u32,
+) -> (u64, Option<identifier_core::Ratios>, Option<[[f32; 3]; 3]>) {
+    // Used in place (not moved out of the `Option`): one copy of the pipeline on the stack.
+    let mut slot = FlightPipeline::new(
+        PipelineSettings::for_rate(1.0 / sig.dt(), sig.sigma()),
+        false,
+    );
+    let Some(p) = slot.as_mut() else {
+        return (0, None, None);
+    };
+    let dt = sig.dt();
+    for _ in 0..samples {
+        p.step(sig.next_sample(), [0.0; 3], [0.0; 3], dt);
+    }
+    let (ticks, ()) = measure_long(syst, || core::hint::black_box(&mut *p).end_stretch());
+    let tf = p.tensor_fit().estimate_normalized().map(|e| e.tensor);
+    (ticks, Some(p.ratios()), tf)
+}
+
 /// Prints the check of a closed flight and stops the run (exit code `code`) unless the fit
 /// succeeded (`StretchOutcome::Fitted`) with every `a_i` within `tol` of the truth: no
 /// instruction count is reported for a fit that failed.
@@ -697,6 +726,27 @@ fn main() -> ! {
         "tensor-fit-close-normalized-paper-20s",
         ticks,
         "Cortex-M4F QEMU -icount; one FlightTensorFit::close_normalized(&[init], false) after 20 s of the paper's body at 1 kHz without rotor momentum (noise 2e-3 rad/s; init: moments 2 % off, products 0)",
+    );
+    // The same flight through the pipeline: what a flight's end really costs on board.
+    let sig = Signal::paper();
+    let truth = sig.a();
+    let (ticks, ratios, tf) = pipeline_end_of_flight(&mut syst, sig, 20_000);
+    let a = ratios.and_then(|r| r.a).unwrap_or([f32::NAN; 3]);
+    let status = ratios.map(|r| r.status);
+    let j = tf.unwrap_or([[f32::NAN; 3]; 3]);
+    println!(
+        "# check pipeline-end-of-flight-paper-20s: {:?}, a = ({:.5}, {:.5}, {:.5}), J / trace J diagonal ({:.5}, {:.5}, {:.5})",
+        status, a[0], a[1], a[2], j[0][0], j[1][1], j[2][2]
+    );
+    let near = (0..3).all(|i| (a[i] - truth[i]).abs() <= 2e-4) && tf.is_some();
+    if status != Some(identifier_core::TensorStatus::Converged) || !near {
+        println!("# check pipeline-end-of-flight-paper-20s FAILED");
+        semihosting::process::exit(17);
+    }
+    report_long(
+        "pipeline-end-of-flight-paper-20s",
+        ticks,
+        "Cortex-M4F QEMU -icount; FlightPipeline::end_stretch() after 20 s of the paper's body at 1 kHz, gyro only (noise 2e-3 rad/s): the ratio fit's close and the tensor fit's up to scale from the pipeline's own first guesses (the equation-error tensor, the ratio fit's moments), as the firmware runs them after a flight",
     );
     let (truth, init) = normalized_pair(bench_mcu::RACQUET_MOMENTS, [1.02, 0.98, 1.0]);
     let (ticks, outcome, fitted) = normalized_close(&mut syst, Signal::toss(), 85, init);
