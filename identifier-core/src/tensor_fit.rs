@@ -411,29 +411,53 @@ const RESTORE_EVERY: usize = 8;
 /// noisy on the scale of a unit of log-likelihood. Every [`RESTORE_EVERY`] blocks the state is
 /// moved back onto their values at the start along their gradients (`L` and `K L`), evaluated
 /// to twice the `f32` precision ([`crate::exact`]).
-struct Invariants {
+struct Invariants<const C: usize> {
     value: [(f32, f32); 2],
+    /// The invariants' derivatives with respect to the integrated columns at the start, halved:
+    /// `L . Sigma_c` and `w . Sigma_c - w^T E_c w / 2` (`d(L . K L) = 2 w . dL - w^T dJ w`).
+    slope: [[f32; C]; 2],
 }
 
-impl Invariants {
-    fn new(k: &Mat3, l: &[f32; 3], lc: &[f32; 3]) -> Self {
+/// Half the derivatives of the two invariants with respect to each integrated column at the
+/// state `x` (rate `w`): `L . Sigma_c` and `w . Sigma_c - w^T E_c w / 2`.
+fn invariant_slopes<const C: usize>(x: &Aug<C>, w: [f32; 3]) -> [[f32; C]; 2] {
+    let mut d = [[0.0f32; C]; 2];
+    for c in 0..C {
+        let sc = [x.s[0][c], x.s[1][c], x.s[2][c]];
+        let ewe = if c < 6 { dot(w, e_times(c, w)) } else { 0.0 };
+        d[0][c] = dot(x.l, sc);
+        d[1][c] = dot(w, sc) - 0.5 * ewe;
+    }
+    d
+}
+
+impl<const C: usize> Invariants<C> {
+    fn new(k: &Mat3, x: &Aug<C>) -> Self {
         Invariants {
-            value: [weighted_squares(&[1.0; 3], l, lc), quadratic_form(k, l, lc)],
+            value: [
+                weighted_squares(&[1.0; 3], &x.l, &x.lc),
+                quadratic_form(k, &x.l, &x.lc),
+            ],
+            slope: invariant_slopes(x, mul(k, x.l)),
         }
     }
 
     /// Moves the momentum `l - lc` by `alpha L + beta K L` so both invariants take their
     /// values to first order (a ridge of 1e-6 of the 2x2 system's trace for a spin about a
-    /// principal axis, where the gradients are parallel).
-    fn restore(&self, k: &Mat3, l: &[f32; 3], lc: &mut [f32; 3]) {
+    /// principal axis, where the gradients are parallel), and each column of the sensitivities
+    /// the same way so that the invariants' derivatives keep their start's: the Jacobian stays
+    /// that of the restored trajectory (with the state alone moved, the Gauss-Newton steps near
+    /// the optimum were mispredicted and refused).
+    fn restore(&self, k: &Mat3, x: &mut Aug<C>) {
         let [(v0h, v0l), (v1h, v1l)] = self.value;
-        let (h0, l0) = weighted_squares(&[1.0; 3], l, lc);
-        let (h1, l1) = quadratic_form(k, l, lc);
+        let (h0, l0) = weighted_squares(&[1.0; 3], &x.l, &x.lc);
+        let (h1, l1) = quadratic_form(k, &x.l, &x.lc);
         let r = [
             0.5 * ((v0h - h0) + (v0l - l0)),
             0.5 * ((v1h - h1) + (v1l - l1)),
         ];
-        let g = [*l, mul(k, *l)];
+        let w = mul(k, x.l);
+        let g = [x.l, w];
         let (g11, g12, g22) = (dot(g[0], g[0]), dot(g[0], g[1]), dot(g[1], g[1]));
         let ridge = 1e-6 * (g11 + g22);
         let (m11, m22) = (g11 + ridge, g22 + ridge);
@@ -441,11 +465,18 @@ impl Invariants {
         if !(det > 0.0 && det.is_finite()) {
             return;
         }
-        let alpha = (r[0] * m22 - r[1] * g12) / det;
-        let beta = (m11 * r[1] - g12 * r[0]) / det;
+        let solve = |r0: f32, r1: f32| ((r0 * m22 - r1 * g12) / det, (m11 * r1 - g12 * r0) / det);
+        let (alpha, beta) = solve(r[0], r[1]);
         for i in 0..3 {
             // The true momentum is `l - lc`: moving it by `d` is `lc -= d`.
-            lc[i] -= alpha * g[0][i] + beta * g[1][i];
+            x.lc[i] -= alpha * g[0][i] + beta * g[1][i];
+        }
+        let now = invariant_slopes(x, w);
+        for c in 0..C {
+            let (a, b) = solve(self.slope[0][c] - now[0][c], self.slope[1][c] - now[1][c]);
+            for i in 0..3 {
+                x.s[i][c] += a * g[0][i] + b * g[1][i];
+            }
         }
     }
 }
@@ -835,7 +866,7 @@ fn normal_visit<const P: usize, const C: usize>(
     // model's, so the same restorations (without them its score saw the difference of the two
     // integrations and rejected a free body on 18 of 100 seeds of a fast 4 s tumble).
     let free = q == [0.0; 3] && h_first == [0.0; 3];
-    let mut invariants = free.then(|| Invariants::new(&k, &x.l, &x.lc));
+    let mut invariants = free.then(|| Invariants::new(&k, &x));
     let mut sums = NormalSums::<P>::EMPTY;
     // Node b-1: block, rotor momentum at the mean time, its curvature.
     let mut prev: Option<(&Block<6>, [f32; 3], [f32; 3])> = None;
@@ -878,7 +909,7 @@ fn normal_visit<const P: usize, const C: usize>(
                 }
                 // Every `RESTORE_EVERY` blocks, while no rotor momentum has been seen.
                 if let (Some(inv), 0) = (&invariants, idx % RESTORE_EVERY) {
-                    inv.restore(&k, &x.l, &mut x.lc);
+                    inv.restore(&k, &mut x);
                 }
             }
         }
