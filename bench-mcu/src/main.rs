@@ -231,6 +231,17 @@ fn pipeline_tensor_fit() -> FlightTensorFit {
     FlightTensorFit::new(ts.full_scale, ts.max_dt, ts.noise_std)
 }
 
+/// `measure_worst` of `FlightTensorFit::step` (no rotor momentum) on a fresh fit set up as
+/// `FlightPipeline` sets it up at 1 kHz. Not inlined, like `ratio_fit_steps`.
+#[inline(never)]
+fn tensor_fit_steps_paper() -> (f32, u32) {
+    let ts = PipelineSettings::for_rate(1000.0, 2e-3).tensor;
+    let mut fit = FlightTensorFit::new(ts.full_scale, ts.max_dt, ts.noise_std);
+    measure_worst(|w, dt| {
+        core::hint::black_box(&mut fit).step(core::hint::black_box(w), [0.0; 3], dt);
+    })
+}
+
 /// The average and the largest SysTick ticks of `FlightTensorFit::step` over the board throw's
 /// free flight (`Throw::SAMPLES`, each generated before its step is timed). Not inlined, like
 /// `ratio_fit_steps`: the 16 KiB fit stays out of `main`'s frame.
@@ -616,6 +627,14 @@ fn main() -> ! {
         "ratio-fit-step",
         ratio_fit_steps(),
         "Cortex-M4F QEMU -icount; FlightRatioFit::step (RatioFit<256>) at 1 kHz (4000 samples: four pairwise merges of the 256 blocks; the worst call is one)",
+    );
+    // The same samples into the tensor fit (gyro only: the rotor momentum zero), set up as
+    // the pipeline sets it up at 1 kHz: the per-sample half of its cost on the flight whose
+    // close `pipeline-end-of-flight-paper-20s` counts, on the ratio fit's footing.
+    worst(
+        "tensor-fit-step-paper",
+        tensor_fit_steps_paper(),
+        "Cortex-M4F QEMU -icount; FlightTensorFit::step (TensorFit<256>) at 1 kHz on the paper's body, no rotor (4000 samples: four pairwise merges of the 256 blocks; the worst call is one)",
     );
     // The output-error fit of the tensor with the rotor momentum (`FlightTensorFit =
     // TensorFit<256>`, six channels per block: rate and rotor momentum), on one free flight.
