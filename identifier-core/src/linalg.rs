@@ -22,6 +22,36 @@ pub(crate) fn det(m: &Mat3) -> f32 {
     a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
 }
 
+/// The Gram matrix of two gradients `g0`, `g1` with a ridge of 1e-6 of its trace, for moving a
+/// state back onto two invariants along their gradients (the trajectory fits'
+/// restorations): `(G + ridge I) (alpha, beta) = r`, the least-norm correction when the
+/// gradients are nearly parallel (a spin about a principal axis).
+pub(crate) struct Gram2 {
+    m11: f32,
+    m22: f32,
+    g12: f32,
+    det: f32,
+}
+
+impl Gram2 {
+    /// `None` when the system is singular or not finite.
+    pub(crate) fn new(g0: [f32; 3], g1: [f32; 3]) -> Option<Self> {
+        let (g11, g12, g22) = (dot(g0, g0), dot(g0, g1), dot(g1, g1));
+        let ridge = 1e-6 * (g11 + g22);
+        let (m11, m22) = (g11 + ridge, g22 + ridge);
+        let det = m11 * m22 - g12 * g12;
+        (det > 0.0 && det.is_finite()).then_some(Gram2 { m11, m22, g12, det })
+    }
+
+    /// `(alpha, beta)` for the right-hand side `(r0, r1)`, by Cramer's rule.
+    pub(crate) fn solve(&self, r0: f32, r1: f32) -> (f32, f32) {
+        (
+            (r0 * self.m22 - r1 * self.g12) / self.det,
+            (self.m11 * r1 - self.g12 * r0) / self.det,
+        )
+    }
+}
+
 /// Solves `m x = r` by Cramer's rule; `None` when `m` is numerically singular or the
 /// result is not finite. Cramer's rule is exact enough here: `m = I - k C` with `C` Hurwitz
 /// and `k >= 0` has all eigenvalues with real part >= 1, so it is well conditioned.

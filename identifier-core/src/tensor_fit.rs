@@ -104,7 +104,7 @@
 )]
 
 use crate::exact::{compensated_add, quadratic_form, weighted_squares};
-use crate::linalg::dot;
+use crate::linalg::{det, dot, Gram2};
 use crate::output_error::{
     bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, refit_cost,
     scaled_inverse, score, score_beyond, score_rejects, staged_fit, substeps, torque_confirmed,
@@ -461,22 +461,17 @@ impl<const C: usize> Invariants<C> {
         ];
         let w = mul(k, x.l);
         let g = [x.l, w];
-        let (g11, g12, g22) = (dot(g[0], g[0]), dot(g[0], g[1]), dot(g[1], g[1]));
-        let ridge = 1e-6 * (g11 + g22);
-        let (m11, m22) = (g11 + ridge, g22 + ridge);
-        let det = m11 * m22 - g12 * g12;
-        if !(det > 0.0 && det.is_finite()) {
+        let Some(gram) = Gram2::new(g[0], g[1]) else {
             return;
-        }
-        let solve = |r0: f32, r1: f32| ((r0 * m22 - r1 * g12) / det, (m11 * r1 - g12 * r0) / det);
-        let (alpha, beta) = solve(r[0], r[1]);
+        };
+        let (alpha, beta) = gram.solve(r[0], r[1]);
         for i in 0..3 {
             // The true momentum is `l - lc`: moving it by `d` is `lc -= d`.
             x.lc[i] -= alpha * g[0][i] + beta * g[1][i];
         }
         let now = invariant_slopes(x, w);
         for c in 0..C {
-            let (a, b) = solve(self.slope[0][c] - now[0][c], self.slope[1][c] - now[1][c]);
+            let (a, b) = gram.solve(self.slope[0][c] - now[0][c], self.slope[1][c] - now[1][c]);
             for i in 0..3 {
                 x.s[i][c] += a * g[0][i] + b * g[1][i];
             }
@@ -639,12 +634,6 @@ fn norm(v: [f32; 3]) -> f32 {
     sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 }
 
-fn det3(j: &Mat3) -> f32 {
-    j[0][0] * (j[1][1] * j[2][2] - j[1][2] * j[2][1])
-        - j[0][1] * (j[1][0] * j[2][2] - j[1][2] * j[2][0])
-        + j[0][2] * (j[1][0] * j[2][1] - j[1][1] * j[2][0])
-}
-
 /// How finely (F1) is integrated between two block means: RK4 steps of at most `0.1 / rate`
 /// ([`substeps`]), `rate` a bound on how fast the motion turns there,
 ///
@@ -684,7 +673,7 @@ impl StepRule {
         StepRule {
             turn,
             j: *j,
-            det: det3(j),
+            det: det(j),
         }
     }
 
@@ -1698,6 +1687,16 @@ mod tests {
         }
     }
 
+    /// Every entry of `got` within `tol` of `truth`.
+    fn assert_near(got: &[[f32; 3]; 3], truth: &[[f64; 3]; 3], tol: f64) {
+        for r in 0..3 {
+            for c in 0..3 {
+                let err = (got[r][c] as f64 - truth[r][c]).abs();
+                assert!(err < tol, "{got:?} vs {truth:?}");
+            }
+        }
+    }
+
     /// A first guess far off in scale (the step count comes from it, see `StepRule`): the
     /// fit still integrates finely enough for the tensor it ends at.
     #[test]
@@ -1719,12 +1718,7 @@ mod tests {
             std::println!("x{k}: {o:?} noise {} tensor {:?}", e.noise, e.tensor);
             assert_eq!(o, StretchOutcome::Fitted, "x{k}");
             assert!(e.noise < 1e-3, "x{k}: residual {} rad/s", e.noise);
-            for r in 0..3 {
-                for c in 0..3 {
-                    let err = (e.tensor[r][c] as f64 - j[r][c]).abs();
-                    assert!(err < 2e-4 * 3.6e-4, "x{k}: {:?} vs {j:?}", e.tensor);
-                }
-            }
+            assert_near(&e.tensor, &j, 2e-4 * 3.6e-4);
         }
     }
 
@@ -1761,12 +1755,7 @@ mod tests {
         // Noise-free: the trajectory explains the rates (restored onto the start's energy
         // after the rotor stopped, the residual was 2.1 rad/s).
         assert!(e.noise < 1e-3, "residual {} rad/s", e.noise);
-        for r in 0..3 {
-            for c in 0..3 {
-                let err = (e.tensor[r][c] as f64 - j[r][c]).abs();
-                assert!(err < 2e-4 * 3.6e-4, "{:?} vs {j:?}", e.tensor);
-            }
-        }
+        assert_near(&e.tensor, &j, 2e-4 * 3.6e-4);
     }
 
     #[test]

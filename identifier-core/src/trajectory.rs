@@ -160,7 +160,7 @@
 )]
 
 use crate::exact::{compensated_add, two_sum, weighted_squares};
-use crate::linalg::dot;
+use crate::linalg::Gram2;
 use crate::output_error::{
     bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, refit_cost,
     scaled_inverse, score, score_beyond, score_rejects, score_rejects_at, staged_fit, substeps,
@@ -447,15 +447,10 @@ impl Invariants {
             0.5 * ((v1h - h1) + (v1l - l1)),
         ];
         let g = self.c.map(|c| [c[0] * w[0], c[1] * w[1], c[2] * w[2]]);
-        let (g11, g12, g22) = (dot(g[0], g[0]), dot(g[0], g[1]), dot(g[1], g[1]));
-        let ridge = 1e-6 * (g11 + g22);
-        let (m11, m22) = (g11 + ridge, g22 + ridge);
-        let det = m11 * m22 - g12 * g12;
-        if !(det > 0.0 && det.is_finite()) {
+        let Some(gram) = Gram2::new(g[0], g[1]) else {
             return;
-        }
-        let alpha = (r[0] * m22 - r[1] * g12) / det;
-        let beta = (m11 * r[1] - g12 * r[0]) / det;
+        };
+        let (alpha, beta) = gram.solve(r[0], r[1]);
         for i in 0..3 {
             // The true state is `w - w_lo`: moving it by `d` is `w_lo -= d`.
             w_lo[i] -= alpha * g[0][i] + beta * g[1][i];
