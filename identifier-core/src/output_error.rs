@@ -23,9 +23,11 @@
 //! Given the weighted cost `C(theta) = sum_b n_b |r_b|^2` with its Gauss-Newton normal
 //! equations `F = sum_b n_b S_b^T S_b`, `g = sum_b n_b S_b^T r_b`, a step solves
 //! `(D^-1 F D^-1 + mu I) z = D^-1 g`, `delta = D^-1 z`, `D = sqrt(diag F)` (Jacobi scaling: the
-//! parameters differ by orders of magnitude), and is accepted when the cost falls (`mu / 10`),
-//! else refused (`mu * 10`). It stops when an accepted step gains less than `1e-4` of one unit
-//! of log-likelihood (`delta^T g < 1e-4 C / dof`).
+//! parameters differ by orders of magnitude), and is accepted when the cost falls, else refused
+//! (`mu * 10`); after an accepted step `mu` follows the gain against the Gauss-Newton
+//! prediction (see [`levenberg`]). It stops when the undamped step is predicted to gain less
+//! than `tol` residual variances ([`TOLERANCE`] on a whole record), taking that step without
+//! another evaluation.
 #![allow(
     // Fixed-size loops over the parameters read as the equations; the crate's link-time
     // no-panic check proves no bounds check survives.
@@ -617,8 +619,8 @@ pub(crate) fn refit_cost<const P: usize>(
 /// The score is the likelihood ratio's approximation at the exact optimum; on a fast 8 s
 /// flight the `f32` fit stops where a step of one ulp moves the cost by units of
 /// log-likelihood, and the ratio fit's score called a free body's torque significant on 5 of
-/// 100 seeds whose refit gained under one unit (the tensor fit's, on 3 to 5 of 100 seeds of a
-/// fast 4 s tumble).
+/// 100 seeds whose refit gained under one unit (the tensor fit's, on 3 of 100 seeds of a fast
+/// 4 s tumble).
 pub(crate) fn torque_confirmed(
     refit: Option<f32>,
     cost: f32,
