@@ -86,10 +86,10 @@
 //! fits.
 //!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 225 / 308
-//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 12.2 M / 11.5 M instructions,
+//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 12.2 M / 11.4 M instructions,
 //! about 0.07 s at 168 MHz (30 M / 28 M when the model does not fit to the noise and
 //! the fit from the rotor's spin-up follows); up to scale, 20 s of a slow tumble at 1 kHz from a
-//! first guess 2 % off 13.4 M / 13.6 M (0.08 s; about 8.6 M from the pipeline's own first
+//! first guess 2 % off 13.4 M / 13.5 M (0.08 s; about 8.6 M from the pipeline's own first
 //! guesses) and a 0.85 s toss at 100 Hz 3.0 M / 3.1 M
 //! (34, 50, 43 and 30 M in release before 2026-11-26): too long for one gyro period, which is
 //! why the pipeline runs it in [`crate::Pipeline::fit_ended_flight`], outside its per-sample
