@@ -4,24 +4,29 @@
 //!
 //! ```text
 //! offset 0  magic  b"IRPL"
-//!        4  u32    version (1)
+//!        4  u32    version (2)
 //!        8  f32    sample rate, Hz (1 / median dt of the log)
 //!       12  f32    gyro noise, rad/s
 //!       16  f32    gyro full scale, rad/s (the estimator's saturation level)
 //!       20  u32    flags: bit 0 accelerometer present, bit 1 rotor present
 //!       24  f32    rotor inertia, kg m^2 (0 without a rotor)
 //!       28  f32x3  rotor axis, unit vector in the gyro frame
-//!       40  u32    number of samples n
-//!       44  n x { f32x3 rate rad/s, f32x3 specific force m/s^2, f32 rotor speed rad/s,
+//!       40  f32    rotor speed resolution, rad/s (the telemetry's step; 0: exact)
+//!       44  u32    number of samples n
+//!       48  n x { f32x3 rate rad/s, f32x3 specific force m/s^2, f32 rotor speed rad/s,
 //!                 f32 dt s }   (32 bytes each)
 //! ```
+//!
+//! Version 2 (2026-11-26) added the resolution: the tensor's uncertainty counts the rotor
+//! momentum's quantisation, so the replay gives the firmware the figure `inertia identify`
+//! uses.
 
 /// First four bytes.
 pub const MAGIC: [u8; 4] = *b"IRPL";
 /// Format version.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 /// Header length, bytes.
-pub const HEADER_LEN: usize = 44;
+pub const HEADER_LEN: usize = 48;
 /// One sample, bytes.
 pub const SAMPLE_LEN: usize = 32;
 
@@ -39,6 +44,8 @@ pub struct ReplayHeader {
     pub with_accel: bool,
     /// The rotor, when one was given: `(inertia kg m^2, axis)`.
     pub rotor: Option<(f32, [f32; 3])>,
+    /// The rotor speed's resolution, rad/s (0: taken as exact).
+    pub rotor_resolution: f32,
     /// Samples that follow.
     pub samples: u32,
 }
@@ -96,7 +103,8 @@ impl ReplayHeader {
             with_accel: flags & 1 != 0,
             rotor: (flags & 2 != 0)
                 .then(|| (f32_at(b, 24), [f32_at(b, 28), f32_at(b, 32), f32_at(b, 36)])),
-            samples: u32_at(b, 40),
+            rotor_resolution: f32_at(b, 40),
+            samples: u32_at(b, 44),
         })
     }
 }

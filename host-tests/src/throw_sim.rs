@@ -863,6 +863,23 @@ pub fn tumbling_with_spinup(seed: u64) -> SimThrow {
     simulate(&tumbling_with_spinup_config(seed))
 }
 
+/// The board bolted to something else: a body of inertia `inertia` about its centre of mass,
+/// which lies at `com_from_imu`, thrown like [`tumbling_with_spinup_config`] (20-25 rad/s for
+/// 0.7 s, the board's flywheel spin-up). What `inertia calibrate` is fed for an assembly.
+pub fn assembly_throw_config(
+    seed: u64,
+    inertia: [[f64; 3]; 3],
+    com_from_imu: [f64; 3],
+) -> ThrowConfig {
+    let mut cfg = board_throw_config(seed);
+    cfg.inertia = inertia;
+    cfg.com_from_imu = com_from_imu;
+    cfg.free_s = 0.7;
+    let mut rng = scenario_rng(seed, 5);
+    cfg.omega_release = draw_release(&cfg, &mut rng, 20.0, 25.0, 0.9 * cfg.gyro.full_scale);
+    cfg
+}
+
 /// The board without a flywheel (no rotor momentum at all): the tensor is determined up to
 /// scale only.
 pub fn no_rotor_toss_config(seed: u64) -> ThrowConfig {

@@ -91,6 +91,14 @@ impl PipelineSettings {
         self.refined.full_scale = full_scale;
         self
     }
+
+    /// The same settings with the rotor momentum known to `quantum` kg m^2/s (the rotor
+    /// inertia times the speed telemetry's step; see
+    /// [`TensorSettings::momentum_resolution`]).
+    pub fn with_momentum_resolution(mut self, quantum: f32) -> Self {
+        self.tensor.momentum_resolution = quantum;
+        self
+    }
 }
 
 /// Which estimator gave [`Pipeline::ratios`].
@@ -266,7 +274,8 @@ impl<const N: usize> Pipeline<N> {
         let refined_bias = RefinedBias::new(rs.block, rs.max_dt, rs.full_scale, rs.noise_std)?;
         let trajectory = RatioFit::new(rs.full_scale, rs.max_dt, rs.noise_std);
         let ts = &settings.tensor;
-        let tensor_fit = TensorFit::new(ts.full_scale, ts.max_dt, ts.noise_std);
+        let tensor_fit = TensorFit::new(ts.full_scale, ts.max_dt, ts.noise_std)
+            .with_momentum_resolution(ts.momentum_resolution);
         let rate = settings.rate_hz / settings.decimation as f32;
         let usable = rate.is_finite()
             && rate > 0.0

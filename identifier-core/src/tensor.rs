@@ -111,12 +111,18 @@ pub struct TensorSettings {
     /// Least [`TensorEstimate::excitation`] for an estimate to be given at all (below it:
     /// [`TensorStatus::NoExcitation`]). Pure gyro noise gives about 1.
     pub min_excitation: f32,
+    /// Quantum of the rotor momentum as it is read, kg m^2/s: the rotor inertia times the
+    /// speed telemetry's step (DShot eRPM: 100 eRPM, `100 / (poles / 2) * 2 pi / 60` rad/s).
+    /// The output-error fit's absolute tensor counts a momentum error uniform over one quantum,
+    /// the same for the whole flight, in its covariance (`(q^2 / 12) k k^T` with `k` the
+    /// estimate's response to it). `0` takes the momentum as exact.
+    pub momentum_resolution: f32,
 }
 
 impl TensorSettings {
     /// Defaults: `noise_std = 2e-3 rad/s`, no full scale, 75 rad/s plausible (beyond the widest MEMS gyro range, 4000 deg/s = 70 rad/s), `max_dt = 0.1 s`,
     /// `stretch_noise = 1`, `tolerance = 0.01`, 200 samples, `products_chi2 = 21.11`,
-    /// `mismatch_ratio = 30`, `min_excitation = 100`.
+    /// `mismatch_ratio = 30`, `min_excitation = 100`, `momentum_resolution = 0`.
     pub const fn new() -> Self {
         TensorSettings {
             noise_std: 2e-3,
@@ -129,6 +135,7 @@ impl TensorSettings {
             products_chi2: 21.11,
             mismatch_ratio: 30.0,
             min_excitation: 100.0,
+            momentum_resolution: 0.0,
         }
     }
 
@@ -170,6 +177,8 @@ impl TensorSettings {
             && self.products_chi2 >= 0.0
             && pos(self.mismatch_ratio)
             && pos(self.min_excitation)
+            && self.momentum_resolution.is_finite()
+            && self.momentum_resolution >= 0.0
     }
 }
 
@@ -238,6 +247,11 @@ pub struct TensorEstimate {
     pub tensor: Option<[[f32; 3]; 3]>,
     /// Standard deviation of each entry of [`TensorEstimate::tensor`].
     pub tensor_std: Option<[[f32; 3]; 3]>,
+    /// Covariance of the entries `(Jxx, Jyy, Jzz, Jxy, Jxz, Jyz)` of
+    /// [`TensorEstimate::tensor`], (kg m^2)^2: what a function of several entries (a principal
+    /// moment, a difference of two bodies) needs, since their errors are correlated (the
+    /// rotor momentum fixes one scale for all of them).
+    pub tensor_cov: Option<[[f32; 6]; 6]>,
     /// `J / trace(J)`, `None` before there is information.
     pub normalized: Option<[[f32; 3]; 3]>,
     /// Standard deviation of each entry of [`TensorEstimate::normalized`].
@@ -879,6 +893,7 @@ impl TensorEstimator {
             model: TensorModel::Full,
             tensor: None,
             tensor_std: None,
+            tensor_cov: None,
             normalized: None,
             normalized_std: None,
             principal_moments: None,
@@ -1037,6 +1052,7 @@ impl TensorEstimator {
         out.residual_ratio = residual_ratio;
         out.tensor = None;
         out.tensor_std = None;
+        out.tensor_cov = None;
         self.describe(out, nj, cov_n, absolute)
     }
 
@@ -1081,6 +1097,7 @@ impl TensorEstimator {
         if let Some((j, cov)) = absolute {
             out.tensor = Some(to_matrix(&j));
             out.tensor_std = Some(std_matrix(&cov));
+            out.tensor_cov = Some(cov);
         }
 
         // Principal moments and axes, ratios.

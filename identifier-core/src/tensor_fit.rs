@@ -201,6 +201,8 @@ pub struct TensorFit<const N: usize> {
     full_scale: f32,
     max_dt: f32,
     noise_std: f32,
+    /// Quantum of the rotor momentum as read, kg m^2/s ([`TensorFit::with_momentum_resolution`]).
+    momentum_resolution: f32,
 }
 
 /// The block buffer used by the pipeline: 256 blocks of rate and rotor momentum (16.7 KB in
@@ -282,8 +284,15 @@ fn e_times(c: usize, w: [f32; 3]) -> [f32; 3] {
 /// three torques.
 const C_TORQUE: usize = P0 + 3;
 
+/// Steady stretches of the rotor speed whose momentum errors (F7) follows.
+const CELLS: usize = 4;
+
+/// Sensitivity columns with the rotor momentum's errors of (F7): six entries, three initial
+/// rates, one error per steady stretch ([`Cells`]).
+const C_OFFSET: usize = P0 + CELLS;
+
 /// `L` and `Sigma = dL/dtheta` (columns: six entries, three initial rates, and when `C =
-/// 12` a constant torque).
+/// 12` a constant torque, when `C = 13` the rotor momentum's errors of (F7)).
 #[derive(Clone, Copy, Debug)]
 struct Aug<const C: usize> {
     l: [f32; 3],
@@ -317,7 +326,8 @@ fn rate_sens<const C: usize>(k: &Mat3, x: &Aug<C>, w: [f32; 3]) -> [[f32; C]; 3]
 ///
 /// one 3x3 product per column and stage (`M` and `A` once per stage) instead of a product and
 /// two cross products: about a third fewer multiply-adds in the fit's inner loop (counted).
-fn deriv<const C: usize>(k: &Mat3, h: [f32; 3], q: &[f32; 3], x: &Aug<C>) -> Aug<C> {
+fn deriv<const C: usize>(k: &Mat3, h: [f32; 3], f: &Forcing, x: &Aug<C>) -> Aug<C> {
+    let q = &f.torque;
     let w = mul(k, sub(x.l, h));
     let l = x.l;
     // M = [L]x K: row i of [L]x has the two entries (L_j, -L_k) of `L x v`.
@@ -361,6 +371,19 @@ fn deriv<const C: usize>(k: &Mat3, h: [f32; 3], q: &[f32; 3], x: &Aug<C>) -> Aug
         for (i, row) in s.iter_mut().enumerate() {
             if let Some(v) = row.get_mut(P0 + i) {
                 *v += 1.0;
+            }
+        }
+    }
+    if C == C_OFFSET {
+        // (F7): `Sigma_d' = A Sigma_d - M u` while the error is on.
+        let mu = mul(&m, f.offset);
+        for (c, on) in f.on.iter().enumerate() {
+            if *on {
+                for (row, v) in s.iter_mut().zip(mu) {
+                    if let Some(x) = row.get_mut(P0 + c) {
+                        *x -= v;
+                    }
+                }
             }
         }
     }
@@ -565,11 +588,47 @@ fn block_mean_correction(k: &Mat3, l0: [f32; 3], h: [[f32; 3]; 3], moments: &[f3
     ]
 }
 
-/// One RK4 step of length `dt` from `tau` within the segment `seg`, constant torque `q`.
+/// What drives the extended models' sensitivities besides the rates: a constant torque `q`
+/// ((F4), also in the trajectory) and the direction `u` of the rotor momentum's errors of
+/// (F7) with the ones on in the step (in their columns only).
+#[derive(Clone, Copy, Debug)]
+struct Forcing {
+    torque: [f32; 3],
+    offset: [f32; 3],
+    on: [bool; CELLS],
+}
+
+/// The rotor's steady stretches of (F7): the direction `u` of its momentum and up to
+/// [`CELLS`] runs of blocks `[a, b)` over which its error is taken as one constant (empty
+/// runs: none).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Cells {
+    u: [f32; 3],
+    runs: [(usize, usize); CELLS],
+}
+
+impl Cells {
+    const NONE: Cells = Cells {
+        u: [0.0; 3],
+        runs: [(0, 0); CELLS],
+    };
+
+    /// Which errors are on at block node `b` (`[a, b)` holds it).
+    fn at(&self, b: usize) -> [bool; CELLS] {
+        self.runs.map(|(lo, hi)| lo <= b && b < hi)
+    }
+
+    /// Which are on over the integration from node `b - 1` to node `b` (both in the run).
+    fn between(&self, b: usize) -> [bool; CELLS] {
+        self.runs.map(|(lo, hi)| b > lo && b < hi)
+    }
+}
+
+/// One RK4 step of length `dt` from `tau` within the segment `seg`.
 fn rk4<const C: usize>(
     k: &Mat3,
     seg: &RotorSegment,
-    q: &[f32; 3],
+    q: &Forcing,
     x: &Aug<C>,
     tau: f32,
     dt: f32,
@@ -761,6 +820,7 @@ fn normal_extended<const P: usize, const C: usize>(
         Layout {
             normalized: true,
             scale,
+            offset: Cells::NONE,
         },
         &mut |_, _| {},
     )
@@ -773,6 +833,8 @@ struct Layout {
     normalized: bool,
     /// The last three are the gyro's scale-factor errors of (F5).
     scale: bool,
+    /// With `C = 13`: the rotor momentum's errors of (F7), the last [`CELLS`] parameters.
+    offset: Cells,
 }
 
 impl Layout {
@@ -780,13 +842,15 @@ impl Layout {
     const PLAIN: Layout = Layout {
         normalized: false,
         scale: false,
+        offset: Cells::NONE,
     };
 }
 
 /// [`normal`], calling `visit(axis, r)` with each block's residual on each axis in turn. With
 /// `C = 12` the parameters hold a constant torque after the initial rate (`normalized`: the
 /// trace is held, five entries; else six); with `scale` the last three are the gyro's
-/// scale-factor errors `kappa` of (F5).
+/// scale-factor errors `kappa` of (F5); with `C = 13` the last [`CELLS`] are the rotor
+/// momentum's errors `d_c` of (F7) over `layout.offset`'s runs (six entries).
 fn normal_visit<const P: usize, const C: usize>(
     blocks: &[Block<6>],
     rule: &StepRule,
@@ -796,13 +860,18 @@ fn normal_visit<const P: usize, const C: usize>(
     layout: Layout,
     visit: &mut impl FnMut(usize, f32),
 ) -> Option<Normal<P>> {
-    let Layout { normalized, scale } = layout;
+    let Layout {
+        normalized,
+        scale,
+        offset,
+    } = layout;
     let torque = C == C_TORQUE;
+    let oc = if C == C_OFFSET { CELLS } else { 0 };
     // The entry count is told by `normalized` wherever the parameter count cannot tell it: a
     // torque (F4) or scale factors (F5) beyond the plain or bias layout (before 2026-11-25 the
     // torque test of a biased fit up to scale, 14 parameters, read the layout as six entries
     // and its tensor from the wrong slots, so it never ran there).
-    let m = if torque || scale {
+    let m = if torque || scale || oc == 1 {
         if normalized {
             5
         } else {
@@ -847,7 +916,7 @@ fn normal_visit<const P: usize, const C: usize>(
     } else {
         [0.0f32; 3]
     };
-    let biased = P == m + 6 + tq + sc;
+    let biased = P == m + 6 + tq + sc + oc;
     let bias = if biased {
         [g(m + 3 + tq), g(m + 4 + tq), g(m + 5 + tq)]
     } else {
@@ -858,7 +927,26 @@ fn normal_visit<const P: usize, const C: usize>(
     // model's, so the same restorations (without them its score saw the difference of the two
     // integrations and rejected a free body on 18 of 100 seeds of a fast 4 s tumble). A rotor
     // momentum, from the first node on, gives them up below.
-    let mut invariants = (q == [0.0; 3]).then(|| Invariants::new(&k, &x));
+    // (F7) is for flights with a rotor, which give the invariants up anyway; its column is
+    // `Sigma - u`, which the restoration would not know to move.
+    let mut invariants = (q == [0.0; 3] && oc == 0).then(|| Invariants::new(&k, &x));
+    let mut forcing = Forcing {
+        torque: q,
+        offset: offset.u,
+        on: [false; CELLS],
+    };
+    // (F7): `Sigma_d(t_0) = u` for an error on from the first block.
+    if oc > 0 {
+        for (c, on) in offset.at(0).iter().enumerate() {
+            if *on {
+                for (row, v) in x.s.iter_mut().zip(offset.u) {
+                    if let Some(dst) = row.get_mut(P0 + c) {
+                        *dst = v;
+                    }
+                }
+            }
+        }
+    }
     let mut sums = NormalSums::<P>::EMPTY;
     // Node b-1: block, rotor momentum at the mean time, its curvature, `|ybar|`.
     let mut prev: Option<(&Block<6>, [f32; 3], [f32; 3], f32)> = None;
@@ -894,8 +982,11 @@ fn normal_visit<const P: usize, const C: usize>(
                 let steps = substeps(span, speed);
                 let dt = span / steps as f32;
                 let mut tau = 0.0f32;
+                if oc > 0 {
+                    forcing.on = offset.between(idx);
+                }
                 for _ in 0..steps {
-                    x = rk4(&k, &seg, &q, &x, tau, dt);
+                    x = rk4(&k, &seg, &forcing, &x, tau, dt);
                     tau += dt;
                 }
                 // Every `RESTORE_EVERY` blocks, while no rotor momentum has been seen.
@@ -908,6 +999,12 @@ fn normal_visit<const P: usize, const C: usize>(
         prev = Some((b, h, c, w_here));
         let w = mul(&k, sub(x.l, h));
         let u = rate_sens(&k, &x, w);
+        // (F7): `dw/dd_c = J^-1 (Sigma_d - u)` where error `c` is on.
+        let (on_here, ku) = if oc > 0 {
+            (offset.at(idx), mul(&k, offset.u))
+        } else {
+            ([false; CELLS], [0.0; 3])
+        };
         // (B1): the block mean of w is w(tbar) + v/2 w''(tbar) + ... (`block_mean_correction`).
         let corr = block_mean_correction(&k, x.l, [h, hd, hdd], &b.time_moments());
         // The low part of `w`: the momentum is `l - lc` (compensated), so `w - J^-1 lc`.
@@ -926,9 +1023,18 @@ fn normal_visit<const P: usize, const C: usize>(
             let ui = &u[i];
             let uc = |c: usize| ui.get(c).copied().unwrap_or(0.0);
             if m == 6 {
-                // Entries, initial rate and torque: the columns as they are.
-                for (dst, src) in row.iter_mut().zip(ui.iter()) {
+                // Entries, initial rate and torque: the columns as they are; the momentum's
+                // errors go last.
+                for (dst, src) in row.iter_mut().zip(ui.iter()).take(C - oc) {
                     *dst = *src;
+                }
+                if oc > 0 {
+                    for (c, on) in on_here.iter().enumerate() {
+                        let v = uc(P0 + c) - if *on { ku[i] } else { 0.0 };
+                        if let Some(dst) = row.get_mut(P - oc + c) {
+                            *dst = v;
+                        }
+                    }
                 }
             } else {
                 // Trace held: Jzz moves against Jxx and Jyy.
@@ -1012,6 +1118,10 @@ fn leading_block<const A: usize, const M: usize>(c: &[[f32; A]; A]) -> Sym<M> {
 /// up to scale so poorly that the staged fit left the right basin on about 1 flight in 25.
 /// On the simulated flywheel throw the absolute fit is as accurate as staged alone, at two
 /// thirds of the cost.
+///
+/// With `offset` (the absolute fit of a flight with a rotor: its steady stretches), the result
+/// carries the covariance the rotor momentum's errors there give the `M` parameters
+/// ([`input_cov`]).
 fn fit_model<
     const P: usize,
     const PB: usize,
@@ -1020,12 +1130,15 @@ fn fit_model<
     const PTB: usize,
     const PTS: usize,
     const PTBS: usize,
+    const PO: usize,
+    const PBO: usize,
 >(
     blocks: &[Block<6>],
     th: [f32; P],
     trace: f32,
     noise_floor: f32,
     test_bias: bool,
+    offset: Option<Cells>,
 ) -> Option<StretchResult<M>> {
     let total = blocks.len();
     let rule = StepRule::new(&tensor_of(&six(&th, trace, M)));
@@ -1100,6 +1213,8 @@ fn fit_model<
                     lag1,
                     torque,
                     scale,
+                    input_cov: offset
+                        .and_then(|cells| input_cov::<PB, PBO, M>(blocks, &rule, &t1, &cells)),
                 });
             }
         }
@@ -1121,7 +1236,78 @@ fn fit_model<
         lag1,
         torque,
         scale,
+        input_cov: offset.and_then(|cells| input_cov::<P, PO, M>(blocks, &rule, &th, &cells)),
     })
+}
+
+/// The covariance of the first `M` parameters fitted at `theta` (the absolute model, plain or
+/// with the bias, `P` of them) per unit variance of the rotor momentum's error along `u`, the
+/// error one constant `d_c` over each of the steady stretches `cells`, independent from one to
+/// the next. The momentum the fit took as known being `h + d_c u` in truth over run `c`:
+///
+/// ```text
+/// L = J w + h + d_c u,   dw/dd_c = J^-1 (Sigma_c - u),   Sigma_c' = A Sigma_c - M u    (on)
+///                        dw/dd_c = J^-1 Sigma_c,         Sigma_c' = A Sigma_c          (off)
+/// Sigma_c(t_0) = u if on at the first block, else 0                                  (F7)
+/// k_c = -(F_tt^-1 F_td_c)_(1..M),    cov = sum_c k_c k_c^T
+/// ```
+///
+/// with `F` the normal matrix of `theta` extended by the `d_c` (one evaluation at the
+/// optimum, `PO = P + 4` parameters): `k_c` is the first-order change of the least-squares
+/// estimate when the data come from `d_c = 1` and the model assumes 0.
+///
+/// Why: a rotor speed read from telemetry is quantised (DShot eRPM in steps of 100 eRPM, 1.75
+/// rad/s for a 12-pole motor, 0.1 % of a flywheel's peak speed), and where the speed is
+/// steady (the idle before a spin-up, its peak) the error is one constant for the whole
+/// stretch, which no gyro noise averages: on simulated board-and-object throws at the logged
+/// resolution the tensor came out `Converged` 5-15 of its reported standard deviations off
+/// (the same throws without the quantisation: within 3). Where the speed changes faster than
+/// one step per block the error changes from block to block, and the residual (which sets
+/// the noise level) already holds it.
+fn input_cov<const P: usize, const PO: usize, const M: usize>(
+    blocks: &[Block<6>],
+    rule: &StepRule,
+    theta: &[f32; P],
+    cells: &Cells,
+) -> Option<Sym<M>> {
+    let extended: [f32; PO] = leading(theta);
+    let layout = Layout {
+        offset: *cells,
+        ..Layout::PLAIN
+    };
+    let (_, f, _) = normal_visit::<PO, C_OFFSET>(
+        blocks,
+        rule,
+        blocks.len(),
+        &extended,
+        0.0,
+        layout,
+        &mut |_, _| {},
+    )?;
+    let first = PO - CELLS;
+    let drop: [usize; CELLS] = core::array::from_fn(|c| first + c);
+    let (f_tt, _) = without(&f, &[0.0; PO], &drop);
+    let inv = scaled_inverse(&f_tt)?;
+    let mut cov = [[0.0f32; M]; M];
+    for (c, run) in cells.runs.iter().enumerate() {
+        if run.0 >= run.1 {
+            continue;
+        }
+        let d = first + c;
+        let k: [f32; M] = core::array::from_fn(|i| {
+            let mut s = 0.0f32;
+            for j in 0..first {
+                s -= inv[i][j] * f[j][d];
+            }
+            s
+        });
+        for i in 0..M {
+            for j in 0..M {
+                cov[i][j] += k[i] * k[j];
+            }
+        }
+    }
+    cov.iter().flatten().all(|x| x.is_finite()).then_some(cov)
 }
 
 /// The score tests at a fitted model's optimum, from one evaluation: `theta` that model's
@@ -1244,26 +1430,122 @@ fn ar1_inflation(rho: f32) -> f32 {
 /// from the spin-up on the residual fell by a third and the five board-alone throws agreed
 /// to 0.7-1.5 % instead of 0.5-2.5 %. On a flight the model explains to the noise the whole
 /// fit is kept and nothing changes.
+///
+/// `resolution` (kg m^2/s) is the rotor momentum's quantum as the rotor speed is read: its
+/// error, uniform over one quantum and the same for long stretches, is added to the
+/// covariance as a constant error of the momentum along its direction ([`offset_gain`]),
+/// `(resolution^2 / 12) k k^T` (0: none).
 fn fit_stretch(
     blocks: &[Block<6>],
     init: &Mat3,
     noise_floor: f32,
     test_bias: bool,
+    resolution: f32,
 ) -> Option<StretchResult<6>> {
+    let offset = (resolution > 0.0)
+        .then(|| steady_cells(blocks, resolution))
+        .flatten();
     let from = |blocks: &[Block<6>], init: &Mat3| {
         let w0 = rate_of(blocks.first()?);
         let th = [
             init[0][0], init[1][1], init[2][2], init[0][1], init[0][2], init[1][2], w0[0], w0[1],
             w0[2],
         ];
-        fit_model::<P0, P1, 6, { P0 + 3 }, { P1 + 3 }, { P0 + 6 }, { P1 + 6 }>(
-            blocks,
-            th,
-            0.0,
-            noise_floor,
-            test_bias,
-        )
+        fit_model::<
+            P0,
+            P1,
+            6,
+            { P0 + 3 },
+            { P1 + 3 },
+            { P0 + 6 },
+            { P1 + 6 },
+            { P0 + CELLS },
+            { P1 + CELLS },
+        >(blocks, th, 0.0, noise_floor, test_bias, offset)
     };
+    let r = fit_stretch_from(blocks, init, noise_floor, &from)?;
+    Some(with_resolution(r, blocks.len(), resolution))
+}
+
+/// The rotor's steady stretches for (F7): the direction `u` of the largest block-mean rotor
+/// momentum, and the [`CELLS`] longest runs of at least three consecutive blocks over which
+/// the momentum along `u` stays within one `quantum` of the run's first block (`None` without
+/// a rotor momentum or such a run). A reading that keeps one value keeps one error.
+fn steady_cells(blocks: &[Block<6>], quantum: f32) -> Option<Cells> {
+    let h =
+        blocks.iter().map(rotor_of).fold(
+            [0.0f32; 3],
+            |a, h| if dot(h, h) > dot(a, a) { h } else { a },
+        );
+    let n = norm(h);
+    if !(n > 0.0 && n.is_finite()) {
+        return None;
+    }
+    let u = h.map(|x| x / n);
+    let along = |b: &Block<6>| dot(rotor_of(b), u);
+    let mut cells = Cells {
+        u,
+        runs: [(0, 0); CELLS],
+    };
+    let mut keep = |run: (usize, usize)| {
+        let len = |r: &(usize, usize)| r.1.saturating_sub(r.0);
+        if len(&run) < 3 {
+            return;
+        }
+        // Replace the shortest kept run when this one is longer.
+        let shortest = cells
+            .runs
+            .iter_mut()
+            .fold(None::<&mut (usize, usize)>, |s, r| match s {
+                Some(s) if len(s) <= len(r) => Some(s),
+                _ => Some(r),
+            });
+        if let Some(s) = shortest {
+            if len(&run) > len(s) {
+                *s = run;
+            }
+        }
+    };
+    let mut start = 0;
+    for (b, block) in blocks.iter().enumerate() {
+        let first = blocks.get(start).map_or(0.0, along);
+        if !((along(block) - first).abs() < quantum) {
+            keep((start, b));
+            start = b;
+        }
+    }
+    keep((start, blocks.len()));
+    cells.runs.iter().any(|r| r.1 > r.0).then_some(cells)
+}
+
+/// `r` with the rotor momentum's quantisation in its covariance (see [`fit_stretch`]): the
+/// pooling scales the unit-noise covariance by the residual variance per degree of freedom
+/// over the whole stretch of `blocks` blocks, so the term is divided by it.
+fn with_resolution(mut r: StretchResult<6>, blocks: usize, resolution: f32) -> StretchResult<6> {
+    let Some(c) = r.input_cov else {
+        return r;
+    };
+    let dof = (3 * blocks) as f32 - r.params as f32;
+    let s2 = r.cost / dof;
+    let v = resolution * resolution / 12.0 / s2;
+    if v.is_finite() && v > 0.0 {
+        for i in 0..6 {
+            for j in 0..6 {
+                r.cov[i][j] += v * c[i][j];
+            }
+        }
+    }
+    r
+}
+
+/// [`fit_stretch`]'s choice between the whole flight and the part from the spin-up, `from`
+/// fitting a run of blocks from a first guess.
+fn fit_stretch_from(
+    blocks: &[Block<6>],
+    init: &Mat3,
+    noise_floor: f32,
+    from: &dyn Fn(&[Block<6>], &Mat3) -> Option<StretchResult<6>>,
+) -> Option<StretchResult<6>> {
     let whole = from(blocks, init)?;
     let per_dof = |r: &StretchResult<6>, n: usize| r.cost / ((3 * n) as f32 - r.params as f32);
     let whole_noise = per_dof(&whole, blocks.len());
@@ -1356,14 +1638,17 @@ fn fit_stretch_normalized(
         }
     }
     let (th, tr, _) = best?;
-    let mut r =
-        fit_model::<{ P0 - 1 }, { P1 - 1 }, 5, { P0 + 2 }, { P1 + 2 }, { P0 + 5 }, { P1 + 5 }>(
-            blocks,
-            th,
-            tr,
-            noise_floor,
-            test_bias,
-        )?;
+    let mut r = fit_model::<
+        { P0 - 1 },
+        { P1 - 1 },
+        5,
+        { P0 + 2 },
+        { P1 + 2 },
+        { P0 + 5 },
+        { P1 + 5 },
+        { P0 - 1 + CELLS },
+        { P1 - 1 + CELLS },
+    >(blocks, th, tr, noise_floor, test_bias, None)?;
     let k = 1.0 / tr;
     r.p = r.p.map(|x| x * k);
     r.cov = r.cov.map(|row| row.map(|x| x * k * k));
@@ -1382,7 +1667,22 @@ impl<const N: usize> TensorFit<N> {
             full_scale,
             max_dt,
             noise_std,
+            momentum_resolution: 0.0,
         }
+    }
+
+    /// The same fit with the rotor momentum known only to `quantum` (kg m^2/s: the rotor
+    /// inertia times the speed telemetry's step, e.g. 100 eRPM): the absolute tensor's
+    /// covariance then includes a constant momentum error uniform over one quantum ((F7), see
+    /// `fit_stretch`). 0 (the default), negative or not finite: the momentum is taken as
+    /// exact.
+    pub const fn with_momentum_resolution(mut self, quantum: f32) -> Self {
+        self.momentum_resolution = if quantum > 0.0 && quantum < f32::INFINITY {
+            quantum
+        } else {
+            0.0
+        };
+        self
     }
 
     /// Adds one sample of the open stretch: rate (rad/s), rotor momentum (kg m^2/s) and the
@@ -1407,9 +1707,9 @@ impl<const N: usize> TensorFit<N> {
     /// Ends the open stretch: fits it from the tensor `init` (kg m^2; a positive definite
     /// first guess, such as [`crate::TensorEstimator`]'s), pools it and starts a new stretch.
     pub fn close(&mut self, init: Option<[[f32; 3]; 3]>) -> StretchOutcome {
-        let noise = self.noise_std;
+        let (noise, q) = (self.noise_std, self.momentum_resolution);
         self.state
-            .close(|blocks| init.and_then(|j| fit_stretch(blocks, &j, noise, true)))
+            .close(|blocks| init.and_then(|j| fit_stretch(blocks, &j, noise, true, q)))
     }
 
     /// [`TensorFit::close`] for a gyro whose bias is known and was removed (measured on a
@@ -1420,9 +1720,9 @@ impl<const N: usize> TensorFit<N> {
     /// soaks up model error. On the ten thrown-FC logs it found 0.1-0.38 rad/s on every throw,
     /// where the bench measured at most 0.015 rad/s, and moved `J` by up to 4 %.
     pub fn close_without_bias(&mut self, init: Option<[[f32; 3]; 3]>) -> StretchOutcome {
-        let noise = self.noise_std;
+        let (noise, q) = (self.noise_std, self.momentum_resolution);
         self.state
-            .close(|blocks| init.and_then(|j| fit_stretch(blocks, &j, noise, false)))
+            .close(|blocks| init.and_then(|j| fit_stretch(blocks, &j, noise, false, q)))
     }
 
     /// Ends the open stretch of a flight whose rotor momentum does not fix the scale of `J`
@@ -1695,6 +1995,61 @@ mod tests {
             fit.step(*w, *h, (1.0 / rate) as f32);
         }
         fit
+    }
+
+    /// The rotor momentum's resolution (F7) widens the covariance and leaves the estimate:
+    /// the same fit, bit for bit, with every entry's variance larger by the quantisation's
+    /// share (a flywheel steady at 1500 rad/s for 0.3 s, then spinning up to 2250 rad/s, read
+    /// in steps of 1.75 rad/s).
+    #[test]
+    fn the_rotor_momentum_resolution_widens_the_covariance_only() {
+        let rate = 2000.0;
+        let (ws, hs, _) = throw_with(
+            rate,
+            0.8,
+            [
+                [2.1e-4, 1.2e-5, -0.8e-5],
+                [1.2e-5, 2.9e-4, 0.6e-5],
+                [-0.8e-5, 0.6e-5, 3.6e-4],
+            ],
+            [9.0, -6.0, 14.0],
+            |t| -1.7e-6 * (1500.0 + 1500.0 * (t - 0.3).max(0.0)),
+        );
+        // White noise of 1e-3 rad/s, so the fit has a noise level of its own.
+        let mut state = 0x2545_f491_u32;
+        let mut noise = || {
+            let mut s = 0.0f32;
+            for _ in 0..12 {
+                state ^= state << 13;
+                state ^= state >> 17;
+                state ^= state << 5;
+                s += state as f32 / u32::MAX as f32;
+            }
+            1e-3 * (s - 6.0)
+        };
+        let ws: std::vec::Vec<[f32; 3]> = ws.iter().map(|w| w.map(|x| x + noise())).collect();
+        let init = [[2.3e-4, 0.0, 0.0], [0.0, 2.6e-4, 0.0], [0.0, 0.0, 3.9e-4]];
+        let quantum = 1.7e-6 * 1.745;
+        let mut plain = fed(&ws, &hs, rate);
+        let mut fit = fed(&ws, &hs, rate).with_momentum_resolution(quantum);
+        assert_eq!(plain.close(Some(init)), StretchOutcome::Fitted);
+        assert_eq!(fit.close(Some(init)), StretchOutcome::Fitted);
+        let (a, b) = (plain.estimate().unwrap(), fit.estimate().unwrap());
+        assert_eq!(a.tensor, b.tensor);
+        for i in 0..6 {
+            let ratio = b.cov[i][i] / a.cov[i][i];
+            std::println!("entry {i}: variance x{ratio:.2}");
+            assert!(
+                ratio > 1.01 && ratio.is_finite(),
+                "entry {i}: variance x{ratio}"
+            );
+        }
+        // Not finite or not positive: the momentum is taken as exact.
+        for q in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+            let mut same = fed(&ws, &hs, rate).with_momentum_resolution(q);
+            same.close(Some(init));
+            assert_eq!(same.estimate().unwrap().cov, a.cov);
+        }
     }
 
     /// A first guess far off in scale (the step count comes from it, see `StepRule`): the

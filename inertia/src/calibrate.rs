@@ -33,6 +33,9 @@ use serde::Serialize;
 use crate::identify::{identify, IdentifyOptions, Rotor};
 use crate::recording::Recording;
 
+/// The entries of a tensor in the order of its covariance: xx, yy, zz, xy, xz, yz.
+const ENTRIES: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
+
 /// Rotor inertia used for the unit identification (rescaled afterwards).
 pub const UNIT_J: f32 = 1e-6;
 
@@ -47,8 +50,15 @@ pub struct UnitThrow {
     pub j1: M3,
     /// The standard deviation of each entry of `J1` the estimate reported.
     pub j1_std: Option<M3>,
+    /// The correlations of the entries `(xx, yy, zz, xy, xz, yz)` of `J1` the estimate
+    /// reported (`None`: taken as independent).
+    #[serde(skip)]
+    pub j1_corr: Option<[[f64; 6]; 6]>,
     /// IMU position from the centre of mass, m.
     pub imu_from_com: [f64; 3],
+    /// Its covariance, m^2 ([`fit_offset`]; `None`: not measured).
+    #[serde(skip)]
+    pub imu_from_com_cov: Option<M3>,
     /// RMS residual of the offset fit, m/s^2.
     pub offset_fit_rms: f64,
     /// Status of the ratios (`pooled.status` of `inertia identify`).
@@ -114,17 +124,33 @@ pub fn unit_throw(
         .pooled
         .tensor_std_kg_m2
         .map(|s| s.map(|r| r.map(|x| x as f64 / UNIT_J as f64)));
+    let j1_corr = rep.pooled.tensor_cov_kg2_m4.map(|c| {
+        let s: [f64; 6] = std::array::from_fn(|i| (c[i][i] as f64).sqrt());
+        std::array::from_fn(|i| {
+            std::array::from_fn(|k| {
+                let r = c[i][k] as f64 / (s[i] * s[k]);
+                if r.is_finite() {
+                    r.clamp(-1.0, 1.0)
+                } else {
+                    f64::from(u8::from(i == k))
+                }
+            })
+        })
+    });
     let runs: Vec<Vec<usize>> = rep
         .fed_runs
         .iter()
         .map(|r| r.iter().flat_map(Clone::clone).collect())
         .collect();
-    let (imu_from_com, rms) = fit_offset(rec, &runs, rep.gyro_bias)
+    let offset = fit_offset(rec, &runs, rep.gyro_bias)
         .ok_or_else(|| format!("{}: no accelerometer, no centre of mass", rec.source))?;
+    let (imu_from_com, rms) = (offset.imu_from_com, offset.rms);
     Ok(UnitThrow {
         source: rec.source.clone(),
         j1,
         j1_std,
+        j1_corr,
+        imu_from_com_cov: offset.cov,
         imu_from_com,
         offset_fit_rms: rms,
         status: rep.pooled.status,
@@ -144,7 +170,13 @@ pub fn unit_throw(
 /// 200-250 Hz) puts some 150 rad/s^2 into the differenced `w'`, as much as the body's own
 /// angular acceleration, and the least squares pulled `r` towards zero by millimetres, which
 /// the parallel-axis terms of a calibration turn into percent.
-pub fn fit_offset(rec: &Recording, runs: &[Vec<usize>], bias: [f32; 3]) -> Option<([f64; 3], f64)> {
+///
+/// The covariance of `r` comes from a delete-one-chunk jackknife over [`OFFSET_CHUNKS`]
+/// consecutive chunks of the rows: the filtered rows are correlated over tens of
+/// milliseconds, so the least squares' own `s^2 (K^T K)^-1` would claim tens of times the
+/// information they hold, while chunks much longer than the filter's memory are nearly
+/// independent.
+pub fn fit_offset(rec: &Recording, runs: &[Vec<usize>], bias: [f32; 3]) -> Option<OffsetFit> {
     let acc = rec.accel.as_ref()?;
     let w = |i: usize| -> [f64; 3] {
         let g = rec.gyro[i];
@@ -155,6 +187,11 @@ pub fn fit_offset(rec: &Recording, runs: &[Vec<usize>], bias: [f32; 3]) -> Optio
     let mut atb = [0.0f64; 3];
     let mut bb = 0.0;
     let mut n = 0usize;
+    // The normal equations of each chunk, for the jackknife.
+    let total: usize = runs.iter().map(Vec::len).sum();
+    let chunk_len = total.div_ceil(OFFSET_CHUNKS).max(1);
+    let mut chunks = [([[0.0f64; 3]; 3], [0.0f64; 3]); OFFSET_CHUNKS];
+    let mut row_index = 0usize;
     for run in runs {
         // Consecutive rows (K by rows, f) with their time steps; a break starts a new piece.
         let mut pieces: Vec<Vec<([f64; 12], f64)>> = vec![Vec::new()];
@@ -198,11 +235,17 @@ pub fn fit_offset(rec: &Recording, runs: &[Vec<usize>], bias: [f32; 3]) -> Optio
                     [row[6], row[7], row[8]],
                 ];
                 let f = [row[9], row[10], row[11]];
+                let chunk = &mut chunks[(row_index / chunk_len).min(OFFSET_CHUNKS - 1)];
+                row_index += 1;
                 for r in 0..3 {
                     for cc in 0..3 {
-                        ata[r][cc] += (0..3).map(|m| k[m][r] * k[m][cc]).sum::<f64>();
+                        let v = (0..3).map(|m| k[m][r] * k[m][cc]).sum::<f64>();
+                        ata[r][cc] += v;
+                        chunk.0[r][cc] += v;
                     }
-                    atb[r] += (0..3).map(|m| k[m][r] * f[m]).sum::<f64>();
+                    let v = (0..3).map(|m| k[m][r] * f[m]).sum::<f64>();
+                    atb[r] += v;
+                    chunk.1[r] += v;
                 }
                 bb += f.iter().map(|v| v * v).sum::<f64>();
                 n += 1;
@@ -214,7 +257,43 @@ pub fn fit_offset(rec: &Recording, runs: &[Vec<usize>], bias: [f32; 3]) -> Optio
     }
     let r = solve3(&ata, &atb)?;
     let rss = bb - (0..3).map(|k| r[k] * atb[k]).sum::<f64>();
-    Some((r, (rss.max(0.0) / n as f64).sqrt()))
+    let leave_out: Vec<[f64; 3]> = chunks
+        .iter()
+        .filter(|c| c.0[0][0] > 0.0)
+        .filter_map(|(ca, cb)| solve3(&add(&ata, ca, -1.0), &[0, 1, 2].map(|k| atb[k] - cb[k])))
+        .collect();
+    let m = leave_out.len() as f64;
+    let cov = (m >= 2.0).then(|| {
+        let mean = [0, 1, 2].map(|k| leave_out.iter().map(|x| x[k]).sum::<f64>() / m);
+        std::array::from_fn(|a| {
+            std::array::from_fn(|b| {
+                (m - 1.0) / m
+                    * leave_out
+                        .iter()
+                        .map(|x| (x[a] - mean[a]) * (x[b] - mean[b]))
+                        .sum::<f64>()
+            })
+        })
+    });
+    Some(OffsetFit {
+        imu_from_com: r,
+        rms: (rss.max(0.0) / n as f64).sqrt(),
+        cov,
+    })
+}
+
+/// Chunks of [`fit_offset`]'s jackknife.
+pub const OFFSET_CHUNKS: usize = 10;
+
+/// The accelerometer's fit of the IMU's position from the centre of mass ([`fit_offset`]).
+#[derive(Clone, Copy, Debug)]
+pub struct OffsetFit {
+    /// `r`, m.
+    pub imu_from_com: [f64; 3],
+    /// RMS residual, m/s^2.
+    pub rms: f64,
+    /// Covariance of `r`, m^2 (`None` with fewer than two usable chunks).
+    pub cov: Option<M3>,
 }
 
 /// Two first-order low-pass stages at `fc` Hz (`y += a (x - y)`, `a = x / (1 + x)`, `x = 2 pi
@@ -498,7 +577,9 @@ fn solve(
 /// without throw `i` and `x_(.)` their mean, the groups independent so that their variances
 /// add. A group of one throw has no scatter to measure: its throw's own reported standard
 /// deviations of `J1` enter to first order (each of the six entries moved by one standard
-/// deviation and everything recomputed, the entries taken as independent). On the shared thrown-FC logs the proof body
+/// deviation and everything recomputed, combined with the entries' correlations the estimate
+/// reported: one rotor momentum fixes the scale of all of them, and taken as independent the
+/// object's moments from one simulated throw came out 1.6x overconfident, `host-tests/tests/calibrate_sim.rs`). On the shared thrown-FC logs the proof body
 /// as the object (one throw, `j` from the other four): standard deviations of the moments
 /// 1.2-2.6 %, errors +2.35, +1.98, -0.10 %.
 #[derive(Clone, Copy, Debug, Default)]
@@ -542,35 +623,90 @@ fn uncertainty(groups: [&[UnitThrow]; 3], known: &M3, m: Masses, full: &Solved) 
                 u.moments[r] += var(&|s| moments(s).map_or(0.0, |l| l[r]));
             }
         } else if n == 1 {
-            // First order in each of the throw's six entries of `J1`, one at a time (finite
-            // differences of one standard deviation, both sides of the symmetric pair).
-            let Some(std) = groups[g][0].j1_std else {
+            // First order in what the one throw measured: the six entries of `J1` and the
+            // three of its centre of mass, finite differences of one standard deviation each
+            // (both sides of a symmetric pair), combined with their correlations, `var(f) =
+            // sum_ef d_e rho_ef d_f` (the tensor's and the accelerometer's errors independent
+            // of each other).
+            let throw = &groups[g][0];
+            let Some(std) = throw.j1_std else {
                 continue;
             };
-            for (r0, c0) in [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)] {
-                let mut parts = groups.map(|x| x.to_vec());
-                let s = std[r0][c0];
-                parts[g][0].j1[r0][c0] += s;
-                if r0 != c0 {
-                    parts[g][0].j1[c0][r0] += s;
-                }
-                let Some(p) = solve(&parts[0], &parts[1], &parts[2], known, m) else {
-                    continue;
-                };
-                u.j += (p.j - full.j).powi(2);
-                for r in 0..3 {
-                    for c in 0..3 {
-                        u.board[r][c] += (p.board[r][c] - full.board[r][c]).powi(2);
-                        if let (Some(a), Some(b)) = (p.object, full.object) {
-                            u.object[r][c] += (a[r][c] - b[r][c]).powi(2);
+            let eye = |i: usize, k: usize| f64::from(u8::from(i == k));
+            let rho_j = throw
+                .j1_corr
+                .unwrap_or(std::array::from_fn(|i| std::array::from_fn(|k| eye(i, k))));
+            let com_cov = throw.imu_from_com_cov.unwrap_or([[0.0; 3]; 3]);
+            let com_std = [0, 1, 2].map(|k| com_cov[k][k].max(0.0).sqrt());
+            let rho = |e: usize, f: usize| -> f64 {
+                match (e < 6, f < 6) {
+                    (true, true) => rho_j[e][f],
+                    (false, false) => {
+                        let (a, b) = (e - 6, f - 6);
+                        let r = com_cov[a][b] / (com_std[a] * com_std[b]);
+                        if r.is_finite() {
+                            r.clamp(-1.0, 1.0)
+                        } else {
+                            eye(a, b)
                         }
                     }
+                    _ => 0.0,
                 }
-                if let (Some(a), Some(b)) = (moments(&p), moments(full)) {
-                    for k in 0..3 {
-                        u.moments[k] += (a[k] - b[k]).powi(2);
+            };
+            // Per input: the changes of j, the board's nine entries, the object's nine and
+            // its three moments (zero where a solve failed or nothing was measured).
+            let deltas: Vec<[f64; 22]> = (0..9)
+                .map(|e| {
+                    let mut parts = groups.map(|x| x.to_vec());
+                    let t = &mut parts[g][0];
+                    if let Some(&(r0, c0)) = ENTRIES.get(e) {
+                        let s = std[r0][c0];
+                        t.j1[r0][c0] += s;
+                        if r0 != c0 {
+                            t.j1[c0][r0] += s;
+                        }
+                    } else {
+                        t.imu_from_com[e - 6] += com_std[e - 6];
+                    }
+                    let mut d = [0.0; 22];
+                    let Some(p) = solve(&parts[0], &parts[1], &parts[2], known, m) else {
+                        return d;
+                    };
+                    d[0] = p.j - full.j;
+                    for r in 0..3 {
+                        for c in 0..3 {
+                            d[1 + 3 * r + c] = p.board[r][c] - full.board[r][c];
+                            if let (Some(a), Some(b)) = (p.object, full.object) {
+                                d[10 + 3 * r + c] = a[r][c] - b[r][c];
+                            }
+                        }
+                    }
+                    if let (Some(a), Some(b)) = (moments(&p), moments(full)) {
+                        for k in 0..3 {
+                            d[19 + k] = a[k] - b[k];
+                        }
+                    }
+                    d
+                })
+                .collect();
+            let var = |q: usize| {
+                let mut v = 0.0;
+                for (e, de) in deltas.iter().enumerate() {
+                    for (f, df) in deltas.iter().enumerate() {
+                        v += de[q] * rho(e, f) * df[q];
                     }
                 }
+                v.max(0.0)
+            };
+            u.j += var(0);
+            for r in 0..3 {
+                for c in 0..3 {
+                    u.board[r][c] += var(1 + 3 * r + c);
+                    u.object[r][c] += var(10 + 3 * r + c);
+                }
+            }
+            for k in 0..3 {
+                u.moments[k] += var(19 + k);
             }
         }
     }

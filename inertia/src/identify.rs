@@ -127,6 +127,10 @@ pub struct EstimateJson {
     pub tensor_kg_m2: Option<[[f32; 3]; 3]>,
     /// Standard deviation of each entry of `tensor_kg_m2`.
     pub tensor_std_kg_m2: Option<[[f32; 3]; 3]>,
+    /// Covariance of the entries `(xx, yy, zz, xy, xz, yz)` of `tensor_kg_m2`, (kg m^2)^2:
+    /// their errors are correlated (one rotor momentum fixes the scale of all of them), which
+    /// a function of several entries must count.
+    pub tensor_cov_kg2_m4: Option<[[f32; 6]; 6]>,
     /// `J / trace(J)`.
     pub tensor_normalized: Option<[[f32; 3]; 3]>,
     /// Standard deviation of each entry of `tensor_normalized`.
@@ -158,6 +162,7 @@ impl EstimateJson {
             model: format!("{:?}", e.model),
             tensor_kg_m2: e.tensor,
             tensor_std_kg_m2: e.tensor_std,
+            tensor_cov_kg2_m4: e.tensor_cov,
             tensor_normalized: e.normalized,
             tensor_normalized_std: e.normalized_std,
             a: r.a,
@@ -347,6 +352,15 @@ pub struct Quiet;
 
 impl Progress for Quiet {}
 
+/// The rotor momentum's quantum, kg m^2/s: the rotor inertia times the speed channel's
+/// resolution ([`crate::survey::RotorStep`]; 0 without a rotor or a speed that never changed).
+pub(crate) fn momentum_quantum(opts: &IdentifyOptions, speed_step: Option<f32>) -> f32 {
+    match (&opts.rotor, speed_step) {
+        (Some(r), Some(q)) => r.inertia * q,
+        _ => 0.0,
+    }
+}
+
 /// Runs the identification on a recording held in memory.
 pub fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report, IdentifyError> {
     identify_source(&RecordingSource::new(rec), opts, &mut Quiet)
@@ -376,6 +390,7 @@ pub fn identify_source(
         } else {
             factor
         },
+        rotor_step: factor,
     };
     progress.stage("checking");
     let mut sv = survey(src, wanted, &mut |f| progress.update(f))?;
@@ -427,7 +442,9 @@ pub fn identify_source(
                 .into(),
         );
     }
-    let settings = PipelineSettings::for_rate(rate, noise).with_full_scale(src.full_scale());
+    let settings = PipelineSettings::for_rate(rate, noise)
+        .with_full_scale(src.full_scale())
+        .with_momentum_resolution(momentum_quantum(opts, sv.rotor_step));
     let inputs = Inputs {
         src,
         samples: n,

@@ -7,8 +7,10 @@
 //! `1 / median dt` of the `f64` log times, the rotor speed `unhold` of the channel (as logged
 //! with `--rotor-raw`), the noise from `estimate_noise` unless given, the
 //! full scale the recording's, `dt` of sample 0 the median and of sample `i` `t[i] - t[i-1]`
-//! rounded once to `f32`. The firmware turns the rotor speed into momentum with the same
-//! `axis_i * inertia * speed` as `identify`.
+//! rounded once to `f32`, the rotor speed's resolution the smallest change of the channel
+//! (`inertia::survey::RotorStep`). The firmware turns the rotor speed into momentum with the
+//! same `axis_i * inertia * speed` as `identify`, and the resolution into the momentum's
+//! quantum with the same `inertia * resolution`.
 
 use std::io::Write;
 use std::path::Path;
@@ -46,6 +48,7 @@ pub fn export(
         return Err("the time steps are not positive".into());
     }
     let noise = noise_std.unwrap_or_else(|| estimate_noise(&rec.gyro));
+    let mut step = inertia::survey::RotorStep::default();
     let speed: Option<Vec<f32>> = match &rotor {
         None => None,
         Some(r) => {
@@ -57,6 +60,9 @@ pub fn export(
             let Some(s) = ch.rad_per_sec(r.poles) else {
                 return Err("the log gives rotor speed as eRPM: --rotor-poles is needed".into());
             };
+            for &v in &s {
+                step.push(v);
+            }
             // As identify: the sample-and-hold channel interpolated unless asked raw.
             Some(if hold.interpolates(slow_telemetry(&rec.t, &s)) {
                 unhold(&rec.t, &s)
@@ -73,9 +79,9 @@ pub fn export(
         }
     };
     let with_accel = rec.accel.is_some();
-    let mut b: Vec<u8> = Vec::with_capacity(44 + 32 * n);
+    let mut b: Vec<u8> = Vec::with_capacity(48 + 32 * n);
     b.extend_from_slice(b"IRPL");
-    b.extend_from_slice(&1u32.to_le_bytes());
+    b.extend_from_slice(&2u32.to_le_bytes());
     b.extend_from_slice(&rate.to_le_bytes());
     b.extend_from_slice(&noise.to_le_bytes());
     b.extend_from_slice(&rec.gyro_full_scale.to_le_bytes());
@@ -86,6 +92,8 @@ pub fn export(
     for a in axis {
         b.extend_from_slice(&a.to_le_bytes());
     }
+    let resolution = rotor.and(step.step()).unwrap_or(0.0);
+    b.extend_from_slice(&resolution.to_le_bytes());
     b.extend_from_slice(&(n as u32).to_le_bytes());
     for i in 0..n {
         let f = rec.accel.as_ref().map(|a| a[i]).unwrap_or([0.0; 3]);

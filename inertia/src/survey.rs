@@ -18,6 +18,9 @@ pub struct Wanted {
     /// The rotor channel's changes for the streaming `unhold`, the logged value turned to rad/s
     /// by this factor (`Some(None)`: as logged).
     pub unhold: Option<Option<f32>>,
+    /// The rotor channel's resolution ([`RotorStep`]), the logged value turned to rad/s by
+    /// this factor (`Some(None)`: as logged).
+    pub rotor_step: Option<Option<f32>>,
 }
 
 /// The findings.
@@ -37,6 +40,42 @@ pub struct Survey {
     pub span: (f64, f64),
     /// Largest absolute rate over the log, at least 1 rad/s (the plot's scale).
     pub rate_max: f32,
+    /// The rotor speed's resolution, rad/s, when wanted and the speed ever changed.
+    pub rotor_step: Option<f32>,
+}
+
+/// The resolution of a rotor-speed channel: the smallest change between consecutive logged
+/// values, rad/s. A telemetry channel is quantised (DShot eRPM in steps of 100 eRPM, an ESC's
+/// rpm in whole rpm), and its value dithers between neighbouring steps wherever the speed is
+/// steady, so the smallest change is one step; a channel that only ever moves by several steps
+/// gives a multiple of it (a larger, safe figure). Changes below `1e-6` of the value are the
+/// unit conversion's rounding, not steps.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RotorStep {
+    prev: Option<f32>,
+    step: Option<f32>,
+}
+
+impl RotorStep {
+    /// The next logged speed, rad/s.
+    #[inline]
+    pub fn push(&mut self, v: f32) {
+        if !v.is_finite() {
+            return;
+        }
+        if let Some(p) = self.prev {
+            let d = (v - p).abs();
+            if d > 1e-6 * v.abs().max(p.abs()) && self.step.is_none_or(|s| d < s) {
+                self.step = Some(d);
+            }
+        }
+        self.prev = Some(v);
+    }
+
+    /// The smallest change seen (`None`: the speed never changed).
+    pub fn step(&self) -> Option<f32> {
+        self.step
+    }
 }
 
 /// Median absolute third difference of each gyro axis (see
@@ -127,6 +166,7 @@ pub fn survey(
     let mut units = UnitCheck::default();
     let mut planner = wanted.unhold.map(|_| Planner::new(LOOKAHEAD));
     let factor = wanted.unhold.flatten();
+    let mut rotor_step = RotorStep::default();
     let mut span: Option<(f64, f64)> = None;
     let mut rate_max = 1.0f32;
     let reading = src.read_all(
@@ -138,6 +178,9 @@ pub fn survey(
             units.push(s.t, s.gyro);
             if let Some(p) = &mut planner {
                 p.push(s.t, factor.map_or(s.rotor, |k| s.rotor * k));
+            }
+            if let Some(k) = wanted.rotor_step {
+                rotor_step.push(k.map_or(s.rotor, |k| s.rotor * k));
             }
             span = Some(span.map_or((s.t, s.t), |(a, _)| (a, s.t)));
             for x in s.gyro {
@@ -180,5 +223,6 @@ pub fn survey(
         unhold: planner.map(Planner::finish),
         span: span.unwrap_or((0.0, 0.0)),
         rate_max,
+        rotor_step: wanted.rotor_step.and(rotor_step.step()),
     })
 }

@@ -409,8 +409,14 @@ fn replay(path: &str, uart: &mut Usart1) -> ! {
         header.with_accel,
         header.rotor
     );
+    // The rotor momentum's quantum as `inertia identify` computes it: inertia times the
+    // speed's resolution.
+    let quantum = header
+        .rotor
+        .map_or(0.0, |(inertia, _)| inertia * header.rotor_resolution);
     let settings = identifier_core::PipelineSettings::for_rate(header.rate_hz, header.noise_std)
-        .with_full_scale(header.full_scale);
+        .with_full_scale(header.full_scale)
+        .with_momentum_resolution(quantum);
     let rotor = header
         .rotor
         .map(|(inertia, axis)| RotorConfig { inertia, axis });

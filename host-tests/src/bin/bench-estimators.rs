@@ -1028,6 +1028,7 @@ fn fly_estimate(
             None => identifier_core::TensorEstimate {
                 tensor: None,
                 tensor_std: None,
+                tensor_cov: None,
                 ..est
             },
         };

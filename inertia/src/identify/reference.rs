@@ -39,7 +39,8 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
         ));
     }
     let noise = opts.noise_std.unwrap_or_else(|| estimate_noise(&rec.gyro));
-    // Rotor momentum per sample.
+    // Rotor momentum per sample, and the speed channel's resolution.
+    let mut step = crate::survey::RotorStep::default();
     let h: Vec<[f32; 3]> = match &opts.rotor {
         None => vec![[0.0; 3]; n],
         Some(r) => {
@@ -53,6 +54,9 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
                     "the log gives rotor speed as eRPM: --rotor-poles is needed".into(),
                 ));
             };
+            for &v in &speed {
+                step.push(v);
+            }
             let speed = if opts.rotor_hold.interpolates(slow_telemetry(&rec.t, &speed)) {
                 unhold(&rec.t, &speed)
             } else {
@@ -71,7 +75,9 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
                 .into(),
         );
     }
-    let settings = PipelineSettings::for_rate(rate, noise).with_full_scale(rec.gyro_full_scale);
+    let settings = PipelineSettings::for_rate(rate, noise)
+        .with_full_scale(rec.gyro_full_scale)
+        .with_momentum_resolution(super::momentum_quantum(opts, step.step()));
     let dt_of = |i: usize| -> f32 {
         if i == 0 {
             dt_med as f32
