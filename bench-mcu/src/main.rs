@@ -275,10 +275,11 @@ fn tensor_fit_steps() -> (f32, u32) {
 fn tensor_flight_close(
     syst: &mut SYST,
     init: [[f32; 3]; 3],
+    momentum_quantum: f32,
 ) -> (u64, StretchOutcome, Option<TensorFitEstimate>) {
     let mut sig = Throw::board();
     let dt = sig.dt();
-    let mut fit = pipeline_tensor_fit();
+    let mut fit = pipeline_tensor_fit().with_momentum_resolution(momentum_quantum);
     for _ in 0..Throw::SAMPLES {
         let (w, h) = sig.next_sample();
         fit.step(w, h, dt);
@@ -706,12 +707,29 @@ fn main() -> ! {
         [0.0, 1.05 * truth[1][1], 0.0],
         [0.0, 0.0, 1.05 * truth[2][2]],
     ];
-    let (ticks, outcome, fitted) = tensor_flight_close(&mut syst, init);
+    let (ticks, outcome, fitted) = tensor_flight_close(&mut syst, init, 0.0);
     check_tensor_fit("tensor-fit-close-throw", outcome, fitted, truth, 0.02, 13);
     report_long(
         "tensor-fit-close-throw",
         ticks,
         "Cortex-M4F QEMU -icount; one FlightTensorFit::close(Some(init)) after a 0.6 s board throw at 2 kHz (products of inertia, flywheel 175 -> 1250 rad/s; 1200 samples: 150 blocks of 8 after three pairwise merges; noise 1.4e-3 rad/s; init: true diagonal x1.05, products 0)",
+    );
+    // The same with the rotor momentum's quantum given (F7): one more evaluation with the
+    // steady runs' four columns.
+    let quantum = bench_mcu::BOARD_ROTOR_INERTIA * 1.745;
+    let (ticks, outcome, fitted) = tensor_flight_close(&mut syst, init, quantum);
+    check_tensor_fit(
+        "tensor-fit-close-throw-resolution",
+        outcome,
+        fitted,
+        truth,
+        0.02,
+        18,
+    );
+    report_long(
+        "tensor-fit-close-throw-resolution",
+        ticks,
+        "Cortex-M4F QEMU -icount; tensor-fit-close-throw with the rotor momentum's quantum given (the flywheel's inertia times DShot's 100 eRPM step, 1.745 rad/s): the covariance counts the telemetry's constant errors over the steady runs of the speed, (F7)",
     );
     let (ticks, outcome, fitted) = tensor_flight_close_mismatch(&mut syst, init);
     check_tensor_fit(
