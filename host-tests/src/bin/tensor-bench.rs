@@ -54,6 +54,13 @@ fn main() {
         let j_r = sim.config.rotor.inertia as f32;
         let axis = sim.config.rotor.unit_axis().map(|x| x as f32);
         let h = |k: usize| axis.map(|a| a * j_r * sim.rotor_rad_s[k]);
+        // The rotor momentum's quantum as `inertia identify` finds it in such a log (the
+        // speed's step); 0 when the speed is logged exactly.
+        let quantum = if sim.config.quantize_rotor_speed {
+            j_r * host_tests::throw_sim::ROTOR_SPEED_QUANTUM_RAD_S as f32
+        } else {
+            0.0
+        };
         let mut ts = TensorSettings::for_rate(rate, sigma as f32);
         ts.full_scale = 34.9;
         let mut e = TensorEstimator::new(ts).unwrap();
@@ -67,7 +74,8 @@ fn main() {
                 .unwrap_or(0)
         };
         let (t0, t1) = (trim("TRIM_START"), trim("TRIM_END"));
-        let mut fit = TensorFit::<256>::new(34.9, ts.max_dt, sigma as f32);
+        let mut fit =
+            TensorFit::<256>::new(34.9, ts.max_dt, sigma as f32).with_momentum_resolution(quantum);
         for k in (range.start + t0)..(range.end.saturating_sub(t1)) {
             e.step(sim.gyro[k], h(k), sim.dt() as f32);
             fit.step(sim.gyro[k], h(k), sim.dt() as f32);
@@ -123,6 +131,7 @@ fn main() {
             ps.decimation = 1;
         }
         ps.tensor.full_scale = 34.9;
+        ps.tensor.momentum_resolution = quantum;
         let mut p = FlightPipeline::new(ps, true).unwrap();
         let mut fed = vec![false; sim.t.len()];
         for k in 0..sim.t.len() {
