@@ -64,6 +64,12 @@ pub fn pipeline_settings(config: &Config) -> PipelineSettings {
 
 /// A rotor whose angular momentum goes with each sample to the free-flight pipeline:
 /// `h = axis * inertia * speed` (kg m^2/s), the speed from the [`RotorSpeedSource`].
+///
+/// A speed read from telemetry comes in steps (DShot's eRPM: 100 eRPM, `100 / (poles / 2) *
+/// 2 pi / 60` rad/s, 1.75 rad/s for 12 poles): give the pipeline `inertia * step` with
+/// [`PipelineSettings::with_momentum_resolution`] so that the tensor's uncertainty counts the
+/// steps' error (the QEMU image does, from the replay's header, as `inertia identify` does
+/// from the log).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RotorConfig {
