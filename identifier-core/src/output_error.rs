@@ -876,9 +876,6 @@ pub(crate) struct StretchResult<const M: usize> {
     pub(crate) torque: Option<f32>,
     /// The score test of the gyro's scale factors rejected the model (false: not tested).
     pub(crate) scale: bool,
-    /// The parameters' covariance per unit variance of the error of a known input taken as
-    /// exact (the tensor fit's rotor momentum, `tensor_fit::input_cov`); `None`: not computed.
-    pub(crate) input_cov: Option<Sym<M>>,
 }
 
 /// What both fits keep between samples: the open stretch's blocks (`K` channels), the

@@ -113,9 +113,9 @@ pub struct TensorSettings {
     pub min_excitation: f32,
     /// Quantum of the rotor momentum as it is read, kg m^2/s: the rotor inertia times the
     /// speed telemetry's step (DShot eRPM: 100 eRPM, `100 / (poles / 2) * 2 pi / 60` rad/s).
-    /// The output-error fit's absolute tensor counts a momentum error uniform over one quantum,
-    /// the same for the whole flight, in its covariance (`(q^2 / 12) k k^T` with `k` the
-    /// estimate's response to it). `0` takes the momentum as exact.
+    /// The output-error fit's absolute tensor then fits the reading's constant error over each
+    /// steady run of the speed as an offset of the momentum ((F7) of
+    /// [`crate::tensor_fit`]). `0` takes the momentum as exact.
     pub momentum_resolution: f32,
 }
 

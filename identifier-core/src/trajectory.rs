@@ -1024,7 +1024,6 @@ impl<const N: usize> RatioFit<N> {
                 lag1: 0.0,
                 torque,
                 scale: false,
-                input_cov: None,
             })
         });
         if matches!(
