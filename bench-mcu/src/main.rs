@@ -199,6 +199,48 @@ fn pipeline_end_of_flight(
     (ticks, Some(p.ratios()), tf)
 }
 
+/// The pipeline's step at `rate` with an accelerometer reading noise (free flight with the
+/// IMU at the centre of mass): mean and worst ticks, the noise synthesis' own mean (taken off
+/// by the caller), samples fed and free flights. Not inlined: each pipeline (36 KB) lives on
+/// the stack only while its bench runs (inlined into `main`, the flight build's frame held
+/// them all, and the end-of-flight bench overflowed the stack).
+#[inline(never)]
+fn pipeline_steps(rate: f32, h: [f32; 3]) -> Option<(f32, u32, f32, u32, u32)> {
+    let accel_seed = core::cell::Cell::new(777u32);
+    let noise = || {
+        let s = accel_seed
+            .get()
+            .wrapping_mul(1_664_525)
+            .wrapping_add(1_013_904_223);
+        accel_seed.set(s);
+        ((s >> 8) as f32 / 16_777_216.0 - 0.5) * 0.17
+    };
+    let mut slot = FlightPipeline::new(PipelineSettings::for_rate(rate, 2e-3), true);
+    let p = slot.as_mut()?;
+    let dt = 1.0 / rate;
+    // The accelerometer noise is made inside the timed closure: its own cost is measured
+    // alone and taken off the pipeline's mean (not off the worst call).
+    let (synth, _) = measure_worst(|_, _| {
+        core::hint::black_box([noise(), noise(), noise()]);
+    });
+    let (mean, max) = measure_worst(|w, _| {
+        let acc = [noise(), noise(), noise()];
+        core::hint::black_box(p.step(core::hint::black_box(w), acc, h, dt));
+    });
+    Some((mean, max, synth, p.estimator().counters().used, p.throws()))
+}
+
+/// The pipeline's step at 8 kHz without an accelerometer (every sample free), mean and worst
+/// ticks; not inlined, as [`pipeline_steps`].
+#[inline(never)]
+fn pipeline_steps_noaccel(h: [f32; 3]) -> Option<(f32, u32)> {
+    let mut slot = FlightPipeline::new(PipelineSettings::for_rate(8000.0, 2e-3), false);
+    let p = slot.as_mut()?;
+    Some(measure_worst(|w, _| {
+        core::hint::black_box(p.step(core::hint::black_box(w), [0.0; 3], h, 1.25e-4));
+    }))
+}
+
 /// Prints the check of a closed flight and stops the run (exit code `code`) unless the fit
 /// succeeded (`StretchOutcome::Fitted`) with every `a_i` within `tol` of the truth: no
 /// instruction count is reported for a fit that failed.
@@ -530,29 +572,9 @@ fn main() -> ! {
         "Cortex-M4F QEMU -icount; one TensorEstimator::end_stretch() (what step adds when a stretch closes: a solve for the weights)",
     );
     for (rate, name) in [(1000.0f32, "pipeline"), (8000.0, "pipeline-8khz")] {
-        let accel_seed = core::cell::Cell::new(777u32);
-        let noise = || {
-            let s = accel_seed
-                .get()
-                .wrapping_mul(1_664_525)
-                .wrapping_add(1_013_904_223);
-            accel_seed.set(s);
-            ((s >> 8) as f32 / 16_777_216.0 - 0.5) * 0.17
-        };
-        let Some(mut p) = FlightPipeline::new(PipelineSettings::for_rate(rate, 2e-3), true) else {
+        let Some((mean, max, synth, used, throws)) = pipeline_steps(rate, h) else {
             semihosting::process::exit(7)
         };
-        let dt = 1.0 / rate;
-        // The accelerometer noise is made inside the timed closure: its own cost is measured
-        // alone and taken off the pipeline's mean (not off the worst call).
-        let (synth, _) = measure_worst(|_, _| {
-            core::hint::black_box([noise(), noise(), noise()]);
-        });
-        let (mean, max) = measure_worst(|w, _| {
-            // Free flight with the IMU at the centre of mass: the accelerometer reads noise.
-            let acc = [noise(), noise(), noise()];
-            core::hint::black_box(p.step(core::hint::black_box(w), acc, h, dt));
-        });
         let m = (mean - synth + empty, max);
         println!(
             "# check {}: accelerometer noise synthesis {:.0} instructions per sample, taken off",
@@ -566,17 +588,12 @@ fn main() -> ! {
         );
         println!(
             "# check {}: samples fed to the tensor {}, free flights {}",
-            name,
-            p.estimator().counters().used,
-            p.throws()
+            name, used, throws
         );
     }
-    let Some(mut p) = FlightPipeline::new(PipelineSettings::for_rate(8000.0, 2e-3), false) else {
+    let Some(m) = pipeline_steps_noaccel(h) else {
         semihosting::process::exit(8)
     };
-    let m = measure_worst(|w, _| {
-        core::hint::black_box(p.step(core::hint::black_box(w), [0.0; 3], h, 1.25e-4));
-    });
     worst(
         "pipeline-noaccel",
         m,

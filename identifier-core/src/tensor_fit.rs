@@ -109,8 +109,9 @@
 //! fits.
 //!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 225 / 308
-//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 12.2 M / 11.4 M instructions,
-//! about 0.07 s at 168 MHz (30 M / 28 M when the model does not fit to the noise and
+//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 11.9 M / 11.4 M instructions
+//! (21.5 M / 25.2 M with the rotor telemetry's offsets of (F7): four more parameters),
+//! about 0.07 s at 168 MHz (28 M / 27 M when the model does not fit to the noise and
 //! the fit from the rotor's spin-up follows); up to scale, 20 s of a slow tumble at 1 kHz from a
 //! first guess 2 % off 13.4 M / 13.5 M (0.08 s; about 8.6 M from the pipeline's own first
 //! guesses) and a 0.85 s toss at 100 Hz 3.0 M / 3.1 M
@@ -903,6 +904,11 @@ impl Layout {
 /// trace is held, five entries; else six); with `scale` the last three are the gyro's
 /// scale-factor errors `kappa` of (F5); with `C = 13` the last [`CELLS`] are the rotor
 /// momentum's errors `d_c` of (F7) over `layout.offset`'s runs (six entries).
+///
+/// Never inlined: each instantiation's frame (its RK4 stages of `C` columns, its normal
+/// sums) then lives only while it runs; inlined into [`normal`], which holds two of them, the
+/// frames added up and the flight build's bench overflowed its stack (2026-11-26).
+#[inline(never)]
 fn normal_visit<const P: usize, const C: usize>(
     blocks: &[Block<6>],
     rule: &StepRule,
@@ -1200,6 +1206,9 @@ fn leading_block<const A: usize, const M: usize>(c: &[[f32; A]; A]) -> Sym<M> {
 /// With `cells` (the absolute fit of a flight whose rotor speed is read in steps: its steady
 /// runs, [`steady_cells`]) the last [`CELLS`] of `th` are the rotor momentum's offsets of
 /// (F7), fitted with the rest (the bias, when fitted, goes before them).
+// Never inlined: the absolute fit has two instantiations (with and without the rotor
+// telemetry's offsets) behind one branch, and inlined their frames added up.
+#[inline(never)]
 fn fit_model<
     const P: usize,
     const PB: usize,
