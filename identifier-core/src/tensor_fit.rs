@@ -75,7 +75,9 @@
 //! speed is steady (an idle speed between two steps). Given the quantum
 //! ([`TensorFit::with_momentum_resolution`]), the absolute fit takes one unknown offset of the
 //! momentum along its direction `u` per steady run of the speed (up to four runs of at least
-//! three blocks within one quantum, `steady_cells`) and fits it with the rest:
+//! three blocks within one quantum, `steady_cells`) and fits it with the rest, under a prior of
+//! a quantum's uniform variance `q^2 / 12` (a pseudo-observation of weight `sigma^2 / (q^2 /
+//! 12)` in the cost):
 //!
 //! ```text
 //! L = J w + h + d_c u (over run c),   dw/dd_c = J^-1 (Sigma_c - u) (on) or J^-1 Sigma_c,
@@ -90,8 +92,11 @@
 //! 1.6-10x; the errors along the ramps, where the reading changes from block to block, are
 //! left (they also act on later blocks through the integrated momentum, which neither the
 //! residual's level nor the offsets count: the reported standard deviation is up to 2.3x too
-//! small there). A first version (2026-11-26) only added the offsets' effect to the covariance:
-//! as honest, ten times less accurate.
+//! small there). The fit is kept only when every offset came out within one quantum (a
+//! quantisation's error is at most half of one): on the thrown-FC logs, whose model error is
+//! tens of times the gyro's noise, free offsets came out at 5-20 quanta, soaking up that error,
+//! and the fit without them is taken. A first version (2026-11-26) only added the offsets'
+//! effect to the covariance: as honest, ten times less accurate.
 //!
 //! The fit starts from an estimate of `J` the caller gives (the pipeline gives
 //! [`crate::TensorEstimator`]'s) and the first block's rate, on all the blocks at once, and on
@@ -110,7 +115,7 @@
 //!
 //! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 225 / 308
 //! instructions per sample; one fit of a 0.6 s throw at 2 kHz 11.9 M / 11.4 M instructions
-//! (21.5 M / 25.2 M with the rotor telemetry's offsets of (F7): four more parameters),
+//! (16.8 M / 19.7 M with the rotor telemetry's offsets of (F7): four more parameters),
 //! about 0.07 s at 168 MHz (28 M / 27 M when the model does not fit to the noise and
 //! the fit from the rotor's spin-up follows); up to scale, 20 s of a slow tumble at 1 kHz from a
 //! first guess 2 % off 13.4 M / 13.5 M (0.08 s; about 8.6 M from the pipeline's own first
@@ -633,13 +638,35 @@ struct Forcing {
 struct Cells {
     u: [f32; 3],
     runs: [(usize, usize); CELLS],
+    /// The prior's weight on each offset in the cost's units, `sigma^2 / (q^2 / 12)` (the
+    /// gyro's white-noise variance per sample over the offset's, uniform over one quantum).
+    prior: f32,
+    /// The momentum's quantum `q`, kg m^2/s.
+    quantum: f32,
 }
 
 impl Cells {
     const NONE: Cells = Cells {
         u: [0.0; 3],
         runs: [(0, 0); CELLS],
+        prior: 0.0,
+        quantum: 0.0,
     };
+
+    /// Whether the fitted offsets `d` (the last [`CELLS`] of `theta`) are a quantisation's:
+    /// each within one quantum (the reading's error is at most half of one; the other half
+    /// leaves room for the fit's own error). On the thrown-FC logs, whose model error is tens
+    /// of times the gyro's noise, free offsets came out at 5-20 quanta: soaking up that error,
+    /// not the telemetry's steps.
+    fn plausible(&self, theta: &[f32]) -> bool {
+        let first = theta.len().saturating_sub(CELLS);
+        self.runs.iter().enumerate().all(|(c, run)| {
+            run.0 >= run.1
+                || theta
+                    .get(first + c)
+                    .is_some_and(|d| d.abs() <= self.quantum)
+        })
+    }
 
     /// Which errors are on at block node `b` (`[a, b)` holds it).
     fn at(&self, b: usize) -> [bool; CELLS] {
@@ -838,16 +865,27 @@ fn normal<const P: usize>(
         offset: *cells,
         ..Layout::PLAIN
     };
-    let (cost, f, g) =
+    let (mut cost, mut f, mut g) =
         normal_visit::<P, C_OFFSET>(blocks, rule, limit, theta, trace, layout, &mut |_, _| {})?;
     let mut idle = [0usize; CELLS];
     let mut n = 0;
     for (c, run) in cells.runs.iter().enumerate() {
+        let k = P - CELLS + c;
         if run.0 >= run.1 || run.0 >= limit {
             if let Some(slot) = idle.get_mut(n) {
-                *slot = P - CELLS + c;
+                *slot = k;
                 n += 1;
             }
+        } else if let (Some(d), Some(fk), Some(gk)) = (
+            theta.get(k),
+            f.get_mut(k).and_then(|row| row.get_mut(k)),
+            g.get_mut(k),
+        ) {
+            // The offset's prior ((F7)): a pseudo-observation `0 = sqrt(w) d`.
+            let w = cells.prior;
+            cost += w * d * d;
+            *fk += w;
+            *gk -= w * d;
         }
     }
     let (f, g) = without(&f, &g, idle.get(..n).unwrap_or(&[]));
@@ -1283,6 +1321,9 @@ fn fit_model<
     };
     if let Some((t1, cost1, f1)) = with_bias {
         if bias_found(cost0, cost1, dof1, noise_floor) {
+            if *cells != Cells::NONE && !cells.plausible(&t1) {
+                return None;
+            }
             if let Some(c1) = scaled_inverse(&f1) {
                 let g = |i: usize| t1.get(i).copied().unwrap_or(0.0);
                 let lag1 = if cost1 > 4.0 * noise_floor * noise_floor * dof1 {
@@ -1314,6 +1355,9 @@ fn fit_model<
                 });
             }
         }
+    }
+    if *cells != Cells::NONE && !cells.plausible(&th) {
+        return None;
     }
     let lag1 = if cost0 > fits {
         residual_lag1(blocks, &rule, &th, trace, cells)
@@ -1461,7 +1505,9 @@ fn ar1_inflation(rho: f32) -> f32 {
 ///
 /// `resolution` (kg m^2/s) is the rotor momentum's quantum as the rotor speed is read (0: exact):
 /// where the speed is steady its error is one constant per run, fitted as an offset of the
-/// momentum ((F7), [`steady_cells`]).
+/// momentum ((F7), [`steady_cells`]), under a prior of a quantum's uniform variance, unless the
+/// fitted offsets are larger than a quantum ([`Cells::plausible`]): then the momentum is taken
+/// as read.
 fn fit_stretch(
     blocks: &[Block<6>],
     init: &Mat3,
@@ -1475,28 +1521,37 @@ fn fit_stretch(
             init[0][0], init[1][1], init[2][2], init[0][1], init[0][2], init[1][2], w0[0], w0[1],
             w0[2],
         ];
-        let cells = (resolution > 0.0)
-            .then(|| steady_cells(blocks, resolution))
-            .flatten();
-        match cells {
-            Some(cells) => fit_model::<
-                { P0 + CELLS },
-                { P1 + CELLS },
-                6,
-                { P0 + CELLS + 3 },
-                { P1 + CELLS + 3 },
-                { P0 + CELLS + 6 },
-                { P1 + CELLS + 6 },
-            >(blocks, leading(&th), 0.0, noise_floor, test_bias, &cells),
-            None => fit_model::<P0, P1, 6, { P0 + 3 }, { P1 + 3 }, { P0 + 6 }, { P1 + 6 }>(
+        let plain = || {
+            fit_model::<P0, P1, 6, { P0 + 3 }, { P1 + 3 }, { P0 + 6 }, { P1 + 6 }>(
                 blocks,
                 th,
                 0.0,
                 noise_floor,
                 test_bias,
                 &Cells::NONE,
-            ),
-        }
+            )
+        };
+        let cells = (resolution > 0.0)
+            .then(|| steady_cells(blocks, resolution))
+            .flatten()
+            .map(|c| Cells {
+                prior: noise_floor * noise_floor * 12.0 / (resolution * resolution),
+                ..c
+            });
+        let Some(cells) = cells else {
+            return plain();
+        };
+        let with = fit_model::<
+            { P0 + CELLS },
+            { P1 + CELLS },
+            6,
+            { P0 + CELLS + 3 },
+            { P1 + CELLS + 3 },
+            { P0 + CELLS + 6 },
+            { P1 + CELLS + 6 },
+        >(blocks, leading(&th), 0.0, noise_floor, test_bias, &cells);
+        // Offsets that are no quantisation's ([`Cells::plausible`]: `None`): the plain fit.
+        with.or_else(plain)
     };
     fit_stretch_from(blocks, init, noise_floor, &from)
 }
@@ -1520,6 +1575,8 @@ fn steady_cells(blocks: &[Block<6>], quantum: f32) -> Option<Cells> {
     let mut cells = Cells {
         u,
         runs: [(0, 0); CELLS],
+        prior: 0.0,
+        quantum,
     };
     let mut keep = |run: (usize, usize)| {
         let len = |r: &(usize, usize)| r.1.saturating_sub(r.0);
