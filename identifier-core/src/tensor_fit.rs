@@ -1059,6 +1059,8 @@ fn normal_visit<const P: usize, const C: usize>(
             }
         }
     }
+    // (F7): `J^-1 u`, what `dw/dd_c` loses where error `c` is on.
+    let ku = if oc > 0 { mul(&k, offset.u) } else { [0.0; 3] };
     let mut sums = NormalSums::<P>::EMPTY;
     // Node b-1: block, rotor momentum at the mean time, its curvature, `|ybar|`.
     let mut prev: Option<(&Block<6>, [f32; 3], [f32; 3], f32)> = None;
@@ -1113,20 +1115,15 @@ fn normal_visit<const P: usize, const C: usize>(
         }
         let hdd = c;
         prev = Some((b, h, c, w_here));
-        // The model's momentum at the node: the logged one and the offset of its run.
-        let h_model = if oc > 0 {
-            add3(h, shift(offset.at(idx)))
+        // The model's momentum at the node: the logged one and the offset of the run it is in.
+        let on_here = if oc > 0 {
+            offset.at(idx)
         } else {
-            h
+            [false; CELLS]
         };
+        let h_model = if oc > 0 { add3(h, shift(on_here)) } else { h };
         let w = mul(&k, sub(x.l, h_model));
         let u = rate_sens(&k, &x, w);
-        // (F7): `dw/dd_c = J^-1 (Sigma_d - u)` where error `c` is on.
-        let (on_here, ku) = if oc > 0 {
-            (offset.at(idx), mul(&k, offset.u))
-        } else {
-            ([false; CELLS], [0.0; 3])
-        };
         // (B1): the block mean of w is w(tbar) + v/2 w''(tbar) + ... (`block_mean_correction`).
         let corr = block_mean_correction(&k, x.l, [h_model, hd, hdd], &b.time_moments());
         // The low part of `w`: the momentum is `l - lc` (compensated), so `w - J^-1 lc`.
@@ -1151,6 +1148,7 @@ fn normal_visit<const P: usize, const C: usize>(
                     *dst = *src;
                 }
                 if oc > 0 {
+                    // (F7): `dw/dd_c = J^-1 (Sigma_d - u)` where error `c` is on.
                     for (c, on) in on_here.iter().enumerate() {
                         let v = uc(P0 + c) - if *on { ku[i] } else { 0.0 };
                         if let Some(dst) = row.get_mut(P - oc + c) {
@@ -1437,7 +1435,10 @@ fn tests_found<const PT: usize, const PS: usize>(
 
 /// Lag-1 autocorrelation of the block residuals at `theta` over the three axes: the sum of
 /// each block's residual times the previous block's on the same axis, over the sum of
-/// squares; 0 when the residuals cannot be computed.
+/// squares; 0 when the residuals cannot be computed. Only the residuals are needed: without
+/// the offsets of (F7) the trajectory is integrated without sensitivities (until 2026-11-26
+/// with the nine columns, unused: the fit of a flight its model does not explain costs about 5 %
+/// less), with them the columns go along (the layout needs them).
 fn residual_lag1<const P: usize>(
     blocks: &[Block<6>],
     rule: &StepRule,
@@ -1598,11 +1599,13 @@ fn steady_cells(blocks: &[Block<6>], quantum: f32) -> Option<Cells> {
         }
     };
     let mut start = 0;
+    let mut first = blocks.first().map_or(0.0, along);
     for (b, block) in blocks.iter().enumerate() {
-        let first = blocks.get(start).map_or(0.0, along);
-        if !((along(block) - first).abs() < quantum) {
+        let here = along(block);
+        if !((here - first).abs() < quantum) {
             keep((start, b));
             start = b;
+            first = here;
         }
     }
     keep((start, blocks.len()));

@@ -124,19 +124,10 @@ pub fn unit_throw(
         .pooled
         .tensor_std_kg_m2
         .map(|s| s.map(|r| r.map(|x| x as f64 / UNIT_J as f64)));
-    let j1_corr = rep.pooled.tensor_cov_kg2_m4.map(|c| {
-        let s: [f64; 6] = std::array::from_fn(|i| (c[i][i] as f64).sqrt());
-        std::array::from_fn(|i| {
-            std::array::from_fn(|k| {
-                let r = c[i][k] as f64 / (s[i] * s[k]);
-                if r.is_finite() {
-                    r.clamp(-1.0, 1.0)
-                } else {
-                    f64::from(u8::from(i == k))
-                }
-            })
-        })
-    });
+    let j1_corr = rep
+        .pooled
+        .tensor_cov_kg2_m4
+        .map(|c| correlations(&c.map(|r| r.map(f64::from))));
     let runs: Vec<Vec<usize>> = rep
         .fed_runs
         .iter()
@@ -279,6 +270,22 @@ pub fn fit_offset(rec: &Recording, runs: &[Vec<usize>], bias: [f32; 3]) -> Optio
         imu_from_com: r,
         rms: (rss.max(0.0) / n as f64).sqrt(),
         cov,
+    })
+}
+
+/// The correlations of a covariance matrix, each entry clamped to `[-1, 1]`; where a variance
+/// is zero or not finite, the identity's entry (the input taken as independent).
+fn correlations<const N: usize>(cov: &[[f64; N]; N]) -> [[f64; N]; N] {
+    let s: [f64; N] = std::array::from_fn(|i| cov[i][i].max(0.0).sqrt());
+    std::array::from_fn(|i| {
+        std::array::from_fn(|k| {
+            let r = cov[i][k] / (s[i] * s[k]);
+            if r.is_finite() {
+                r.clamp(-1.0, 1.0)
+            } else {
+                f64::from(u8::from(i == k))
+            }
+        })
     })
 }
 
@@ -578,10 +585,13 @@ fn solve(
 /// add. A group of one throw has no scatter to measure: its throw's own reported standard
 /// deviations of `J1` enter to first order (each of the six entries moved by one standard
 /// deviation and everything recomputed, combined with the entries' correlations the estimate
-/// reported: one rotor momentum fixes the scale of all of them, and taken as independent the
-/// object's moments from one simulated throw came out 1.6x overconfident, `host-tests/tests/calibrate_sim.rs`). On the shared thrown-FC logs the proof body
-/// as the object (one throw, `j` from the other four): standard deviations of the moments
-/// 1.2-2.6 %, errors +2.35, +1.98, -0.10 %.
+/// reported: one rotor momentum fixes the scale of all of them), and so does its centre of
+/// mass (the jackknife of [`fit_offset`]). An object from one simulated throw, 8 seeds
+/// (`host-tests/tests/calibrate_sim.rs`): error over standard deviation RMS 1.11 (3.23 with
+/// the entries independent, no centre-of-mass term and the rotor telemetry's steps not
+/// fitted). On the shared thrown-FC logs the proof body's throw LOG00126 as the object (`j`
+/// from the other four): standard deviations of the moments 1.88, 2.03, 1.54 %, errors +2.35,
+/// +1.98, -0.10 %.
 #[derive(Clone, Copy, Debug, Default)]
 struct Uncertainty {
     j: f64,
@@ -632,24 +642,16 @@ fn uncertainty(groups: [&[UnitThrow]; 3], known: &M3, m: Masses, full: &Solved) 
             let Some(std) = throw.j1_std else {
                 continue;
             };
-            let eye = |i: usize, k: usize| f64::from(u8::from(i == k));
             let rho_j = throw
                 .j1_corr
-                .unwrap_or(std::array::from_fn(|i| std::array::from_fn(|k| eye(i, k))));
+                .unwrap_or_else(|| correlations(&[[0.0; 6]; 6]));
             let com_cov = throw.imu_from_com_cov.unwrap_or([[0.0; 3]; 3]);
             let com_std = [0, 1, 2].map(|k| com_cov[k][k].max(0.0).sqrt());
+            let rho_c = correlations(&com_cov);
             let rho = |e: usize, f: usize| -> f64 {
                 match (e < 6, f < 6) {
                     (true, true) => rho_j[e][f],
-                    (false, false) => {
-                        let (a, b) = (e - 6, f - 6);
-                        let r = com_cov[a][b] / (com_std[a] * com_std[b]);
-                        if r.is_finite() {
-                            r.clamp(-1.0, 1.0)
-                        } else {
-                            eye(a, b)
-                        }
-                    }
+                    (false, false) => rho_c[e - 6][f - 6],
                     _ => 0.0,
                 }
             };

@@ -48,7 +48,7 @@ pub fn export(
         return Err("the time steps are not positive".into());
     }
     let noise = noise_std.unwrap_or_else(|| estimate_noise(&rec.gyro));
-    let mut step = inertia::survey::RotorStep::default();
+    let mut step = None;
     let speed: Option<Vec<f32>> = match &rotor {
         None => None,
         Some(r) => {
@@ -60,9 +60,7 @@ pub fn export(
             let Some(s) = ch.rad_per_sec(r.poles) else {
                 return Err("the log gives rotor speed as eRPM: --rotor-poles is needed".into());
             };
-            for &v in &s {
-                step.push(v);
-            }
+            step = inertia::survey::RotorStep::of(&s);
             // As identify: the sample-and-hold channel interpolated unless asked raw.
             Some(if hold.interpolates(slow_telemetry(&rec.t, &s)) {
                 unhold(&rec.t, &s)
@@ -92,7 +90,7 @@ pub fn export(
     for a in axis {
         b.extend_from_slice(&a.to_le_bytes());
     }
-    let resolution = rotor.and(step.step()).unwrap_or(0.0);
+    let resolution = step.unwrap_or(0.0);
     b.extend_from_slice(&resolution.to_le_bytes());
     b.extend_from_slice(&(n as u32).to_le_bytes());
     for i in 0..n {

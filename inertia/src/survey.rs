@@ -76,6 +76,15 @@ impl RotorStep {
     pub fn step(&self) -> Option<f32> {
         self.step
     }
+
+    /// The smallest change of a whole channel held in memory (the readings pushed in order).
+    pub fn of(speed: &[f32]) -> Option<f32> {
+        let mut s = RotorStep::default();
+        for &v in speed {
+            s.push(v);
+        }
+        s.step()
+    }
 }
 
 /// Median absolute third difference of each gyro axis (see
@@ -232,11 +241,7 @@ mod tests {
     use super::RotorStep;
 
     fn step_of(values: &[f32]) -> Option<f32> {
-        let mut s = RotorStep::default();
-        for &v in values {
-            s.push(v);
-        }
-        s.step()
+        RotorStep::of(values)
     }
 
     /// DShot eRPM in rad/s for 12 poles: multiples of 1.745 rad/s, a steady idle dithering

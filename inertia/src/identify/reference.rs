@@ -40,7 +40,7 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
     }
     let noise = opts.noise_std.unwrap_or_else(|| estimate_noise(&rec.gyro));
     // Rotor momentum per sample, and the speed channel's resolution.
-    let mut step = crate::survey::RotorStep::default();
+    let mut step = None;
     let h: Vec<[f32; 3]> = match &opts.rotor {
         None => vec![[0.0; 3]; n],
         Some(r) => {
@@ -54,9 +54,7 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
                     "the log gives rotor speed as eRPM: --rotor-poles is needed".into(),
                 ));
             };
-            for &v in &speed {
-                step.push(v);
-            }
+            step = crate::survey::RotorStep::of(&speed);
             let speed = if opts.rotor_hold.interpolates(slow_telemetry(&rec.t, &speed)) {
                 unhold(&rec.t, &speed)
             } else {
@@ -77,7 +75,7 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
     }
     let settings = PipelineSettings::for_rate(rate, noise)
         .with_full_scale(rec.gyro_full_scale)
-        .with_momentum_resolution(super::momentum_quantum(opts, step.step()));
+        .with_momentum_resolution(super::momentum_quantum(opts, step));
     let dt_of = |i: usize| -> f32 {
         if i == 0 {
             dt_med as f32
