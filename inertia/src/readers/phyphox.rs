@@ -105,7 +105,7 @@ impl Source for PhyphoxSource {
         visit: &mut Visit<'_>,
         progress: &mut dyn FnMut(f32),
     ) -> Result<Reading, ReadError> {
-        text::read_table(&self.file, visit, progress, &mut |n, line, scratch| {
+        text::read_table(&self.file, visit, progress, &|n, line, scratch| {
             Ok(self.row(n, line, scratch)?.map(|(t, w)| (t, w, None, None)))
         })
     }
