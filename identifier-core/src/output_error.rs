@@ -867,6 +867,10 @@ impl<const M: usize> Pooled<M> {
 pub(crate) struct StretchResult<const M: usize> {
     pub(crate) p: [f32; M],
     pub(crate) cov: Sym<M>,
+    /// What the inputs' known errors add to `cov`, in the parameters' units (not scaled by
+    /// the residual's variance, as `cov` is): the tensor fit's rotor momentum read at a
+    /// resolution ((F8) of `tensor_fit`).
+    pub(crate) input: Option<Sym<M>>,
     pub(crate) cost: f32,
     pub(crate) params: usize,
     pub(crate) bias: Option<[f32; 3]>,

@@ -1018,6 +1018,7 @@ impl<const N: usize> RatioFit<N> {
                     [k * fit.cov[0][0], k * fit.cov[0][1]],
                     [k * fit.cov[1][0], k * fit.cov[1][1]],
                 ],
+                input: None,
                 cost: fit.cost,
                 params,
                 bias: biased.then_some([fit.theta[5], fit.theta[6], fit.theta[7]]),
