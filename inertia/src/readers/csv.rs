@@ -322,11 +322,7 @@ mod tests {
     use crate::recording::RotorSpeed;
 
     fn tmp(name: &str, bytes: &[u8]) -> std::path::PathBuf {
-        let dir = std::env::temp_dir().join(format!("inertia_csv_{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join(name);
-        std::fs::write(&p, bytes).unwrap();
-        p
+        crate::readers::test_file("csv", name, bytes)
     }
 
     #[test]

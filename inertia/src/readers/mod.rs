@@ -459,3 +459,14 @@ pub(crate) fn guard<T>(file: &Path, what: &str, f: impl FnOnce() -> T) -> Result
         )
     })
 }
+
+/// A file of `bytes` named `name` in a folder of this test run's own (`kind` apart), for the
+/// readers' tests.
+#[cfg(test)]
+pub(crate) fn test_file(kind: &str, name: &str, bytes: &[u8]) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("inertia_{kind}_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
+}

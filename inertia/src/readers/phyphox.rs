@@ -211,11 +211,7 @@ mod tests {
     use super::*;
 
     fn tmp(name: &str, bytes: &[u8]) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("inertia_phyphox_{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join(name);
-        std::fs::write(&p, bytes).unwrap();
-        p
+        crate::readers::test_file("phyphox", name, bytes)
     }
 
     #[test]

@@ -521,10 +521,10 @@ mod tests {
 
     #[test]
     fn a_line_not_utf8_wins_over_an_earlier_bad_line() {
-        let dir = std::env::temp_dir().join(format!("inertia_text_{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join("utf8_late.csv");
-        std::fs::write(&p, b"t,wx,wy,wz\n0,1,2,3\n0.01,abc,2,3\n0.02,\xff,2,3\n").unwrap();
+        let p = write(
+            "utf8_late.csv",
+            b"t,wx,wy,wz\n0,1,2,3\n0.01,abc,2,3\n0.02,\xff,2,3\n",
+        );
         let e = crate::read(&p, &Default::default()).unwrap_err();
         assert_eq!(e.line(), Some(4), "{e}");
         assert!(e.message.contains("UTF-8"), "{e}");
@@ -537,11 +537,7 @@ mod tests {
     }
 
     fn write(name: &str, bytes: &[u8]) -> std::path::PathBuf {
-        let dir = std::env::temp_dir().join(format!("inertia_text_{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join(name);
-        std::fs::write(&p, bytes).unwrap();
-        p
+        crate::readers::test_file("text", name, bytes)
     }
 
     /// A table of several blocks (and a line longer than a block) read in parallel gives every
