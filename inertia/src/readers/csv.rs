@@ -320,6 +320,7 @@ mod tests {
     use super::*;
     use crate::readers::{GyroUnit, TimeUnit};
     use crate::recording::RotorSpeed;
+    use crate::source::{Flow, Sample};
 
     fn tmp(name: &str, bytes: &[u8]) -> std::path::PathBuf {
         crate::readers::test_file("csv", name, bytes)
@@ -393,6 +394,101 @@ mod tests {
         // The first three take the one pass; the long digit strings (beyond 19 digits or 2^53,
         // where one division would not round as `parse` does) and the rest do not.
         assert_eq!(fast, 3);
+    }
+
+    /// The reading as it was before the blocks and threads: line by line, each row parsed,
+    /// checked and kept in turn (the reference for [`CsvSource::read_all`]).
+    fn line_by_line(src: &CsvSource) -> Result<(Vec<Sample>, Reading), ReadError> {
+        let mut check = super::super::check::Checker::new(&src.path);
+        let mut scratch = String::new();
+        let mut out = Vec::new();
+        text::each_line(
+            &src.path,
+            &mut |n, line| {
+                if n == 1 {
+                    return Ok(Flow::Continue);
+                }
+                if let Some((t, w, a, r)) = src.row(n, line, &mut scratch)? {
+                    if let Some(s) = check.check(Location::Line(n), t, w, a, r)? {
+                        out.push(s);
+                    }
+                }
+                Ok(Flow::Continue)
+            },
+            &mut |_| {},
+        )?;
+        Ok((out, check.reading(false)?))
+    }
+
+    /// Random logs of several blocks, with blank lines, CR LF endings, repeated times and,
+    /// in most, a fault somewhere (a bad number, a truncated row, time going backwards, a
+    /// line that is not UTF-8, or two of them): the blocks read on threads give what the line
+    /// by line reading gives, samples, warnings and errors alike.
+    #[test]
+    fn blocks_read_as_lines_are_read() {
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for file in 0..16 {
+            let mut bytes = b"t,wx,wy,wz,ax,ay,az,rotor_rad_s\n".to_vec();
+            let mut t = 0.0f64;
+            let faults = file % 4;
+            let rows = 14_000;
+            let at: Vec<u64> = (0..faults).map(|_| next() % rows).collect();
+            for i in 0..rows {
+                let r = next();
+                if r % 50 != 0 {
+                    t += 1.25e-4;
+                }
+                let mut line = format!(
+                    "{t:.7},{:.6},-{:.5},{},9.80665,{}.5,-0.25,{}",
+                    (r % 1000) as f64 * 1e-3,
+                    (r % 777) as f64 * 1e-2,
+                    r % 7,
+                    r % 3,
+                    174 + r % 9
+                );
+                if at.contains(&i) {
+                    match next() % 4 {
+                        0 => line = line.replacen("9.80665", "9.8.0", 1),
+                        1 => line = line.rsplit_once(',').map_or(line.clone(), |p| p.0.into()),
+                        2 => line = line.replacen(&format!("{t:.7}"), "0.0000001", 1),
+                        _ => {
+                            bytes.extend_from_slice(line.as_bytes());
+                            bytes.extend_from_slice(b"\xC3(\n");
+                            continue;
+                        }
+                    }
+                }
+                bytes.extend_from_slice(line.as_bytes());
+                bytes.extend_from_slice(if r % 3 == 0 { b"\r\n" } else { b"\n" });
+                if r % 97 == 0 {
+                    bytes.push(b'\n');
+                }
+            }
+            let p = tmp(&format!("blocks-{file}.csv"), &bytes);
+            let src = CsvSource::open(&p, &ReadOptions::default()).unwrap();
+            let mut got = Vec::new();
+            let read = src.read_all(
+                &mut |s| {
+                    got.push(*s);
+                    Ok(Flow::Continue)
+                },
+                &mut |_| {},
+            );
+            match (read, line_by_line(&src)) {
+                (Ok(r), Ok((want, w))) => {
+                    assert_eq!((r.samples, &r.duplicates), (w.samples, &w.duplicates));
+                    assert_eq!(format!("{got:?}"), format!("{want:?}"), "file {file}");
+                }
+                (Err(e), Err(w)) => assert_eq!(e.to_string(), w.to_string(), "file {file}"),
+                (r, w) => panic!("file {file}: {r:?} against {w:?}"),
+            }
+        }
     }
 
     #[test]
