@@ -345,6 +345,13 @@ const C_TORQUE: usize = P0 + 3;
 /// Steady stretches of the rotor speed whose momentum errors (F7) follows.
 const CELLS: usize = 4;
 
+/// Whether a fit of `P` parameters holds the rotor momentum's offsets of (F7): the absolute
+/// fits with [`CELLS`] more (the steady runs are given exactly when they are). Decided by `P`,
+/// not by the runs, so each parameter count integrates one layout and only that one is built.
+const fn has_offsets(p: usize) -> bool {
+    p == P0 + CELLS || p == P1 + CELLS
+}
+
 /// Sensitivity columns with the rotor momentum's errors of (F7): six entries, three initial
 /// rates, one error per steady stretch ([`Cells`]).
 const C_OFFSET: usize = P0 + CELLS;
@@ -864,8 +871,8 @@ fn six<const P: usize>(theta: &[f32; P], trace: f32, m: usize) -> [f32; 6] {
 /// initial rate) or 12 (and the bias), or 8 and 11 with the trace held at `trace` (the tensor up
 /// to scale: the sensitivity to `Jxx` is `d/dJxx - d/dJzz`, and the same for `Jyy`).
 ///
-/// With `cells` (not [`Cells::NONE`]) the last [`CELLS`] parameters are the rotor momentum's
-/// offsets of (F7); one whose run is empty or starts beyond the first `limit` blocks has no
+/// With [`has_offsets`]`(P)` the last [`CELLS`] parameters are the rotor momentum's offsets of
+/// (F7) over `cells`' runs; one whose run is empty or starts beyond the first `limit` blocks has no
 /// column, and is held where it is (its row and column of the normal matrix the identity's).
 fn normal<const P: usize>(
     blocks: &[Block<6>],
@@ -875,7 +882,7 @@ fn normal<const P: usize>(
     trace: f32,
     cells: &Cells,
 ) -> Option<Normal<P>> {
-    if *cells == Cells::NONE {
+    if !has_offsets(P) {
         return normal_visit::<P, P0>(blocks, rule, limit, theta, trace, Layout::PLAIN, &mut ());
     }
     let layout = Layout {
@@ -1544,7 +1551,7 @@ fn residual_lag1<const P: usize>(
         den: 0.0,
     };
     let n = blocks.len();
-    let ok = if *cells == Cells::NONE {
+    let ok = if !has_offsets(P) {
         normal_visit::<P, 0>(blocks, rule, n, theta, trace, Layout::PLAIN, &mut lag)
     } else {
         let layout = Layout {
@@ -1593,7 +1600,7 @@ fn input_cov<const P: usize>(
     let n = blocks.len();
     let pass = |node: &mut dyn FnMut(&Node<'_, P>)| {
         let mut node = OnNode(node);
-        if *cells == Cells::NONE {
+        if !has_offsets(P) {
             normal_visit::<P, P0>(blocks, rule, n, theta, 0.0, layout, &mut node)
         } else {
             normal_visit::<P, C_OFFSET>(blocks, rule, n, theta, 0.0, layout, &mut node)
