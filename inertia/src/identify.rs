@@ -191,6 +191,14 @@ pub struct Report {
     /// Whether the free flights were found from the accelerometer (else the whole log or the
     /// given segments were taken).
     pub free_flight_detection: bool,
+    /// The rotor momentum's quantum the fits assumed, kg m^2/s: the rotor inertia times the
+    /// speed channel's smallest step (the telemetry's resolution; (F7) and (F8) of
+    /// `identifier_core::tensor_fit`). Absent without a rotor or when the speed never changed.
+    #[serde(
+        rename = "rotor_momentum_quantum_kg_m2_s",
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub rotor_momentum_quantum: Option<f32>,
     /// Every free flight.
     pub throws: Vec<EstimateJson>,
     /// All throws together (the on-board result).
@@ -442,9 +450,10 @@ pub fn identify_source(
                 .into(),
         );
     }
+    let quantum = momentum_quantum(opts, sv.rotor_step);
     let settings = PipelineSettings::for_rate(rate, noise)
         .with_full_scale(src.full_scale())
-        .with_momentum_resolution(momentum_quantum(opts, sv.rotor_step));
+        .with_momentum_resolution(quantum);
     let inputs = Inputs {
         src,
         samples: n,
@@ -521,6 +530,7 @@ pub fn identify_source(
         noise_std: noise,
         gyro_bias: pooled.bias.unwrap_or([0.0; 3]),
         free_flight_detection: detection,
+        rotor_momentum_quantum: (quantum > 0.0).then_some(quantum),
         throws: throws.into_iter().map(|(_, j)| j).collect(),
         pooled: pooled_json,
         warnings,

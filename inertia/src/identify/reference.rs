@@ -73,9 +73,10 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
                 .into(),
         );
     }
+    let quantum = super::momentum_quantum(opts, step);
     let settings = PipelineSettings::for_rate(rate, noise)
         .with_full_scale(rec.gyro_full_scale)
-        .with_momentum_resolution(super::momentum_quantum(opts, step));
+        .with_momentum_resolution(quantum);
     let dt_of = |i: usize| -> f32 {
         if i == 0 {
             dt_med as f32
@@ -205,6 +206,7 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
         noise_std: noise,
         gyro_bias: bias,
         free_flight_detection: detection,
+        rotor_momentum_quantum: (quantum > 0.0).then_some(quantum),
         throws,
         pooled,
         warnings,
