@@ -324,7 +324,7 @@ fn an_object_from_one_throw_comes_with_an_honest_uncertainty() {
 fn assert_honest(z: &[f64], what: &str) {
     let rms = (z.iter().map(|x| x * x).sum::<f64>() / z.len() as f64).sqrt();
     println!("RMS error / reported std over {} {what}: {rms:.2}", z.len());
-    // Since the ramps' quantisation is counted too ((F8)): RMS 0.95 and 1.07, largest 2.3
+    // Since the ramps' quantisation is counted too ((F8)): RMS 0.97 and 1.07, largest 2.3
     // (1.32 and 1.11, largest 2.8, with the steady runs' offsets alone).
     assert!(
         z.iter().all(|x| x.abs() < 3.5),
@@ -338,7 +338,7 @@ fn assert_honest(z: &[f64], what: &str) {
 /// fit took the reading's steady errors as offsets ((F7), 2026-11-26) these throws came out
 /// `Converged` with errors of 5 to 34 reported standard deviations (RMS 4.85; the errors of
 /// the diagonal themselves up to 0.072 %, now 0.008 %); with the offsets alone RMS 1.32, since
-/// the ramps' errors are counted too ((F8)) 0.95.
+/// the ramps' errors are counted too ((F8)) 0.97.
 #[test]
 fn the_rotor_speed_resolution_keeps_the_tensor_std_honest() {
     let dir = std::env::temp_dir().join(format!("calibrate-sim-std-{}", std::process::id()));

@@ -870,7 +870,7 @@ pub(crate) struct StretchResult<const M: usize> {
     /// What the inputs' known errors add to `cov`, in the parameters' units (not scaled by
     /// the residual's variance, as `cov` is): the tensor fit's rotor momentum read at a
     /// resolution ((F8) of `tensor_fit`).
-    pub(crate) input: Option<Sym<M>>,
+    pub(crate) input: Option<(Sym<M>, f32)>,
     pub(crate) cost: f32,
     pub(crate) params: usize,
     pub(crate) bias: Option<[f32; 3]>,

@@ -114,11 +114,17 @@
 //! (`Phi` the transition of (F3), read from the initial rates' columns, `Sigma_w0 = Phi J`;
 //! `Delta_b` the half spans either side of the node). Blocks within one quantum of a group's
 //! first share its error (a held reading); a group's variance is `q^2 / 12` times
-//! `ramp_share`, which the sawtooth of a moving reading averages down. On simulated light
+//! `ramp_share`, which the sawtooth of a moving reading averages down. The residual's variance that
+//! scales the rest of the covariance is taken without the cost those errors are expected to
+//! leave (`sum_b n_b v_b |J^-1 u|^2` less what the fit takes up, `tr(F^-1 K)`; not below the
+//! gyro's noise), so they are not counted twice: on the light board their direct part is
+//! several times the gyro's noise per block, and the products' standard deviation was twice
+//! their errors. On simulated light
 //! board throws (`tensor-bench`, 100 seeds) the pipeline's reported standard deviation went
-//! from 0.67-1.95 of its errors to 0.59-1.09; on assembly throws through `inertia identify`
-//! (`calibrate_sim`) RMS 1.32 -> 0.95, largest 2.8 -> 2.3 std; the thrown-FC logs' are set by
-//! their model error and did not move.
+//! from 0.67-1.95 of its errors to 0.59-1.09 with the errors counted, 0.69-1.15 once the
+//! residual's variance no longer counted them too (Jxx 0.96, Jyy 1.15, Jzz 1.00, Jxy 0.69, Jxz
+//! 0.94, Jyz 1.01); on assembly throws through `inertia identify` (`calibrate_sim`) RMS 1.32
+//! -> 0.97; the thrown-FC logs' are set by their model error and did not move.
 //!
 //! The fit starts from an estimate of `J` the caller gives (the pipeline gives
 //! [`crate::TensorEstimator`]'s) and the first block's rate, on all the blocks at once, and on
@@ -1440,7 +1446,7 @@ fn fit_model<
                 return Some(StretchResult {
                     p: leading(&t1),
                     cov: leading_block(&c1),
-                    input: input.map(|c| leading_block(&c)),
+                    input: input.map(|(c, e)| (leading_block(&c), e)),
                     cost: cost1,
                     params: PB,
                     bias: Some([g(M + 3), g(M + 4), g(M + 5)]),
@@ -1466,7 +1472,7 @@ fn fit_model<
     Some(StretchResult {
         p: leading(&th),
         cov: leading_block(&cov0),
-        input: input.map(|c| leading_block(&c)),
+        input: input.map(|(c, e)| (leading_block(&c), e)),
         cost: cost0,
         params: P,
         bias: None,
@@ -1572,7 +1578,8 @@ fn residual_lag1<const P: usize>(
 /// The rotor momentum's errors along ramps and short steady runs ((F8)) in the covariance of
 /// the fitted parameters, `sum_g v_g (F^-1 gamma_g) (F^-1 gamma_g)^T` (the parameters' units
 /// squared, not scaled by the noise), with `F` the fit's normal matrix at its optimum (see the
-/// module docs, (F8)). One pass over the trajectory forms each block's `gamma_b = a_b u - (Z -
+/// module docs, (F8)), and the weighted cost the errors are expected to leave in the residual,
+/// `sum_b n_b v_b |J^-1 u|^2 - tr(F^-1 K)` (their direct part less what the fit takes up). One pass over the trajectory forms each block's `gamma_b = a_b u - (Z -
 /// Y_b) c_b` from the suffix `Z - Y_b` of `Z = sum_b a_b Phi_b`, which the normal matrix holds
 /// already. (The sums `S_pp`, `S_pc`, `S_cc` of the expanded square, with `Z` applied at the
 /// end, are the same algebra, but in `f32` their terms cancel to less than their rounding: they
@@ -1585,7 +1592,7 @@ fn input_cov<const P: usize>(
     cells: &Cells,
     res: Resolution,
     f: &Sym<P>,
-) -> Option<Sym<P>> {
+) -> Option<(Sym<P>, f32)> {
     let quantum = res.quantum;
     if !(quantum > 0.0) {
         return None;
@@ -1597,6 +1604,7 @@ fn input_cov<const P: usize>(
         out: [[0.0; P]; P],
         group: None,
     };
+    let mut expected = 0.0f32;
     let ok = each_gamma(blocks, rule, theta, cells, f, u, &mut |nd, gamma| {
         let Some(gamma) = gamma else {
             // A steady run's error is a parameter of the fit.
@@ -1610,10 +1618,15 @@ fn input_cov<const P: usize>(
         let next = along(b + 1).unwrap_or(here);
         let crossed = 0.5 * (next - prev).abs() / quantum;
         let var = quantum * quantum / 12.0 * ramp_share(crossed, nd.weight * res.readings);
+        let ku = mul(nd.k, u);
+        expected += nd.weight * var * dot(ku, ku);
         sums.push(*gamma, var, here, quantum);
     });
     sums.flush();
-    (ok && sums.out.iter().flatten().all(|x| x.is_finite())).then_some(sums.out)
+    // What the fit itself takes up of the errors: tr(F^-1 K) = tr(F out).
+    let absorbed: f32 = f.iter().zip(&sums.out).map(|(fr, or)| dot_n(fr, or)).sum();
+    let expected = (expected - absorbed).max(0.0);
+    (ok && sums.out.iter().flatten().all(|x| x.is_finite())).then_some((sums.out, expected))
 }
 
 /// Each block's `gamma_b` of (F8) at `theta`, in order, with its node: how an error of one
@@ -1887,13 +1900,18 @@ fn fit_stretch(
     };
     let mut r = fit_stretch_from(blocks, init, noise_floor, &from)?;
     // (F8): the reading's errors, in the covariance's units (it is scaled by the residual's
-    // variance per degree of freedom when pooled).
+    // variance per degree of freedom when pooled); the residual's variance that scales the
+    // rest is taken without what those errors are expected to leave in it (counted once, not
+    // twice), never below the gyro's noise floor.
     let dof = (3 * blocks.len()) as f32 - r.params as f32;
     let s2 = r.cost / dof;
-    if let (Some(x), true) = (r.input.take(), s2 > 0.0) {
+    if let (Some((x, expected)), true) = (r.input.take(), s2 > 0.0) {
+        let floor = noise_floor * noise_floor;
+        let adj = ((r.cost - expected) / dof).max(floor).min(s2);
+        let scale = adj / s2;
         for (row, xr) in r.cov.iter_mut().zip(x) {
             for (c, xc) in row.iter_mut().zip(xr) {
-                *c += xc / s2;
+                *c = *c * scale + xc / s2;
             }
         }
     }
