@@ -1579,12 +1579,13 @@ fn residual_lag1<const P: usize>(
 /// the fitted parameters, `sum_g v_g (F^-1 gamma_g) (F^-1 gamma_g)^T` (the parameters' units
 /// squared, not scaled by the noise), with `F` the fit's normal matrix at its optimum (see the
 /// module docs, (F8)), and the weighted cost the errors are expected to leave in the residual,
-/// `sum_b n_b v_b |J^-1 u|^2 - tr(F^-1 K)` (their direct part less what the fit takes up). One pass over the trajectory forms each block's `gamma_b = a_b u - (Z -
-/// Y_b) c_b` from the suffix `Z - Y_b` of `Z = sum_b a_b Phi_b`, which the normal matrix holds
-/// already. (The sums `S_pp`, `S_pc`, `S_cc` of the expanded square, with `Z` applied at the
-/// end, are the same algebra, but in `f32` their terms cancel to less than their rounding: they
-/// gave negative variances on a simulated throw.) `None` without a resolution, a rotor or a
-/// trajectory.
+/// `sum_b n_b v_b |J^-1 u|^2 - tr(F^-1 K)` (their direct part less what the fit takes up).
+/// One pass over the trajectory forms each block's `gamma_b = a_b u - (Z - Y_b) c_b`
+/// ([`each_gamma`]) from the suffix `Z - Y_b` of `Z = sum_b a_b Phi_b`, which the normal
+/// matrix holds already. (The sums `S_pp`, `S_pc`, `S_cc` of the expanded square, with `Z`
+/// applied at the end, are the same algebra, but in `f32` their terms cancel to less than
+/// their rounding: they gave negative variances on a simulated throw.) `None` without a
+/// resolution, a rotor or a trajectory.
 fn input_cov<const P: usize>(
     blocks: &[Block<6>],
     rule: &StepRule,
@@ -1727,7 +1728,8 @@ fn add_product<const P: usize>(y: &mut [[f32; 3]; P], a: &[[f32; 3]; P], phi: &M
 /// speed crosses `d` quanta over the block's `n` readings:
 ///
 /// ```text
-/// g(d, n) = c(d) + min(d, n) / n^2,   c(d) = (1 - d)^2 + d^2 / 30  (d < 1),   1 / (30 d^2)  (d >= 1)
+/// g(d, n) = c(d) + min(d, n) / n^2,
+/// c(d) = (1 - d)^2 + d^2 / 30  (d < 1),   1 / (30 d^2)  (d >= 1)
 /// ```
 ///
 /// The error of a reading is a sawtooth of the speed (zero mean, period one quantum). Its mean
