@@ -7,7 +7,9 @@
 //! the whole log through the shared pipeline (gate, guards, bias) as the firmware runs it, and
 //! the output-error fit ([`TensorFit`]) of the true free flight started from the estimator's
 //! tensor.
-//! Prints per entry: RMS error / CRB, and RMS(error / reported std) (calibration).
+//! Prints per entry: RMS error / CRB, and RMS(error / reported std) (calibration). With
+//! `--plot FILE`, writes the pipeline's `|error| / reported std` per entry, sorted, against the
+//! quantiles of `|N(0, 1)|` (an honest standard deviation follows the diagonal) as SVG.
 use host_tests::crb_tensor::{absolute_bound, FreeFlight};
 use host_tests::throw_sim::{board_throw_config, simulate};
 use identifier_core::{
@@ -15,13 +17,22 @@ use identifier_core::{
 };
 
 fn main() {
-    let seeds: u64 = std::env::args()
-        .nth(1)
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(20);
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let seeds: u64 = args.first().and_then(|s| s.parse().ok()).unwrap_or(20);
     // `off`: no quantisation of the logged rotor speed and gyro (the estimator against the
     // bound of its own model); default: quantised as the thrown-FC logs are.
-    let quant = std::env::args().nth(2).unwrap_or_default();
+    let quant = if args.iter().any(|a| a == "off") {
+        "off"
+    } else {
+        ""
+    };
+    let plot = args
+        .iter()
+        .position(|a| a == "--plot")
+        .and_then(|i| args.get(i + 1))
+        .map(std::path::PathBuf::from);
+    // The pipeline's error over its reported std, per entry and seed (for `--plot`).
+    let mut zs: [Vec<f64>; 6] = Default::default();
     let names = ["Jxx", "Jyy", "Jzz", "Jxy", "Jxz", "Jyz"];
     let idx = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
     let mut sq = [[0.0f64; 6]; 3];
@@ -172,6 +183,9 @@ fn main() {
                 let err = t[r][c] as f64 - sim.config.inertia[r][c];
                 sq[path][q] += err * err;
                 z2[path][q] += (err / s[r][c] as f64).powi(2);
+                if path == 1 {
+                    zs[q].push(err / s[r][c] as f64);
+                }
                 own2[path][q] += (err / b.std_j[r][c]).powi(2);
                 if path == 0 {
                     crb[q] += b.std_j[r][c].powi(2);
@@ -239,4 +253,129 @@ fn main() {
         n_fed,
         fed_ratios.join(", ")
     );
+    if let Some(path) = plot {
+        let quantised = if quant == "off" {
+            "logged exactly"
+        } else {
+            "quantised as logged"
+        };
+        let title = format!(
+            "pipeline, {} simulated board throws, rotor speed {quantised}: |error| / reported std",
+            n[1]
+        );
+        match write_honesty(&path, &title, &names, &zs) {
+            Ok(()) => println!("wrote {}", path.display()),
+            Err(e) => {
+                eprintln!("tensor-bench: {e:#}");
+                std::process::exit(1);
+            }
+        }
+    }
+}
+
+/// `|z|` per entry, sorted, against the quantiles of `|N(0, 1)|` at `(i + 1/2) / n`: an honest
+/// standard deviation puts the points on the diagonal, an overconfident one above it.
+fn write_honesty(
+    path: &std::path::Path,
+    title: &str,
+    names: &[&str; 6],
+    zs: &[Vec<f64>; 6],
+) -> anyhow::Result<()> {
+    use host_tests::plot::{write_svg, Chart, Series};
+    let mut series: Vec<Series> = names
+        .iter()
+        .zip(zs)
+        .map(|(name, z)| {
+            let mut a: Vec<f64> = z.iter().map(|x| x.abs()).filter(|x| x.is_finite()).collect();
+            a.sort_by(f64::total_cmp);
+            let n = a.len() as f64;
+            Series {
+                name: (*name).to_string(),
+                points: a
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &y)| (normal_quantile(0.5 + 0.5 * (i as f64 + 0.5) / n), y))
+                    .collect(),
+            }
+        })
+        .collect();
+    series.push(Series {
+        name: "honest (y = x)".into(),
+        points: vec![(0.0, 0.0), (3.5, 3.5)],
+    });
+    write_svg(
+        path,
+        &[Chart {
+            title,
+            x_label: "quantile of |N(0, 1)|",
+            y_label: "|error| / reported std, sorted",
+            y_range: Some((0.0, 5.0)),
+            series,
+        }],
+    )
+}
+
+/// The standard normal's quantile at `p` in (0, 1) (Acklam's rational approximation, relative
+/// error below 1.2e-9).
+fn normal_quantile(p: f64) -> f64 {
+    const A: [f64; 6] = [
+        -3.969683028665376e1,
+        2.209460984245205e2,
+        -2.759285104469687e2,
+        1.383_577_518_672_69e2,
+        -3.066479806614716e1,
+        2.506628277459239,
+    ];
+    const B: [f64; 5] = [
+        -5.447609879822406e1,
+        1.615858368580409e2,
+        -1.556989798598866e2,
+        6.680131188771972e1,
+        -1.328068155288572e1,
+    ];
+    const C: [f64; 6] = [
+        -7.784894002430293e-3,
+        -3.223964580411365e-1,
+        -2.400758277161838,
+        -2.549732539343734,
+        4.374664141464968,
+        2.938163982698783,
+    ];
+    const D: [f64; 4] = [
+        7.784695709041462e-3,
+        3.224671290700398e-1,
+        2.445134137142996,
+        3.754408661907416,
+    ];
+    let tail = |q: f64| {
+        (((((C[0] * q + C[1]) * q + C[2]) * q + C[3]) * q + C[4]) * q + C[5])
+            / ((((D[0] * q + D[1]) * q + D[2]) * q + D[3]) * q + 1.0)
+    };
+    if p < 0.02425 {
+        tail((-2.0 * p.ln()).sqrt())
+    } else if p > 1.0 - 0.02425 {
+        -tail((-2.0 * (1.0 - p).ln()).sqrt())
+    } else {
+        let q = p - 0.5;
+        let r = q * q;
+        (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q
+            / (((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::normal_quantile;
+
+    #[test]
+    fn normal_quantiles_match_tables() {
+        for (p, z) in [
+            (0.5, 0.0),
+            (0.975, 1.959_963_985),
+            (0.01, -2.326_347_874),
+            (0.999, 3.090_232_306),
+        ] {
+            assert!((normal_quantile(p) - z).abs() < 1e-8, "{p}: {}", normal_quantile(p));
+        }
+    }
 }
