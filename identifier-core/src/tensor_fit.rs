@@ -1908,8 +1908,13 @@ fn fit_stretch(
     let dof = (3 * blocks.len()) as f32 - r.params as f32;
     let s2 = r.cost / dof;
     if let (Some((x, expected)), true) = (r.input.take(), s2 > 0.0) {
+        // Without a known gyro noise there is no floor to hold it to: the residual's as it is.
         let floor = noise_floor * noise_floor;
-        let adj = ((r.cost - expected) / dof).max(floor).min(s2);
+        let adj = if floor > 0.0 {
+            ((r.cost - expected) / dof).max(floor).min(s2)
+        } else {
+            s2
+        };
         let scale = adj / s2;
         for (row, xr) in r.cov.iter_mut().zip(x) {
             for (c, xc) in row.iter_mut().zip(xr) {
