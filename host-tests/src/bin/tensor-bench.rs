@@ -286,7 +286,11 @@ fn write_honesty(
         .iter()
         .zip(zs)
         .map(|(name, z)| {
-            let mut a: Vec<f64> = z.iter().map(|x| x.abs()).filter(|x| x.is_finite()).collect();
+            let mut a: Vec<f64> = z
+                .iter()
+                .map(|x| x.abs())
+                .filter(|x| x.is_finite())
+                .collect();
             a.sort_by(f64::total_cmp);
             let n = a.len() as f64;
             Series {
@@ -375,7 +379,11 @@ mod tests {
             (0.01, -2.326_347_874),
             (0.999, 3.090_232_306),
         ] {
-            assert!((normal_quantile(p) - z).abs() < 1e-8, "{p}: {}", normal_quantile(p));
+            assert!(
+                (normal_quantile(p) - z).abs() < 1e-8,
+                "{p}: {}",
+                normal_quantile(p)
+            );
         }
     }
 }
