@@ -112,8 +112,8 @@ struct Block {
 struct Parsed {
     /// Line numbers and rows, in order, up to the first row that failed.
     rows: Vec<(usize, TableRow)>,
-    /// The first row that failed: how many rows came before it and its error.
-    failed: Option<(usize, ReadError)>,
+    /// The error of the first row that failed (the rows above end before it).
+    failed: Option<ReadError>,
     /// The first line that is not UTF-8, or a read error: ends the reading.
     fatal: Option<ReadError>,
     /// File bytes up to the block's end.
@@ -273,7 +273,7 @@ fn parse_lines<'b>(
         match row(n, line, scratch) {
             Ok(Some(r)) => out.rows.push((n, r)),
             Ok(None) => {}
-            Err(e) => out.failed = Some((out.rows.len(), e)),
+            Err(e) => out.failed = Some(e),
         }
     }
 }
@@ -330,14 +330,9 @@ pub(crate) fn read_table(
             let Some(Ok(parsed)) = results.get(k % parsers).map(|r| r.recv()) else {
                 return Ok(());
             };
-            let mut rows = parsed.rows.into_iter();
-            let row_failed = parsed.failed;
-            let before = row_failed.as_ref().map_or(usize::MAX, |(b, _)| *b);
+            // The rows end where a row failed: visited in order, then that row's error.
             if failed.is_none() {
-                for (i, (n, (t, w, a, r))) in rows.by_ref().enumerate() {
-                    if i >= before {
-                        break;
-                    }
+                for (n, (t, w, a, r)) in parsed.rows {
                     let visited = check
                         .check(Location::Line(n), t, w, a, r)
                         .and_then(|s| s.map_or(Ok(Flow::Continue), |s| visit(&s)));
@@ -355,7 +350,7 @@ pub(crate) fn read_table(
                 }
             }
             if failed.is_none() {
-                failed = row_failed.map(|(_, e)| e);
+                failed = parsed.failed;
             }
             if let Some(e) = parsed.fatal {
                 return Err(e);
