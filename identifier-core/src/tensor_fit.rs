@@ -114,17 +114,18 @@
 //! (`Phi` the transition of (F3), read from the initial rates' columns, `Sigma_w0 = Phi J`;
 //! `Delta_b` the half spans either side of the node). Blocks within one quantum of a group's
 //! first share its error (a held reading); a group's variance is `q^2 / 12` times
-//! `ramp_share`, which the sawtooth of a moving reading averages down. The residual's variance that
-//! scales the rest of the covariance is taken without the cost those errors are expected to
-//! leave (`sum_b n_b v_b |J^-1 u|^2` less what the fit takes up, `tr(F^-1 K)`; not below the
-//! gyro's noise), so they are not counted twice: on the light board their direct part is
-//! several times the gyro's noise per block, and the products' standard deviation was twice
-//! their errors. On simulated light
-//! board throws (`tensor-bench`, 100 seeds) the pipeline's reported standard deviation went
-//! from 0.67-1.95 of its errors to 0.59-1.09 with the errors counted, 0.69-1.15 once the
-//! residual's variance no longer counted them too (Jxx 0.96, Jyy 1.15, Jzz 1.00, Jxy 0.69, Jxz
-//! 0.94, Jyz 1.01); on assembly throws through `inertia identify` (`calibrate_sim`) RMS 1.32
-//! -> 0.97; the thrown-FC logs' are set by their model error and did not move.
+//! `ramp_share`, which the sawtooth of a moving reading averages down. The residual's
+//! variance that scales the rest of the covariance is taken without the cost those errors are
+//! expected to leave (`sum_b n_b (v_b |J^-1 u|^2 + tr(J^-1 Phi_b C_b Phi_b^T J^-1))`, the
+//! direct part and the integrated momentum's, `C_b = sum_(k < b) v_k c_k c_k^T`, less what the
+//! fit takes up, `tr(F^-1 K)`; not below the gyro's noise), so they are not counted twice: on
+//! the light board they are several times the gyro's noise per block, and the products'
+//! standard deviation was twice their errors. On simulated light board throws
+//! (`tensor-bench`, 100 seeds) the pipeline's reported standard deviation went from 0.67-1.95
+//! of its errors to 0.59-1.09 with the errors counted, 0.77-1.19 once the residual's variance
+//! no longer counted them too (Jxx 1.00, Jyy 1.19, Jzz 1.02, Jxy 0.77, Jxz 0.99, Jyz 1.05); on
+//! assembly throws through `inertia identify` (`calibrate_sim`) RMS 1.32 -> 0.97; the
+//! thrown-FC logs' are set by their model error and did not move.
 //!
 //! The fit starts from an estimate of `J` the caller gives (the pipeline gives
 //! [`crate::TensorEstimator`]'s) and the first block's rate, on all the blocks at once, and on
@@ -1579,7 +1580,7 @@ fn residual_lag1<const P: usize>(
 /// the fitted parameters, `sum_g v_g (F^-1 gamma_g) (F^-1 gamma_g)^T` (the parameters' units
 /// squared, not scaled by the noise), with `F` the fit's normal matrix at its optimum (see the
 /// module docs, (F8)), and the weighted cost the errors are expected to leave in the residual,
-/// `sum_b n_b v_b |J^-1 u|^2 - tr(F^-1 K)` (their direct part less what the fit takes up).
+/// their direct and integrated parts less what the fit takes up, `tr(F^-1 K)` (module docs).
 /// One pass over the trajectory forms each block's `gamma_b = a_b u - (Z - Y_b) c_b`
 /// ([`each_gamma`]) from the suffix `Z - Y_b` of `Z = sum_b a_b Phi_b`, which the normal
 /// matrix holds already. (The sums `S_pp`, `S_pc`, `S_cc` of the expanded square, with `Z`
@@ -1606,8 +1607,10 @@ fn input_cov<const P: usize>(
         group: None,
     };
     let mut expected = 0.0f32;
-    let ok = each_gamma(blocks, rule, theta, cells, f, u, &mut |nd, gamma| {
-        let Some(gamma) = gamma else {
+    // The covariance of the integrated momentum's error referred to t_0, `sum v_k c_k c_k^T`.
+    let mut drift = [[0.0f32; 3]; 3];
+    let ok = each_gamma(blocks, rule, theta, cells, f, u, &mut |nd, gain| {
+        let Some((gamma, c, phi)) = gain else {
             // A steady run's error is a parameter of the fit.
             sums.flush();
             return;
@@ -1621,6 +1624,18 @@ fn input_cov<const P: usize>(
         let var = quantum * quantum / 12.0 * ramp_share(crossed, nd.weight * res.readings);
         let ku = mul(nd.k, u);
         expected += nd.weight * var * dot(ku, ku);
+        // The integrated part at this node: tr(M C M^T), M = J^-1 Phi_b.
+        let m: Mat3 = core::array::from_fn(|i| {
+            core::array::from_fn(|j| (0..3).map(|q| nd.k[i][q] * phi[q][j]).sum())
+        });
+        for row in &m {
+            expected += nd.weight * dot(*row, mul(&drift, *row));
+        }
+        for i in 0..3 {
+            for j in 0..3 {
+                drift[i][j] += var * c[i] * c[j];
+            }
+        }
         sums.push(*gamma, var, here, quantum);
     });
     sums.flush();
@@ -1629,6 +1644,9 @@ fn input_cov<const P: usize>(
     let expected = (expected - absorbed).max(0.0);
     (ok && sums.out.iter().flatten().all(|x| x.is_finite())).then_some((sums.out, expected))
 }
+
+/// A block's `gamma_b`, `c_b` and `Phi_b` of (F8).
+type Gain<'a, const P: usize> = (&'a [f32; P], [f32; 3], &'a Mat3);
 
 /// Each block's `gamma_b` of (F8) at `theta`, in order, with its node: how an error of one
 /// unit in the block's momentum along `u` moves the fit's gradient (`None` for a block in a
@@ -1641,7 +1659,7 @@ fn each_gamma<const P: usize>(
     cells: &Cells,
     f: &Sym<P>,
     u: [f32; 3],
-    visit: &mut dyn FnMut(&Node<'_, P>, Option<&[f32; P]>),
+    visit: &mut dyn FnMut(&Node<'_, P>, Option<Gain<'_, P>>),
 ) -> bool {
     let layout = Layout {
         offset: *cells,
@@ -1687,7 +1705,7 @@ fn each_gamma<const P: usize>(
             let suffix = [z[p][0] - y[p][0], z[p][1] - y[p][1], z[p][2] - y[p][2]];
             dot(a[p], u) - dot(suffix, c)
         });
-        visit(nd, Some(&gamma));
+        visit(nd, Some((&gamma, c, &phi)));
     };
     let node: &mut dyn FnMut(&Node<'_, P>) = &mut node;
     let mut seen = OnNode(node);
@@ -2584,21 +2602,13 @@ mod tests {
             .collect();
         let (th_b, _, _) = fit_of(&blocks_of(&moved));
         let mut g = [0.0f32; P0];
-        let ok = each_gamma(
-            &base,
-            &rule,
-            &th_a,
-            &Cells::NONE,
-            &f,
-            u,
-            &mut |nd, gamma| {
-                if let (true, Some(gamma)) = ((first..last).contains(&nd.index), gamma) {
-                    for (gi, x) in g.iter_mut().zip(gamma) {
-                        *gi += x * d;
-                    }
+        let ok = each_gamma(&base, &rule, &th_a, &Cells::NONE, &f, u, &mut |nd, gain| {
+            if let (true, Some((gamma, _, _))) = ((first..last).contains(&nd.index), gain) {
+                for (gi, x) in g.iter_mut().zip(gamma) {
+                    *gi += x * d;
                 }
-            },
-        );
+            }
+        });
         assert!(ok);
         let fi = scaled_inverse(&f).unwrap();
         let largest = (0..6)
