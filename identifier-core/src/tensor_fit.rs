@@ -889,15 +889,11 @@ fn normal<const P: usize>(
     trace: f32,
     cells: &Cells,
 ) -> Option<Normal<P>> {
+    let fitted = visit_fit::<P, P0>(blocks, rule, limit, theta, trace, cells, &mut ());
     if !has_offsets(P) {
-        return normal_visit::<P, P0>(blocks, rule, limit, theta, trace, Layout::PLAIN, &mut ());
+        return fitted;
     }
-    let layout = Layout {
-        offset: *cells,
-        ..Layout::PLAIN
-    };
-    let (mut cost, mut f, mut g) =
-        normal_visit::<P, C_OFFSET>(blocks, rule, limit, theta, trace, layout, &mut ())?;
+    let (mut cost, mut f, mut g) = fitted?;
     let mut idle = [0usize; CELLS];
     let mut n = 0;
     for (c, run) in cells.runs.iter().enumerate() {
@@ -921,6 +917,29 @@ fn normal<const P: usize>(
     }
     let (f, g) = without(&f, &g, idle.get(..n).unwrap_or(&[]));
     Some((cost, f, g))
+}
+
+/// [`normal_visit`] in the layout the parameter count implies ([`has_offsets`]): `C_PLAIN`
+/// sensitivity columns without the offsets of (F7) (0 when only the residuals are wanted),
+/// [`C_OFFSET`] with them, over `cells`' runs.
+fn visit_fit<const P: usize, const C_PLAIN: usize>(
+    blocks: &[Block<6>],
+    rule: &StepRule,
+    limit: usize,
+    theta: &[f32; P],
+    trace: f32,
+    cells: &Cells,
+    seen: &mut impl Visitor<P>,
+) -> Option<Normal<P>> {
+    if has_offsets(P) {
+        let layout = Layout {
+            offset: *cells,
+            ..Layout::PLAIN
+        };
+        normal_visit::<P, C_OFFSET>(blocks, rule, limit, theta, trace, layout, seen)
+    } else {
+        normal_visit::<P, C_PLAIN>(blocks, rule, limit, theta, trace, Layout::PLAIN, seen)
+    }
 }
 
 /// [`normal`] of the fit up to scale extended for its tests: `C = 12` a constant torque
@@ -1024,12 +1043,10 @@ fn normal_visit<const P: usize, const C: usize>(
         }
         offset.u.map(|x| x * t)
     };
+    // The model's momentum where the runs `on` are on: the logged one and their offsets.
+    let shifted = |h: [f32; 3], on: [bool; CELLS]| if oc > 0 { add3(h, shift(on)) } else { h };
     let (h_first, _) = rotor_node(blocks, 0);
-    let h_first = if oc > 0 {
-        add3(h_first, shift(offset.at(0)))
-    } else {
-        h_first
-    };
+    let h_first = shifted(h_first, offset.at(0));
     let jw = mul(&j, w0);
     let mut x = Aug::<C> {
         l: [jw[0] + h_first[0], jw[1] + h_first[1], jw[2] + h_first[2]],
@@ -1108,11 +1125,7 @@ fn normal_visit<const P: usize, const C: usize>(
             let span = b.since(bp);
             if span > 0.0 {
                 let seg = RotorSegment {
-                    h0: if oc > 0 {
-                        add3(hp, shift(offset.between(idx)))
-                    } else {
-                        hp
-                    },
+                    h0: shifted(hp, offset.between(idx)),
                     s: [
                         (h[0] - hp[0]) / span,
                         (h[1] - hp[1]) / span,
@@ -1152,7 +1165,7 @@ fn normal_visit<const P: usize, const C: usize>(
         } else {
             [false; CELLS]
         };
-        let h_model = if oc > 0 { add3(h, shift(on_here)) } else { h };
+        let h_model = shifted(h, on_here);
         let w = mul(&k, sub(x.l, h_model));
         let u = rate_sens(&k, &x, w);
         // (B1): the block mean of w is w(tbar) + v/2 w''(tbar) + ... (`block_mean_correction`).
@@ -1557,17 +1570,7 @@ fn residual_lag1<const P: usize>(
         num: 0.0,
         den: 0.0,
     };
-    let n = blocks.len();
-    let ok = if !has_offsets(P) {
-        normal_visit::<P, 0>(blocks, rule, n, theta, trace, Layout::PLAIN, &mut lag)
-    } else {
-        let layout = Layout {
-            offset: *cells,
-            ..Layout::PLAIN
-        };
-        normal_visit::<P, C_OFFSET>(blocks, rule, n, theta, trace, layout, &mut lag)
-    }
-    .is_some();
+    let ok = visit_fit::<P, 0>(blocks, rule, blocks.len(), theta, trace, cells, &mut lag).is_some();
     let Lag1 { num, den, .. } = lag;
     if ok && den > 0.0 && num.is_finite() {
         num / den
@@ -1661,11 +1664,6 @@ fn each_gamma<const P: usize>(
     u: [f32; 3],
     visit: &mut dyn FnMut(&Node<'_, P>, Option<Gain<'_, P>>),
 ) -> bool {
-    let layout = Layout {
-        offset: *cells,
-        ..Layout::PLAIN
-    };
-    let n = blocks.len();
     let mut y = [[0.0f32; 3]; P];
     // Z = sum_b a_b Phi_b = (sum_b n_b R_b^T R_b,w0) J^-1: the normal matrix's initial-rate
     // columns (`R_b,w0 = J^-1 Phi_b J`, the rows' initial-rate block), times `J^-1`.
@@ -1709,13 +1707,8 @@ fn each_gamma<const P: usize>(
     };
     let node: &mut dyn FnMut(&Node<'_, P>) = &mut node;
     let mut seen = OnNode(node);
-    let ok = if !has_offsets(P) {
-        normal_visit::<P, P0>(blocks, rule, n, theta, 0.0, layout, &mut seen)
-    } else {
-        normal_visit::<P, C_OFFSET>(blocks, rule, n, theta, 0.0, layout, &mut seen)
-    }
-    .is_some();
-    ok && !failed
+    let ok = visit_fit::<P, P0>(blocks, rule, blocks.len(), theta, 0.0, cells, &mut seen);
+    ok.is_some() && !failed
 }
 
 /// A node's `a_b = n_b R_b^T J^-1` (P x 3) and `Phi_b = Phi(t_b, t_0) = Sigma_w0 J^-1`.
@@ -2469,29 +2462,33 @@ mod tests {
         fit
     }
 
+    /// A flight controller's board (the thrown-FC's), light against its flywheel's momentum,
+    /// kg m^2.
+    const BOARD: [[f64; 3]; 3] = [
+        [7.5e-5, -1.7e-6, 1.1e-6],
+        [-1.7e-6, 2.2e-5, 6.8e-6],
+        [1.1e-6, 6.8e-6, 8.8e-5],
+    ];
+    /// Its flywheel's inertia, kg m^2 (the thrown-FC's size).
+    const JR: f64 = 1.7e-6;
+
+    /// A raised-cosine ramp from 0 (x <= 0) to 1 (x >= 1): speed and acceleration continuous,
+    /// as a motor's.
+    fn ramp(x: f64) -> f64 {
+        0.5 - 0.5 * (core::f64::consts::PI * x.clamp(0.0, 1.0)).cos()
+    }
+
     /// (F7): a rotor speed read in steps of 1.75 rad/s is off by a constant wherever it is
     /// steady. A board's flywheel idling at 1500 rad/s (0.4 of a step above a reading), spun
     /// up to 2250 and back, read in steps, with white gyro noise of 1e-3 rad/s: taken as exact
     /// the momentum pulls the tensor 13 of its reported standard deviations off; with the
-    /// resolution given the steady runs' offsets are fitted and the largest error is 3.2 (what
-    /// is left is the reading's error along the ramps, which changes from block to block and
-    /// leaves a residual above this quiet gyro's noise).
+    /// resolution given the steady runs' offsets are fitted and the reading's error along the
+    /// ramps is counted ((F8)): the largest error is 1.2 (3.2 with the offsets alone).
     #[test]
     fn steady_telemetry_offsets_are_fitted_with_the_resolution() {
         let rate = 2000.0;
-        // A flywheel of 5e-6 kg m^2 (a larger one than the thrown-FC's 1.5e-6).
-        const JR: f64 = 1.7e-6;
-        // Raised-cosine ramps (speed and acceleration continuous, as a motor's).
-        let speed = |t: f64| {
-            let ramp = |x: f64| 0.5 - 0.5 * (core::f64::consts::PI * x.clamp(0.0, 1.0)).cos();
-            1500.0 + 750.0 * (ramp((t - 0.25) / 0.15) - ramp((t - 0.5) / 0.15))
-        };
-        // A flight controller's board (the thrown-FC's), light against its flywheel's momentum.
-        let j = [
-            [7.5e-5, -1.7e-6, 1.1e-6],
-            [-1.7e-6, 2.2e-5, 6.8e-6],
-            [1.1e-6, 6.8e-6, 8.8e-5],
-        ];
+        let speed = |t: f64| 1500.0 + 750.0 * (ramp((t - 0.25) / 0.15) - ramp((t - 0.5) / 0.15));
+        let j = BOARD;
         let (ws, hs, truth) = throw_with(rate, 0.8, j, [9.0, -6.0, 14.0], |t| -JR * speed(t));
         let mut state = 0x2545_f491_u32;
         let mut noise = || {
@@ -2554,16 +2551,8 @@ mod tests {
     #[test]
     fn a_reading_error_moves_the_fit_as_its_gain_says() {
         let rate = 2000.0;
-        const JR: f64 = 1.7e-6;
-        let speed = |t: f64| {
-            let ramp = |x: f64| 0.5 - 0.5 * (core::f64::consts::PI * x.clamp(0.0, 1.0)).cos();
-            300.0 + 900.0 * ramp((t - 0.2) / 0.3)
-        };
-        let j = [
-            [7.5e-5, -1.7e-6, 1.1e-6],
-            [-1.7e-6, 2.2e-5, 6.8e-6],
-            [1.1e-6, 6.8e-6, 8.8e-5],
-        ];
+        let speed = |t: f64| 300.0 + 900.0 * ramp((t - 0.2) / 0.3);
+        let j = BOARD;
         let w0 = [9.0, -6.0, 14.0];
         let (ws, hs, _) = throw_with(rate, 0.8, j, w0, |t| -JR * speed(t));
         let blocks_of = |hs: &[[f32; 3]]| {
