@@ -318,8 +318,8 @@ fn an_object_from_one_throw_comes_with_an_honest_uncertainty() {
     assert_honest(&z, "moments");
 }
 
-/// Errors over their reported standard deviations `z` (of `what`): none beyond 4, and their RMS
-/// in `[0.5, 1.6)` (an honest Gaussian gives 1; the band allows for a few dozen correlated
+/// Errors over their reported standard deviations `z` (of `what`): none beyond 3.5, and their
+/// RMS in `[0.7, 1.3)` (an honest Gaussian gives 1; the band allows for a few dozen correlated
 /// values).
 fn assert_honest(z: &[f64], what: &str) {
     let rms = (z.iter().map(|x| x * x).sum::<f64>() / z.len() as f64).sqrt();

@@ -587,9 +587,9 @@ fn solve(
 /// deviation and everything recomputed, combined with the entries' correlations the estimate
 /// reported: one rotor momentum fixes the scale of all of them), and so does its centre of
 /// mass (the jackknife of [`fit_offset`]). An object from one simulated throw, 8 seeds
-/// (`host-tests/tests/calibrate_sim.rs`): error over standard deviation RMS 1.11 (3.23 with
-/// the entries independent, no centre-of-mass term and the rotor telemetry's steps not
-/// fitted). On the shared thrown-FC logs the proof body's throw LOG00126 as the object (`j`
+/// (`host-tests/tests/calibrate_sim.rs`): error over standard deviation RMS 1.07 (1.11 before
+/// the rotor telemetry's steps along the ramps were counted, (F8) of the tensor fit; 3.23 with
+/// the entries independent, no centre-of-mass term and the telemetry's steps not fitted). On the shared thrown-FC logs the proof body's throw LOG00126 as the object (`j`
 /// from the other four): standard deviations of the moments 1.88, 2.03, 1.54 %, errors +2.35,
 /// +1.98, -0.10 %.
 #[derive(Clone, Copy, Debug, Default)]

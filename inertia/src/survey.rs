@@ -240,10 +240,6 @@ pub fn survey(
 mod tests {
     use super::RotorStep;
 
-    fn step_of(values: &[f32]) -> Option<f32> {
-        RotorStep::of(values)
-    }
-
     /// DShot eRPM in rad/s for 12 poles: multiples of 1.745 rad/s, a steady idle dithering
     /// between two of them and a spin-up moving by several at a time: the step is one.
     #[test]
@@ -252,10 +248,10 @@ mod tests {
         let idle = [100.0f32, 101.0, 100.0, 100.0, 101.0];
         let ramp = [104.0f32, 109.0, 117.0, 130.0];
         let v: Vec<f32> = idle.iter().chain(&ramp).map(|k| k * q).collect();
-        let s = step_of(&v).unwrap();
+        let s = RotorStep::of(&v).unwrap();
         assert!((s / q - 1.0).abs() < 1e-5, "{s} against {q}");
         // Only moves of several steps: a multiple of it (a larger, safe figure).
-        let s = step_of(&ramp.map(|k| k * q)).unwrap();
+        let s = RotorStep::of(&ramp.map(|k| k * q)).unwrap();
         assert!((s / q - 5.0).abs() < 1e-5, "{s}");
     }
 
@@ -263,13 +259,16 @@ mod tests {
     /// changes at the unit conversion's rounding are not steps.
     #[test]
     fn constant_nan_and_rounding_give_no_step() {
-        assert_eq!(step_of(&[175.0; 8]), None);
+        assert_eq!(RotorStep::of(&[175.0; 8]), None);
         assert_eq!(
-            step_of(&[175.0, f32::NAN, 175.0, f32::INFINITY, 175.0]),
+            RotorStep::of(&[175.0, f32::NAN, 175.0, f32::INFINITY, 175.0]),
             None
         );
         let x = 1234.5678f32;
-        assert_eq!(step_of(&[x, f32::from_bits(x.to_bits() + 1), x]), None);
-        assert_eq!(step_of(&[1.0, f32::NAN, 3.0]), Some(2.0));
+        assert_eq!(
+            RotorStep::of(&[x, f32::from_bits(x.to_bits() + 1), x]),
+            None
+        );
+        assert_eq!(RotorStep::of(&[1.0, f32::NAN, 3.0]), Some(2.0));
     }
 }
