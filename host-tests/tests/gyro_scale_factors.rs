@@ -7,7 +7,9 @@
 //! `trap-scale`); with the rigid-body test alone still 34 (the tensor's products of inertia
 //! soaked the error up and the ratios came from the tensor, as on seed 3 here); with the tensor
 //! fit's scale-factor test 11; with the products also weighed against the ratio fit with the
-//! scale factors free, 1.
+//! scale factors free, 1 (seed 48: the products' cost 5.2 noise variances below the scale
+//! factors', for two parameters more); since the products must beat the scale factors by the
+//! same margin as they beat the ratio fit (2026-11-26), 0 of 100, here and in the sweep.
 
 use host_tests::gyro::GyroModel;
 use host_tests::rigid_body::Body;
@@ -38,7 +40,7 @@ fn flight(scale: [f64; 3], seed: u64) -> (TensorStatus, TensorStatus, bool) {
 
 #[test]
 fn scale_factor_errors_are_never_converged() {
-    for seed in 1..=8 {
+    for seed in 1..=100 {
         let (ratios, tensor, rejected) = flight([1.0, 1.005, 0.997], seed);
         assert!(rejected, "seed {seed}: not found");
         assert_ne!(ratios, TensorStatus::Converged, "seed {seed}: ratios");
@@ -48,7 +50,7 @@ fn scale_factor_errors_are_never_converged() {
 
 #[test]
 fn exact_scale_factors_stay_converged() {
-    for seed in 1..=8 {
+    for seed in 1..=100 {
         let (ratios, tensor, rejected) = flight([1.0; 3], seed);
         assert!(!rejected, "seed {seed}: a rigid body's ratios rejected");
         assert_eq!(ratios, TensorStatus::Converged, "seed {seed}: ratios");
