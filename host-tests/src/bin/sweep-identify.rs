@@ -56,6 +56,15 @@ enum Trap {
     BiasWalk(f64),
     /// Per-axis gyro scale factors.
     Scale([f64; 3]),
+    /// The log's clock runs this factor fast (a wrong time step: the logged instants are the
+    /// true ones times the factor).
+    Clock(f64),
+    /// The gyro clips at this rate (rad/s): a full scale set too low.
+    Clip(f64),
+    /// A hand holds the body for the first half second (a torque of this amplitude, rad/s^2,
+    /// turning every axis) and catches it in the last 0.3 s (rates damped at 10/s): the log
+    /// is cut wider than the free flight.
+    Hand(f64),
 }
 
 const fn case(
@@ -226,6 +235,10 @@ fn cases() -> Vec<Case> {
         trap("trap-drops", Trap::Drops(0.05)),
         trap("trap-bias-walk", Trap::BiasWalk(2e-3)),
         trap("trap-scale", Trap::Scale([1.0, 1.005, 0.997])),
+        trap("trap-clock-2pct", Trap::Clock(1.02)),
+        trap("trap-clock-2x", Trap::Clock(2.0)),
+        trap("trap-clip", Trap::Clip(1.2)),
+        trap("trap-hand", Trap::Hand(2.0)),
     ]
 }
 
@@ -255,6 +268,11 @@ fn csv(c: &Case, seed: u64) -> String {
         g.scale = k;
     }
     let mut y = g.measure(&tr);
+    if let Some(Trap::Clip(limit)) = c.trap {
+        for w in y.iter_mut() {
+            *w = w.map(|x| x.clamp(-limit, limit));
+        }
+    }
     if let Some(Trap::BiasWalk(q)) = c.trap {
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed);
         let mut b = [0.0f64; 3];
@@ -299,6 +317,23 @@ fn simulate_trap(c: &Case, trap: Trap, sub: usize, seed: u64) -> (Trajectory, Ve
             _ => free,
         }
     };
+    // The hand's torque and the catch's damping at time `t`.
+    let hand = |t: f64, w: [f64; 3]| -> [f64; 3] {
+        let Trap::Hand(amp) = trap else {
+            return [0.0; 3];
+        };
+        if t < 0.5 {
+            [
+                amp * (7.0 * t).sin(),
+                amp * (5.0 * t).cos(),
+                amp * (3.0 * t + 1.0).sin(),
+            ]
+        } else if t > c.duration - 0.3 {
+            w.map(|x| -10.0 * x)
+        } else {
+            [0.0; 3]
+        }
+    };
     let n = (c.duration * c.rate_hz).round() as usize + 1;
     let period = 1.0 / c.rate_hz;
     let jitter = match trap {
@@ -323,14 +358,24 @@ fn simulate_trap(c: &Case, trap: Trap, sub: usize, seed: u64) -> (Trajectory, Ve
     let mut prev = 0.0;
     for t in &actual {
         let h = (t - prev) / sub as f64;
-        for _ in 0..sub {
-            w = rk4(rhs, w, h);
+        for k in 0..sub {
+            let at = prev + k as f64 * h;
+            let push = hand(at, w);
+            w = rk4(
+                |v| {
+                    let f = rhs(v);
+                    std::array::from_fn(|i| f[i] + push[i])
+                },
+                w,
+                h,
+            );
         }
         prev = *t;
         omega.push(w);
     }
     let logged = match trap {
         Trap::JitterUnlogged(_) => nominal,
+        Trap::Clock(f) => actual.iter().map(|t| t * f).collect(),
         _ => actual.clone(),
     };
     (Trajectory { t: actual, omega }, logged)
