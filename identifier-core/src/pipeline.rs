@@ -24,7 +24,7 @@ use crate::tensor::{
     TensorStatus,
 };
 use crate::tensor_fit::{FlightTensorFit, TensorFit};
-use crate::trajectory::{FlightRatioFit, RatioFit, RatioFitEstimate};
+use crate::trajectory::{FlightRatioFit, RatioFit, RatioFitEstimate, StretchOutcome};
 
 /// Tuning of [`Pipeline`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -507,6 +507,22 @@ impl<const N: usize> Pipeline<N> {
                     source: RatioSource::Refined,
                 };
             }
+        } else if self.trajectory.last_outcome() == StretchOutcome::Failed
+            && t.status != TensorStatus::Converged
+            && informed
+        {
+            // The flight ended and its fit found no torque-free motion that the data follow
+            // (no fit at all, a stronger verdict than a residual above the noise): the same
+            // choice. On a racquet toss through air (round 2, toss 2) the equation-error
+            // tensor's products had been taken for a misaligned sensor and its `a` reported,
+            // 0.4 off on `a_2` where the refined identifier's was within 0.02 of the other
+            // tosses' (both `ModelMismatch`).
+            return Ratios {
+                a: Some(self.refined.block_estimate()),
+                std_a: Some(self.refined.std_a()),
+                status: data_verdict(status).unwrap_or(TensorStatus::ModelMismatch),
+                source: RatioSource::Refined,
+            };
         }
         let (a_r, s_r) = (self.refined.block_estimate(), self.refined.std_a());
         // Hausman test of a constant gyro bias: without one, the refined identifier and its
