@@ -3,7 +3,8 @@
 //! model, absorbs the bias into its moments and then into products of inertia; before the
 //! rule in `Pipeline::estimate` it said `Converged` 3 s into the flight with `a` 4 of its
 //! standard deviations off and 6 s in 38 off (3 of 4 seeds), and the ratios, taken from it,
-//! said the same. Neither may be `Converged` far off at
+//! said the same; the refined identifier's own ratios 4.1 off in the first second. None may
+//! be `Converged` far off at
 //! any point of the flight; once the flight has ended, the output-error fit (with its bias
 //! model) must still be `Converged` and right.
 
@@ -49,20 +50,17 @@ fn an_unmeasured_gyro_bias_is_never_converged_during_the_flight() {
                     t.status != TensorStatus::Converged || zt < 4.0,
                     "seed {seed}, {at} s: tensor Converged {zt:.1} std off"
                 );
-                // The ratios from the tensor are held to the same; the refined identifier's
-                // own (no bias model either) are not: in the first 1-2 s, before its bias test
-                // can tell, they drift up to about 4 std while `Converged` (printed, see
-                // `worst_refined`), a limit of any estimator without a bias model.
+                // The ratios are held to the same, whichever estimator they come from. The
+                // refined identifier's own (no bias model either) drifted up to 4.1 std while
+                // `Converged` in the first 1-2 s, before its bias test could tell, until they
+                // too were capped at `Converging` while no bias was measured (2026-11-26).
+                assert!(
+                    r.status != TensorStatus::Converged || zr < 4.0,
+                    "seed {seed}, {at} s: ratios ({:?}) Converged {zr:.1} std off",
+                    r.source
+                );
                 if r.source == RatioSource::Refined {
-                    if r.status == TensorStatus::Converged {
-                        worst_refined = worst_refined.max(zr);
-                    }
-                } else {
-                    assert!(
-                        r.status != TensorStatus::Converged || zr < 4.0,
-                        "seed {seed}, {at} s: ratios ({:?}) Converged {zr:.1} std off",
-                        r.source
-                    );
+                    worst_refined = worst_refined.max(zr);
                 }
             }
         }
@@ -73,5 +71,5 @@ fn an_unmeasured_gyro_bias_is_never_converged_during_the_flight() {
         let z = worst_z(r.a, r.std_a, truth);
         assert!(z < 4.0, "seed {seed}: the fit {z:.1} std off");
     }
-    println!("refined identifier's ratios while Converged: at most {worst_refined:.1} std off");
+    println!("refined identifier's ratios during the flight (never Converged): at most {worst_refined:.1} std off");
 }
