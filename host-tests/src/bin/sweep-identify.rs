@@ -278,6 +278,8 @@ fn cases() -> Vec<Case> {
         trap("trap-clock-2pct", Trap::Clock(1.02)),
         trap("trap-clock-2x", Trap::Clock(2.0)),
         trap("trap-clip", Trap::Clip(1.2)),
+        // Only the top 8 mrad/s of the y axis's peaks (1.4435 rad/s) clipped.
+        trap("trap-clip-peak", Trap::Clip(1.435)),
         trap("trap-hand", Trap::Hand(2.0)),
     ]
 }
