@@ -1,0 +1,969 @@
+//! Output-error maximum likelihood of the whole inertia tensor in kg m^2, with a known rotor
+//! momentum: the trajectory of Euler's equation fitted to block means of the gyro.
+//!
+//! # Why
+//!
+//! [`crate::TensorEstimator`] solves Euler's equation integrated per stretch by least squares:
+//! one pass, no iteration, cheap per sample, but the measured rates enter its regressors, so
+//! their noise is in both sides of the equations and the estimate is not efficient (1.5-2.2x
+//! the Cramer-Rao bound per entry on the simulated flywheel throw). The output-error fit is the
+//! efficient estimator for white gyro noise; like [`crate::RatioFit`] it only sums blocks per
+//! sample and fits once per free flight.
+//!
+//! # The model
+//!
+//! In the body (sensor) frame, with the rotor momentum `h(t)` known (rotor inertia times rotor
+//! speed along its axis) and `L = J w + h` the body's total angular momentum,
+//!
+//! ```text
+//! L' = L x w,   w = J^-1 (L - h(t))                                              (F1)
+//! y_k = w(t_k) + b + n_k,   n_k white, variance sigma^2 per axis                   (F2)
+//! ```
+//!
+//! which is `J w' + w x (J w + h) = -h'` (torque-free). `theta = (Jxx, Jyy, Jzz, Jxy, Jxz,
+//! Jyz, w(t_0), [b])`: with a rotor whose momentum changes or is not parallel to `w`, the scale
+//! of `J` is observable and `J` comes out in kg m^2.
+//!
+//! # Sensitivities
+//!
+//! With `E_c` the symmetric unit direction of entry `c` and `Sigma = dL/dtheta`,
+//!
+//! ```text
+//! dw/dtheta_c = J^-1 (Sigma_c - E_c w)      (E_c = 0 for the initial rates)
+//! Sigma_c'    = Sigma_c x w + L x dw/dtheta_c                                      (F3)
+//! Sigma_c(t_0) = E_c w(t_0) (entries of J),  J e_k (initial rate k)
+//! ```
+//!
+//! integrated with (F1) by RK4 between block means (steps of at most `0.1 / rate`, `rate =
+//! max(1, a_max) |w| + sqrt(h^T J h / det J)` from the data and the first guess: how fast Euler's
+//! equation turns the rates and the rotor's nutation, see `StepRule`), `h(t)` quadratic between
+//! block means (through the block means corrected by (B1), with their second
+//! differences as curvature). A block's mean rate is predicted by (B1) of the block buffer
+//! with `w'' = J^-1 ((L x w) x w + L x w')`, `w' = J^-1 (L x w - h')` (`h''` neglected). The
+//! bias model (`b`, three more parameters) replaces the plain one by the likelihood-ratio test;
+//! stretches are pooled by the information on the six entries (see `output_error`). Without
+//! rotor momentum the integrated momentum is held on the two invariants `|L|^2` and `L . J^-1 L`
+//! of (F1) ((F6), every eight blocks, evaluated to twice the `f32` precision): on a fast 8 s
+//! tumble the `f32` drift of the motion's phase had left the fit up to scale 1.1-1.4x its bound.
+//! The sensitivities are moved with the state, so the invariants' derivatives keep their
+//! start's and the Jacobian stays that of the restored trajectory.
+//!
+//! Up to scale (below), each fit is followed by the score test of a constant torque `q` that
+//! the free flight should not have (as [`crate::RatioFit`]'s, see there):
+//!
+//! ```text
+//! L' = L x w + q,   Sigma_q' = Sigma_q x w + L x dw/dq + I,   Sigma_q(t_0) = 0        (F4)
+//! ```
+//!
+//! at `q = 0`, against 21.11 (chi-square, 3 degrees of freedom, 0.01 %), a rejection confirmed
+//! by the likelihood ratio of the model refitted with the torque. And by the score test
+//! of the gyro's scale-factor errors `kappa`, the gyro reading `(1 + kappa_i) w_i`:
+//!
+//! ```text
+//! ybar_i = (1 + kappa_i) (w_i(tbar) + v/2 w_i''(tbar)),   d ybar_i / d kappa_i = w_i + v/2 w_i''   (F5)
+//! ```
+//!
+//! at `kappa = 0`, scored beyond the fitted model's own columns, against 21.11. A scale error
+//! keeps the rates of a torque-free body with other ratios (see [`crate::RatioFit`]), which the
+//! products of inertia partly absorb: on a principal body with the gyro 0.5 % and 0.3 % off on
+//! two axes the products were found and the tensor's `a` said `Converged` 10-35 standard
+//! deviations off (`scripts/sweep-identify.sh`, row `trap-scale`); a sensor turned off the
+//! principal axes is the tensor's own model and passes.
+//!
+//! With a rotor, the momentum `h` is only as good as the speed telemetry: quantised (DShot's 100
+//! eRPM, 1.75 rad/s for a 12-pole motor), with an error that stays one constant wherever the
+//! speed is steady (an idle speed between two steps). Given the quantum
+//! ([`TensorFit::with_momentum_resolution`]), the absolute fit takes one unknown offset of the
+//! momentum along its direction `u` per steady run of the speed (up to four runs of at least
+//! three blocks within one quantum, `steady_cells`) and fits it with the rest, under a prior of
+//! a quantum's uniform variance `q^2 / 12` (a pseudo-observation of weight `sigma^2 / (q^2 /
+//! 12)` in the cost):
+//!
+//! ```text
+//! L = J w + h + d_c u (over run c),   dw/dd_c = J^-1 (Sigma_c - u) (on) or J^-1 Sigma_c,
+//! Sigma_c' = A Sigma_c - M u (on) or A Sigma_c,   Sigma_c(t_0) = u if on at t_0        (F7)
+//! ```
+//!
+//! (`A`, `M` as in `deriv`). Why fitted and not only counted in the covariance: the offsets
+//! are well determined by the flight (the gyroscopic coupling sees them), so fitting them costs
+//! the tensor little (its variance 1-3x the exact momentum's, where taking them as errors of
+//! uniform variance would have made it tens of times larger). On simulated board throws at the
+//! logged resolution (`tensor-bench`) the errors went from 46-115x the white-noise bound to
+//! 1.6-10x; the errors along the ramps, where the reading changes from block to block, are
+//! left (they also act on later blocks through the integrated momentum, which neither the
+//! residual's level nor the offsets count: the reported standard deviation is up to 2.3x too
+//! small there). The fit is kept only when every offset came out within one quantum (a
+//! quantisation's error is at most half of one): on the thrown-FC logs, whose model error is
+//! tens of times the gyro's noise, free offsets came out at 5-20 quanta, soaking up that error,
+//! and the fit without them is taken. A first version (2026-11-26) only added the offsets'
+//! effect to the covariance: as honest, ten times less accurate.
+//!
+//! Elsewhere (along the ramps, on runs too short for an offset, and everywhere when the
+//! offsets were not kept) the reading's error is counted in the covariance ((F8),
+//! `input_cov`). An error `e_b` of block `b`'s momentum enters its residual directly and every
+//! later one through the integrated momentum (`delta L' = A delta L - (L x J^-1 u) e`, as
+//! (F7)), so the gradient `g = sum_b n_b R_b^T r_b` (`R_b` the block's rows `dw/dtheta`) moves
+//! by `sum_b gamma_b e_b` with
+//!
+//! ```text
+//! gamma_b = a_b u - (sum_(b' > b) a_b' Phi_b') c_b,   a_b = n_b R_b^T J^-1,
+//! c_b = Phi_b^-1 beta_b,   beta_b = -(L_b x J^-1 u) Delta_b,   Phi_b = Phi(t_b, t_0)   (F8)
+//! cov += F^-1 (sum_groups v_g gamma_g gamma_g^T) F^-1
+//! ```
+//!
+//! (`Phi` the transition of (F3), read from the initial rates' columns, `Sigma_w0 = Phi J`;
+//! `Delta_b` the half spans either side of the node). Blocks within one quantum of a group's
+//! first share its error (a held reading); a group's variance is `q^2 / 12` times
+//! `ramp_share`, which the sawtooth of a moving reading averages down. The residual's
+//! variance that scales the rest of the covariance is taken without the cost those errors are
+//! expected to leave (`sum_b n_b (v_b |J^-1 u|^2 + tr(J^-1 Phi_b C_b Phi_b^T J^-1))`, the
+//! direct part and the integrated momentum's, `C_b = sum_(k < b) v_k c_k c_k^T`, less what the
+//! fit takes up, `tr(F^-1 K)`; not below the gyro's noise), so they are not counted twice: on
+//! the light board they are several times the gyro's noise per block, and the products'
+//! standard deviation was twice their errors. On simulated light board throws
+//! (`tensor-bench`, 100 seeds) the pipeline's reported standard deviation went from 0.67-1.95
+//! of its errors to 0.59-1.09 with the errors counted, 0.77-1.19 once the residual's variance
+//! no longer counted them too (Jxx 1.00, Jyy 1.19, Jzz 1.02, Jxy 0.77, Jxz 0.99, Jyz 1.05); on
+//! assembly throws through `inertia identify` (`calibrate_sim`) RMS 1.32 -> 0.97; the
+//! thrown-FC logs' are set by their model error and did not move.
+//!
+//! The fit starts from an estimate of `J` the caller gives (the pipeline gives
+//! [`crate::TensorEstimator`]'s) and the first block's rate, on all the blocks at once, and on
+//! growing prefixes of them only when that does not fit to twice the noise.
+//!
+//! # Up to scale
+//!
+//! Without rotor momentum (`h = 0`), `w(t)` of (F1) does not change when `J` is multiplied by
+//! any constant: only `J / trace J` is determined. [`TensorFit::close_normalized`] then holds
+//! the trace at the first guess's, `Jzz = tr - Jxx - Jyy`, fits the five free entries (the
+//! sensitivity to `Jxx` is `dw/dJxx - dw/dJzz`, the same for `Jyy`) with `w(t_0)` and the
+//! optional bias, and reports them divided by the trace, their covariance by its square
+//! (rank 5 over the six entries: `dJzz = -dJxx - dJyy`). It is the tensor's counterpart of
+//! [`crate::RatioFit`] (which assumes principal axes) and is pooled apart from the absolute
+//! fits.
+//!
+//! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 225 / 308
+//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 11.9 M / 11.4 M instructions
+//! (16.8 M / 19.7 M with the rotor telemetry's offsets of (F7): four more parameters),
+//! about 0.07 s at 168 MHz (28 M / 27 M when the model does not fit to the noise and
+//! the fit from the rotor's spin-up follows); up to scale, 20 s of a slow tumble at 1 kHz from a
+//! first guess 2 % off 13.4 M / 13.5 M (0.08 s; about 8.6 M from the pipeline's own first
+//! guesses) and a 0.85 s toss at 100 Hz 3.0 M / 3.1 M
+//! (34, 50, 43 and 30 M in release before 2026-11-26): too long for one gyro period, which is
+//! why the pipeline runs it in [`crate::Pipeline::fit_ended_flight`], outside its per-sample
+//! step.
+#![allow(
+    // Fixed-size loops over the 3 axes and the parameters read as the equations; the crate's
+    // link-time no-panic check proves no bounds check survives.
+    clippy::indexing_slicing,
+    clippy::needless_range_loop,
+    // `!(x > 0.0)` is true for NaN too, which is the point.
+    clippy::neg_cmp_op_on_partial_ord
+)]
+
+use crate::exact::{compensated_add, quadratic_form, weighted_squares};
+use crate::linalg::{det, dot, solve, Gram2};
+use crate::output_error::{
+    bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, refit_cost,
+    scaled_inverse, score, score_beyond, score_rejects, staged_fit, substeps, torque_confirmed,
+    without, Block, FitState, Normal, NormalSums, Pooled, Start, StretchResult, TOLERANCE,
+};
+use crate::symmetric::{eigen_symmetric3, sqrt, Sym};
+use crate::trajectory::StretchOutcome;
+
+mod model;
+mod normal;
+mod reading;
+#[cfg(test)]
+mod tests;
+
+use model::*;
+use normal::*;
+use reading::*;
+
+type Mat3 = [[f32; 3]; 3];
+
+/// Parameters without the bias: six entries and the initial rate.
+const P0: usize = 9;
+/// With the bias.
+const P1: usize = 12;
+
+/// The pooled estimate of [`TensorFit`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TensorFitEstimate {
+    /// `J` in kg m^2, sensor frame.
+    pub tensor: [[f32; 3]; 3],
+    /// Covariance of the entries `(Jxx, Jyy, Jzz, Jxy, Jxz, Jyz)`, (kg m^2)^2.
+    pub cov: [[f32; 6]; 6],
+    /// Gyro noise per sample seen in the fits' residuals, rad/s.
+    pub noise: f32,
+    /// Stretches (free flights) that gave a fit.
+    pub stretches: u32,
+    /// Samples in them.
+    pub samples: u32,
+    /// True when a constant gyro bias was found on any stretch.
+    pub biased: bool,
+    /// The bias of the last stretch fitted with the bias model, rad/s.
+    pub bias: [f32; 3],
+    /// True when the score test of a constant torque ((F4)) rejected the torque-free model on
+    /// any stretch fitted up to scale ([`TensorFit::close_normalized`]; the absolute fits are
+    /// not tested).
+    pub torque: bool,
+    /// True when the score test of the gyro's scale-factor errors ((F5)) rejected the model on
+    /// any stretch fitted up to scale: the rates fit no rigid body read by a gyro with exact
+    /// scale factors (an uncalibrated gyro, typically 0.5-1 % off, or a body that is not
+    /// rigid); the tensor's products of inertia may be soaking it up.
+    pub scale_rejected: bool,
+    /// The fits' weighted cost `sum_b n_b |ybar_b - w_b|^2` summed over the pooled stretches,
+    /// (rad/s)^2.
+    pub cost: f32,
+}
+
+/// Output-error fit of (F1) over free flights, `N` blocks per flight (see the module docs).
+///
+/// ```
+/// use identifier_core::{StretchOutcome, TensorFit};
+///
+/// // A body of diagonal inertia (2, 3, 4)e-4 kg m^2 with a flywheel of 1.7e-6 kg m^2 on z
+/// // spinning up from 200 to 1200 rad/s, sampled at 1 kHz for 0.8 s.
+/// let j = [2e-4f64, 3e-4, 4e-4];
+/// let hz = |t: f64| 1.7e-6 * (200.0 + 1250.0 * t);
+/// let mut l = [2e-4 * 9.0, 3e-4 * -6.0, 4e-4 * 14.0 + hz(0.0)];
+/// let mut fit = TensorFit::<256>::new(f32::INFINITY, 0.1, 1e-3);
+/// let mut t = 0.0;
+/// for _ in 0..800 {
+///     let w = [l[0] / j[0], l[1] / j[1], (l[2] - hz(t)) / j[2]];
+///     fit.step(w.map(|x| x as f32), [0.0, 0.0, hz(t) as f32], 1e-3);
+///     for _ in 0..100 {
+///         // L' = L x w, midpoint steps of 10 us (an example, not a reference).
+///         let f = |l: [f64; 3], t: f64| {
+///             let w = [l[0] / j[0], l[1] / j[1], (l[2] - hz(t)) / j[2]];
+///             [l[1] * w[2] - l[2] * w[1], l[2] * w[0] - l[0] * w[2], l[0] * w[1] - l[1] * w[0]]
+///         };
+///         let d = f(l, t);
+///         let mid = [l[0] + 5e-6 * d[0], l[1] + 5e-6 * d[1], l[2] + 5e-6 * d[2]];
+///         let d = f(mid, t + 5e-6);
+///         for k in 0..3 {
+///             l[k] += 1e-5 * d[k];
+///         }
+///         t += 1e-5;
+///     }
+/// }
+/// // The flight ends: one fit, from a first guess 10 % off.
+/// let guess = [[2.2e-4, 0.0, 0.0], [0.0, 2.7e-4, 0.0], [0.0, 0.0, 4.4e-4]];
+/// let outcome = fit.close(Some(guess));
+/// assert_eq!(outcome, StretchOutcome::Fitted);
+/// let e = fit.estimate().unwrap();
+/// for k in 0..3 {
+///     assert!((e.tensor[k][k] as f64 - j[k]).abs() < 0.01 * j[k], "{:?}", e.tensor);
+/// }
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TensorFit<const N: usize> {
+    /// The open stretch's blocks (rate, rotor momentum) and the six entries pooled over closed
+    /// stretches.
+    state: FitState<N, 6, 6>,
+    /// The five free entries of `J / trace J` pooled over stretches fitted up to scale.
+    normalized: Pooled<5>,
+    full_scale: f32,
+    max_dt: f32,
+    noise_std: f32,
+    /// Quantum of the rotor momentum as read, kg m^2/s ([`TensorFit::with_momentum_resolution`]).
+    momentum_resolution: f32,
+    /// The most inputs averaged into one sample ([`TensorFit::step_mean`]): the readings a
+    /// block's sample stands for in (F8).
+    inputs: u8,
+}
+
+/// The block buffer used by the pipeline: 256 blocks of rate and rotor momentum (16.7 KB in
+/// all).
+pub type FlightTensorFit = TensorFit<256>;
+
+/// Fits one stretch from `th` (`P` parameters without the bias, `PB` with it, the first `M`
+/// of interest; see [`normal`]): the plain model by [`levenberg`] on all the blocks at once,
+/// and by [`staged_fit`] (growing prefixes) only if that does not fit to twice `noise_floor`,
+/// the lower cost taken; then, when `test_bias`, the bias model if the likelihood-ratio test
+/// asks for it.
+///
+/// Why all the blocks first: growing prefixes keep a start whose trajectory drifts away from
+/// the data from being pulled into a wrong basin by the far blocks, but from a good start
+/// (with only the first block's noisy rate as the initial rate) they throw information away:
+/// on a short noisy toss the first 16 blocks alone determined the eight parameters of the fit
+/// up to scale so poorly that the staged fit left the right basin on about 1 flight in 25.
+/// On the simulated flywheel throw the absolute fit is as accurate as staged alone, at two
+/// thirds of the cost.
+///
+/// With `cells` (the absolute fit of a flight whose rotor speed is read in steps: its steady
+/// runs, [`steady_cells`]) the last [`CELLS`] of `th` are the rotor momentum's offsets of
+/// (F7), fitted with the rest (the bias, when fitted, goes before them).
+// Never inlined: the absolute fit has two instantiations (with and without the rotor
+// telemetry's offsets) behind one branch, and inlined their frames added up.
+#[inline(never)]
+fn fit_model<
+    const P: usize,
+    const PB: usize,
+    const M: usize,
+    const PT: usize,
+    const PTB: usize,
+    const PTS: usize,
+    const PTBS: usize,
+>(
+    blocks: &[Block<6>],
+    th: [f32; P],
+    trace: f32,
+    noise_floor: f32,
+    test_bias: bool,
+    cells: &Cells,
+    res: Resolution,
+) -> Option<StretchResult<M>> {
+    let total = blocks.len();
+    let rule = StepRule::new(&tensor_of(&six(&th, trace, M)));
+    let dof0 = (3 * total) as f32 - P as f32;
+    let direct = levenberg(
+        |p| normal(blocks, &rule, total, p, trace, cells),
+        th,
+        30,
+        dof0,
+        TOLERANCE,
+        Start::Cold,
+    );
+    let fits = 4.0 * noise_floor * noise_floor * dof0;
+    let plain = match direct {
+        Some(d) if d.1 <= fits => Some(d),
+        d => {
+            let staged = staged_fit(
+                |p, limit| normal(blocks, &rule, limit, p, trace, cells),
+                th,
+                total,
+            );
+            match (d, staged) {
+                (Some(d), Some(st)) => Some(if st.1 < d.1 { st } else { d }),
+                (d, st) => d.or(st),
+            }
+        }
+    };
+    let (th, cost0, f0) = plain?;
+    let cov0 = scaled_inverse(&f0)?;
+    // The bias goes after the initial rate (before the offsets of (F7), when there are any).
+    let th1: [f32; PB] = core::array::from_fn(|i| {
+        if i < M + 3 {
+            th.get(i).copied().unwrap_or(0.0)
+        } else if i < M + 6 {
+            0.0
+        } else {
+            th.get(i - 3).copied().unwrap_or(0.0)
+        }
+    });
+    let dof1 = (3 * total) as f32 - PB as f32;
+    // One evaluation decides whether the bias model is worth its fit.
+    let worth = test_bias
+        && normal(blocks, &rule, total, &th1, trace, cells)
+            .and_then(|(_, f, g)| score(&f, &g))
+            .is_none_or(|sc| bias_worth_fitting(sc, cost0, dof0, noise_floor));
+    let with_bias = if worth {
+        levenberg(
+            |p| normal(blocks, &rule, total, p, trace, cells),
+            th1,
+            30,
+            dof1,
+            TOLERANCE,
+            Start::Warm,
+        )
+    } else {
+        None
+    };
+    if let Some((t1, cost1, f1)) = with_bias {
+        if bias_found(cost0, cost1, dof1, noise_floor) {
+            if *cells != Cells::NONE && !cells.plausible(&t1) {
+                return None;
+            }
+            if let Some(c1) = scaled_inverse(&f1) {
+                let g = |i: usize| t1.get(i).copied().unwrap_or(0.0);
+                let lag1 = if cost1 > 4.0 * noise_floor * noise_floor * dof1 {
+                    residual_lag1(blocks, &rule, &t1, trace, cells)
+                } else {
+                    0.0
+                };
+                // The torque's parameters go between the initial rate and the bias.
+                let th_t: [f32; PTB] = core::array::from_fn(|i| {
+                    if i < M + 3 {
+                        g(i)
+                    } else if i < M + 6 {
+                        0.0
+                    } else {
+                        g(i - 3)
+                    }
+                });
+                let (torque, scale) =
+                    tests_found::<PTB, PTBS>(blocks, &rule, &th_t, trace, cost1, dof1, noise_floor);
+                let input = input_cov(blocks, &rule, &t1, cells, res, &f1);
+                return Some(StretchResult {
+                    p: leading(&t1),
+                    cov: leading_block(&c1),
+                    input: input.map(|(c, e)| (leading_block(&c), e)),
+                    cost: cost1,
+                    params: PB,
+                    bias: Some([g(M + 3), g(M + 4), g(M + 5)]),
+                    lag1,
+                    torque,
+                    scale,
+                });
+            }
+        }
+    }
+    if *cells != Cells::NONE && !cells.plausible(&th) {
+        return None;
+    }
+    let lag1 = if cost0 > fits {
+        residual_lag1(blocks, &rule, &th, trace, cells)
+    } else {
+        0.0
+    };
+    let th_t: [f32; PT] = leading(&th);
+    let (torque, scale) =
+        tests_found::<PT, PTS>(blocks, &rule, &th_t, trace, cost0, dof0, noise_floor);
+    let input = input_cov(blocks, &rule, &th, cells, res, &f0);
+    Some(StretchResult {
+        p: leading(&th),
+        cov: leading_block(&cov0),
+        input: input.map(|(c, e)| (leading_block(&c), e)),
+        cost: cost0,
+        params: P,
+        bias: None,
+        lag1,
+        torque,
+        scale,
+    })
+}
+
+/// The score tests at a fitted model's optimum, from one evaluation: `theta` that model's
+/// parameters with a zero torque inserted after the initial rate (`PT` of them; `PS = PT + 3`
+/// with three zero `kappa` appended), `cost` and `dof` its own. Only up to scale (`trace` > 0,
+/// the gyro-only path): with a rotor the model's error is the rotor's and the status says so
+/// already. Returns
+///
+/// - a constant torque ((F4)): its score `g^T F^-1 g` (the scale factors dropped) against 21.11
+///   (chi-square, 3 degrees of freedom, 0.01 %, see `output_error::score_rejects`), a rejection
+///   confirmed by the likelihood ratio of the model refitted with the torque
+///   ([`torque_confirmed`]; that fit runs only where the score rejected): the cost with it;
+/// - the gyro's scale-factor errors ((F5)): scored beyond the model's own columns (the torque
+///   dropped, see `output_error::score_beyond`) against 21.11.
+///
+/// The two tests were two evaluations (12 and 9 sensitivity columns) until 2026-11-26; the
+/// columns are integrated independently, so one evaluation with the torque's and the scale
+/// factors' columns gives both the same sums.
+fn tests_found<const PT: usize, const PS: usize>(
+    blocks: &[Block<6>],
+    rule: &StepRule,
+    theta: &[f32; PT],
+    trace: f32,
+    cost: f32,
+    dof: f32,
+    noise_floor: f32,
+) -> (Option<f32>, bool) {
+    if !(trace > 0.0) {
+        return (None, false);
+    }
+    let both: [f32; PS] = leading(theta);
+    let Some((_, f, g)) = normal_extended::<PS, C_TORQUE>(blocks, rule, &both, trace, true) else {
+        return (None, false);
+    };
+    // Layout: five entries, the initial rate, the torque, [the bias], the scale factors.
+    let torque_cols = [8, 9, 10];
+    let kappa = [PS - 3, PS - 2, PS - 1];
+    let (ft, gt) = without(&f, &g, &kappa);
+    let torque_rejects =
+        score(&ft, &gt).is_some_and(|sc| score_rejects(sc, cost, dof, noise_floor));
+    let (fs, gs) = without(&f, &g, &torque_cols);
+    let scale =
+        score_beyond(&fs, &gs, &kappa).is_some_and(|sc| score_rejects(sc, cost, dof, noise_floor));
+    let torque = if torque_rejects {
+        let extended =
+            |th: &[f32; PT]| normal_extended::<PT, C_TORQUE>(blocks, rule, th, trace, false);
+        torque_confirmed(
+            refit_cost(extended, *theta, cost, dof),
+            cost,
+            dof,
+            noise_floor,
+        )
+    } else {
+        None
+    };
+    (torque, scale)
+}
+
+/// Lag-1 autocorrelation of the block residuals at `theta` over the three axes: the sum of
+/// each block's residual times the previous block's on the same axis, over the sum of
+/// squares; 0 when the residuals cannot be computed. Only the residuals are needed: without
+/// the offsets of (F7) the trajectory is integrated without sensitivities (until 2026-11-26
+/// with the nine columns, unused: the fit of a flight its model does not explain costs about 5 %
+/// less), with them the columns go along (the layout needs them).
+fn residual_lag1<const P: usize>(
+    blocks: &[Block<6>],
+    rule: &StepRule,
+    theta: &[f32; P],
+    trace: f32,
+    cells: &Cells,
+) -> f32 {
+    let mut lag = Lag1 {
+        prev: [None; 3],
+        num: 0.0,
+        den: 0.0,
+    };
+    let ok = visit_fit::<P, 0>(blocks, rule, blocks.len(), theta, trace, cells, &mut lag).is_some();
+    let Lag1 { num, den, .. } = lag;
+    if ok && den > 0.0 && num.is_finite() {
+        num / den
+    } else {
+        0.0
+    }
+}
+
+/// How much a residual of lag-1 autocorrelation `rho` inflates the variance of what is fitted
+/// to it, against white noise of the same variance: `(1 + rho) / (1 - rho)`, the variance of the
+/// mean of a first-order autoregressive series over that of a white one (`rho` taken in
+/// `[0, 0.98]`: at most 99). The blocks' residuals are independent for white gyro noise; a model
+/// error is not white (on the thrown-FC logs it is low-frequency, `rho` about 0.9), and the
+/// covariance scaled by the residual variance alone then claims several times the information
+/// the flight holds.
+fn ar1_inflation(rho: f32) -> f32 {
+    let r = rho.clamp(0.0, 0.98);
+    (1.0 + r) / (1.0 - r)
+}
+
+/// The absolute fit (six entries in kg m^2) from `init`: of all the blocks, and, when that
+/// does not fit to twice `noise_floor`, also of the blocks from the rotor's spin-up
+/// ([`spin_up`]), the one whose residual per degree of freedom is lower taken. The whole
+/// flight's residual is the one reported either way: leaving out the part that fits worst
+/// does not make the flight fit, so the status stays `ModelMismatch` and the covariance is
+/// scaled to that residual.
+///
+/// Why: the rotor's momentum is what fixes the scale of `J`, and where it is small against its
+/// peak (idle before the spin-up, or the start from rest at the release, when a sensorless
+/// ESC's speed telemetry is least trustworthy) a model error of the same size weighs far more
+/// against it. On the ten thrown-FC logs the fit of the whole free flight left a residual of
+/// 0.1-0.2 rad/s (several hundred times the gyro's noise, low-frequency: a model error, not
+/// vibration), and the part before the spin-up alone gave a scale 7-10 % above the rest's;
+/// from the spin-up on the residual fell by a third and the five board-alone throws agreed
+/// to 0.7-1.5 % instead of 0.5-2.5 %. On a flight the model explains to the noise the whole
+/// fit is kept and nothing changes.
+///
+/// `resolution` (kg m^2/s) is the rotor momentum's quantum as the rotor speed is read (0: exact):
+/// where the speed is steady its error is one constant per run, fitted as an offset of the
+/// momentum ((F7), [`steady_cells`]), under a prior of a quantum's uniform variance, unless the
+/// fitted offsets are larger than a quantum ([`Cells::plausible`]): then the momentum is taken
+/// as read.
+fn fit_stretch(
+    blocks: &[Block<6>],
+    init: &Mat3,
+    noise_floor: f32,
+    test_bias: bool,
+    res: Resolution,
+) -> Option<StretchResult<6>> {
+    let resolution = res.quantum;
+    let from = |blocks: &[Block<6>], init: &Mat3| {
+        let w0 = rate_of(blocks.first()?);
+        let th = [
+            init[0][0], init[1][1], init[2][2], init[0][1], init[0][2], init[1][2], w0[0], w0[1],
+            w0[2],
+        ];
+        let plain = || {
+            fit_model::<P0, P1, 6, { P0 + 3 }, { P1 + 3 }, { P0 + 6 }, { P1 + 6 }>(
+                blocks,
+                th,
+                0.0,
+                noise_floor,
+                test_bias,
+                &Cells::NONE,
+                res,
+            )
+        };
+        let cells = (resolution > 0.0)
+            .then(|| steady_cells(blocks, resolution))
+            .flatten()
+            .map(|c| Cells {
+                prior: noise_floor * noise_floor * 12.0 / (resolution * resolution),
+                ..c
+            });
+        let Some(cells) = cells else {
+            return plain();
+        };
+        let with = fit_model::<
+            { P0 + CELLS },
+            { P1 + CELLS },
+            6,
+            { P0 + CELLS + 3 },
+            { P1 + CELLS + 3 },
+            { P0 + CELLS + 6 },
+            { P1 + CELLS + 6 },
+        >(
+            blocks,
+            leading(&th),
+            0.0,
+            noise_floor,
+            test_bias,
+            &cells,
+            res,
+        );
+        // Offsets that are no quantisation's ([`Cells::plausible`]: `None`): the plain fit.
+        with.or_else(plain)
+    };
+    let mut r = fit_stretch_from(blocks, init, noise_floor, &from)?;
+    // (F8): the reading's errors, in the covariance's units (it is scaled by the residual's
+    // variance per degree of freedom when pooled); the residual's variance that scales the
+    // rest is taken without what those errors are expected to leave in it (counted once, not
+    // twice), never below the gyro's noise floor.
+    let dof = (3 * blocks.len()) as f32 - r.params as f32;
+    let s2 = r.cost / dof;
+    if let (Some((x, expected)), true) = (r.input.take(), s2 > 0.0) {
+        // Without a known gyro noise there is no floor to hold it to: the residual's as it is.
+        let floor = noise_floor * noise_floor;
+        let adj = if floor > 0.0 {
+            ((r.cost - expected) / dof).max(floor).min(s2)
+        } else {
+            s2
+        };
+        let scale = adj / s2;
+        for (row, xr) in r.cov.iter_mut().zip(x) {
+            for (c, xc) in row.iter_mut().zip(xr) {
+                *c = *c * scale + xc / s2;
+            }
+        }
+    }
+    Some(r)
+}
+
+/// [`fit_stretch`]'s choice between the whole flight and the part from the spin-up, `from`
+/// fitting a run of blocks from a first guess.
+fn fit_stretch_from(
+    blocks: &[Block<6>],
+    init: &Mat3,
+    noise_floor: f32,
+    from: &dyn Fn(&[Block<6>], &Mat3) -> Option<StretchResult<6>>,
+) -> Option<StretchResult<6>> {
+    let whole = from(blocks, init)?;
+    let per_dof = |r: &StretchResult<6>, n: usize| r.cost / ((3 * n) as f32 - r.params as f32);
+    let whole_noise = per_dof(&whole, blocks.len());
+    if whole_noise <= 4.0 * noise_floor * noise_floor {
+        return Some(whole);
+    }
+    // The model does not hold: the covariance is inflated for the residual's correlation.
+    let inflate = |mut r: StretchResult<6>| {
+        let f = ar1_inflation(r.lag1);
+        r.cov = r.cov.map(|row| row.map(|x| x * f));
+        r
+    };
+    let Some(later) = spin_up(blocks).and_then(|s| blocks.get(s..)) else {
+        return Some(inflate(whole));
+    };
+    let start = tensor_of(&whole.p);
+    match from(later, &start) {
+        Some(mut r) if per_dof(&r, later.len()) < whole_noise => {
+            // The flight as a whole still does not fit: its residual is the one reported
+            // (status `ModelMismatch`, the covariance scaled to it), as the cost over the
+            // whole stretch's degrees of freedom, which the pooling divides by.
+            r.cost = whole_noise * ((3 * blocks.len()) as f32 - r.params as f32);
+            Some(inflate(r))
+        }
+        _ => Some(inflate(whole)),
+    }
+}
+
+/// The first block at which the rotor momentum reaches half its peak magnitude over the
+/// stretch, when that leaves out at least one block and keeps at least [`MIN_SPIN_UP_BLOCKS`]
+/// (a third of the stretch or 32 blocks, the larger): `None` otherwise (no rotor, or a
+/// momentum already near its peak at the start).
+fn spin_up(blocks: &[Block<6>]) -> Option<usize> {
+    let mag = |b: &Block<6>| {
+        let h = rotor_of(b);
+        h[0] * h[0] + h[1] * h[1] + h[2] * h[2]
+    };
+    let peak = blocks
+        .iter()
+        .map(mag)
+        .fold(0.0f32, |a, m| if m > a { m } else { a });
+    if !(peak > 0.0 && peak.is_finite()) {
+        return None;
+    }
+    // Half the peak magnitude: a quarter of its square.
+    let s = blocks.iter().position(|b| mag(b) >= 0.25 * peak)?;
+    let keep = blocks.len().saturating_sub(s);
+    let min_keep = MIN_SPIN_UP_BLOCKS.max(blocks.len() / 3);
+    (s > 0 && keep >= min_keep).then_some(s)
+}
+
+/// Fewest blocks a fit from the rotor's spin-up may use ([`spin_up`]).
+const MIN_SPIN_UP_BLOCKS: usize = 32;
+
+/// The fit up to scale from the best of the first guesses `inits` (any scale each): the one
+/// whose trajectory from the first block's rate fits all the blocks best (one evaluation of
+/// the cost each; a poor start can end in a local minimum that fits nearly as well as the
+/// truth on a short, noisy toss), the trace held at its trace, the five free entries `(Jxx,
+/// Jyy, Jxy, Jxz, Jyz)` returned divided by it (trace 1), their covariance by its square.
+fn fit_stretch_normalized(
+    blocks: &[Block<6>],
+    inits: &[Mat3],
+    noise_floor: f32,
+    test_bias: bool,
+) -> Option<StretchResult<5>> {
+    let w0 = rate_of(blocks.first()?);
+    let start = |init: &Mat3| {
+        let tr = init[0][0] + init[1][1] + init[2][2];
+        let th = [
+            init[0][0], init[1][1], init[0][1], init[0][2], init[1][2], w0[0], w0[1], w0[2],
+        ];
+        (tr > 0.0 && tr.is_finite()).then_some((th, tr))
+    };
+    let mut best: Option<([f32; P0 - 1], f32, f32)> = None;
+    // One guess needs no choosing (its evaluation is the fit's first).
+    let choose = inits.len() > 1;
+    for init in inits {
+        let Some((th, tr)) = start(init) else {
+            continue;
+        };
+        let cost = if choose {
+            cost_only(blocks, &StepRule::new(init), &th, tr)
+        } else {
+            Some(0.0)
+        };
+        if let Some(cost) = cost {
+            if best.is_none_or(|b| cost < b.2) {
+                best = Some((th, tr, cost));
+            }
+        }
+    }
+    let (th, tr, _) = best?;
+    let mut r =
+        fit_model::<{ P0 - 1 }, { P1 - 1 }, 5, { P0 + 2 }, { P1 + 2 }, { P0 + 5 }, { P1 + 5 }>(
+            blocks,
+            th,
+            tr,
+            noise_floor,
+            test_bias,
+            &Cells::NONE,
+            Resolution::EXACT,
+        )?;
+    let k = 1.0 / tr;
+    r.p = r.p.map(|x| x * k);
+    r.cov = r.cov.map(|row| row.map(|x| x * k * k));
+    Some(r)
+}
+
+impl<const N: usize> TensorFit<N> {
+    /// An empty fit: samples at or beyond `full_scale` (rad/s) are skipped (their time kept);
+    /// a time step that is not finite, not positive or longer than `max_dt` ends what the
+    /// stretch takes; `noise_std` (rad/s per sample) is the least noise the bias test assumes.
+    /// `N` must be at least 16.
+    pub const fn new(full_scale: f32, max_dt: f32, noise_std: f32) -> Self {
+        TensorFit {
+            state: FitState::EMPTY,
+            normalized: Pooled::EMPTY,
+            full_scale,
+            max_dt,
+            noise_std,
+            momentum_resolution: 0.0,
+            inputs: 1,
+        }
+    }
+
+    /// The rotor momentum's quantum and the readings per sample, for the fits.
+    fn resolution(&self) -> Resolution {
+        Resolution {
+            quantum: self.momentum_resolution,
+            readings: f32::from(self.inputs.max(1)),
+        }
+    }
+
+    /// The same fit with the rotor momentum known only to `quantum` (kg m^2/s: the rotor
+    /// inertia times the speed telemetry's step, e.g. 100 eRPM): the absolute fit then fits
+    /// one offset of the momentum per steady run of the speed ((F7)) and counts the reading's
+    /// errors elsewhere in the covariance ((F8)). 0 (the default), negative or not finite:
+    /// the momentum is taken as exact.
+    pub const fn with_momentum_resolution(mut self, quantum: f32) -> Self {
+        self.momentum_resolution = if quantum > 0.0 && quantum < f32::INFINITY {
+            quantum
+        } else {
+            0.0
+        };
+        self
+    }
+
+    /// Adds one sample of the open stretch: rate (rad/s), rotor momentum (kg m^2/s) and the
+    /// time since the previous sample (s).
+    pub fn step(&mut self, omega: [f32; 3], h: [f32; 3], dt: f32) {
+        self.step_mean(omega, h, dt, 1);
+    }
+
+    /// [`TensorFit::step`] for a sample that is the mean of `inputs` equally spaced readings
+    /// spanning `dt` (see [`crate::RatioFit::step_mean`]).
+    pub fn step_mean(&mut self, omega: [f32; 3], h: [f32; 3], dt: f32, inputs: u8) {
+        let usable = omega
+            .iter()
+            .all(|w| w.is_finite() && w.abs() < self.full_scale)
+            && h.iter().all(|x| x.is_finite());
+        let y = [omega[0], omega[1], omega[2], h[0], h[1], h[2]];
+        self.inputs = self.inputs.max(inputs);
+        self.state
+            .buf
+            .add(&y, usable, dt, self.max_dt, mean_spread(dt, inputs));
+    }
+
+    /// Ends the open stretch: fits it from the tensor `init` (kg m^2; a positive definite
+    /// first guess, such as [`crate::TensorEstimator`]'s), pools it and starts a new stretch.
+    pub fn close(&mut self, init: Option<[[f32; 3]; 3]>) -> StretchOutcome {
+        let (noise, q) = (self.noise_std, self.resolution());
+        self.state
+            .close(|blocks| init.and_then(|j| fit_stretch(blocks, &j, noise, true, q)))
+    }
+
+    /// [`TensorFit::close`] for a gyro whose bias is known and was removed (measured on a
+    /// still stretch before the throw, as the pipeline's free-flight gate does): no bias is
+    /// looked for. Why not test for one anyway: the likelihood-ratio test measures the gain
+    /// against the gyro's white noise, so when the model leaves a residual far above it (a
+    /// real vehicle's unmodelled effects) the test always "finds" a bias, and the bias then
+    /// soaks up model error. On the ten thrown-FC logs it found 0.1-0.38 rad/s on every throw,
+    /// where the bench measured at most 0.015 rad/s, and moved `J` by up to 4 %.
+    pub fn close_without_bias(&mut self, init: Option<[[f32; 3]; 3]>) -> StretchOutcome {
+        let (noise, q) = (self.noise_std, self.resolution());
+        self.state
+            .close(|blocks| init.and_then(|j| fit_stretch(blocks, &j, noise, false, q)))
+    }
+
+    /// Ends the open stretch of a flight whose rotor momentum does not fix the scale of `J`
+    /// (none, or constant along the rate): fits `J / trace J` from whichever of the first
+    /// guesses `inits` (positive definite, any scale) fits the blocks best as it stands (one
+    /// evaluation each; none: the stretch fails), the trace held (five free entries and the
+    /// initial rate, and, when `test_bias`, the bias if its likelihood-ratio test asks for it),
+    /// pools it apart from the absolute fits ([`TensorFit::estimate_normalized`]) and starts a
+    /// new stretch.
+    ///
+    /// Why the bias test can be switched off: on a short noisy toss the bias and the products
+    /// of inertia are nearly interchangeable, and the likelihood has far-apart minima that the
+    /// test (calibrated for a local alternative) takes for a bias on about 1 in 50 flights,
+    /// moving `J` by tens of its standard deviations. The pipeline tests it only when the
+    /// principal-axis fit of the same blocks ([`crate::RatioFit`]) found a bias or did not fit
+    /// to the noise.
+    ///
+    /// ```
+    /// use identifier_core::{StretchOutcome, TensorFit};
+    ///
+    /// // A body of inertia (2, 3, 4)e-4 kg m^2 tumbling freely for 2 s at 1 kHz, no rotor.
+    /// let j = [2e-4f64, 3e-4, 4e-4];
+    /// let mut w = [3.0f64, -2.0, 4.0];
+    /// let mut fit = TensorFit::<256>::new(f32::INFINITY, 0.1, 1e-3);
+    /// for _ in 0..2000 {
+    ///     fit.step(w.map(|x| x as f32), [0.0; 3], 1e-3);
+    ///     for _ in 0..100 {
+    ///         // J w' = (J w) x w, midpoint steps of 10 us (an example, not a reference).
+    ///         let f = |w: [f64; 3]| {
+    ///             [
+    ///                 (j[1] - j[2]) / j[0] * w[1] * w[2],
+    ///                 (j[2] - j[0]) / j[1] * w[2] * w[0],
+    ///                 (j[0] - j[1]) / j[2] * w[0] * w[1],
+    ///             ]
+    ///         };
+    ///         let d = f(w);
+    ///         let mid = [w[0] + 5e-6 * d[0], w[1] + 5e-6 * d[1], w[2] + 5e-6 * d[2]];
+    ///         let d = f(mid);
+    ///         for k in 0..3 {
+    ///             w[k] += 1e-5 * d[k];
+    ///         }
+    ///     }
+    /// }
+    /// // First guesses at any scale: the better one is taken.
+    /// let guesses = [[[1.0, 0.0, 0.0], [0.0, 1.6, 0.0], [0.0, 0.0, 2.1]]];
+    /// assert_eq!(fit.close_normalized(&guesses, true), StretchOutcome::Fitted);
+    /// let e = fit.estimate_normalized().unwrap();
+    /// let tr = j[0] + j[1] + j[2];
+    /// for k in 0..3 {
+    ///     assert!((e.tensor[k][k] as f64 - j[k] / tr).abs() < 1e-3, "{:?}", e.tensor);
+    /// }
+    /// ```
+    pub fn close_normalized(&mut self, inits: &[[[f32; 3]; 3]], test_bias: bool) -> StretchOutcome {
+        let noise = self.noise_std;
+        self.state.close_into(&mut self.normalized, |blocks| {
+            fit_stretch_normalized(blocks, inits, noise, test_bias)
+        })
+    }
+
+    /// Drops the open stretch without fitting it.
+    pub fn discard(&mut self) {
+        self.state.buf.clear();
+    }
+
+    /// What the last [`TensorFit::close`] did.
+    pub fn last_outcome(&self) -> StretchOutcome {
+        self.state.last
+    }
+
+    /// Samples in the open stretch (not yet fitted).
+    pub fn open_samples(&self) -> u32 {
+        self.state.buf.samples()
+    }
+
+    /// The estimate pooled over the closed stretches (information-weighted, `output_error`),
+    /// `None` before one was fitted.
+    pub fn estimate(&self) -> Option<TensorFitEstimate> {
+        let (e, cov, noise) = self.state.pooled.mean()?;
+        Some(TensorFitEstimate {
+            tensor: tensor_of(&e),
+            cov,
+            noise,
+            stretches: self.state.pooled.stretches,
+            samples: self.state.pooled.samples,
+            biased: self.state.biased,
+            bias: self.state.bias,
+            torque: self.state.torque,
+            scale_rejected: self.state.scale,
+            cost: self.state.pooled.cost(),
+        })
+    }
+
+    /// The tensor up to scale pooled over the stretches closed by
+    /// [`TensorFit::close_normalized`]: `tensor` is `J / trace J`, `cov` the covariance of its
+    /// six entries (rank 5: `dJzz = -dJxx - dJyy`); `None` before one was fitted.
+    pub fn estimate_normalized(&self) -> Option<TensorFitEstimate> {
+        let (p, c5, noise) = self.normalized.mean()?;
+        let e = [p[0], p[1], 1.0 - p[0] - p[1], p[2], p[3], p[4]];
+        // Row k: entry k of the six as a combination of the five free ones.
+        let rows: [[f32; 5]; 6] = [
+            [1.0, 0.0, 0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0, 0.0, 0.0],
+            [-1.0, -1.0, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0, 0.0],
+            [0.0, 0.0, 0.0, 0.0, 1.0],
+        ];
+        let mut cov = [[0.0f32; 6]; 6];
+        for (i, ri) in rows.iter().enumerate() {
+            for (j, rj) in rows.iter().enumerate() {
+                let mut acc = 0.0;
+                for (a, ca) in ri.iter().zip(c5.iter()) {
+                    for (b, cab) in rj.iter().zip(ca.iter()) {
+                        acc += a * b * cab;
+                    }
+                }
+                cov[i][j] = acc;
+            }
+        }
+        Some(TensorFitEstimate {
+            tensor: tensor_of(&e),
+            cov,
+            noise,
+            stretches: self.normalized.stretches,
+            samples: self.normalized.samples,
+            biased: self.state.biased,
+            bias: self.state.bias,
+            torque: self.state.torque,
+            scale_rejected: self.state.scale,
+            cost: self.normalized.cost(),
+        })
+    }
+
+    /// Forgets everything: the open stretch and the pooled estimate.
+    pub fn reset(&mut self) {
+        *self = TensorFit::new(self.full_scale, self.max_dt, self.noise_std)
+            .with_momentum_resolution(self.momentum_resolution);
+    }
+}
