@@ -43,8 +43,76 @@
 //! window stays below [`GateSettings::still_spread`]; the mean rate over the
 //! longest run of still windows so far is the gyro bias, subtracted by [`crate::pipeline::Pipeline`] before the
 //! estimator sees a sample.
+//!
+//! # The accelerometer's unit
+//!
+//! While the gyro is still the specific force is one `g` in any orientation, give or take what
+//! a hand adds: [`AccelUnits`] counts the still samples that read within a factor of two of
+//! `G` against those that do not. A log in g (about 1 while still), milli-g or mm/s^2 reads
+//! far from it on nearly every such sample, and then the gate's thresholds, set in m/s^2, mean
+//! nothing (in g a hand's motion looks 9.8 times smaller and passes for free flight).
 
 use crate::symmetric::{cholesky, cholesky_solve, sqrt};
+
+/// The accelerometer's magnitude while the gyro is still (see the module docs): `looks_wrong`
+/// once at least [`AccelUnits::MIN_STILL`] still samples were seen and fewer than one in twenty
+/// read `|f|` within `[G/2, 2 G]` (a body dropped without spin reads nearly zero while still,
+/// and so do a few samples at a release: too few to outvote a bench or a hand).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct AccelUnits {
+    still: u32,
+    near_g: u32,
+    sum: f32,
+}
+
+impl AccelUnits {
+    /// Still samples needed before a verdict.
+    pub const MIN_STILL: u32 = 50;
+
+    /// Nothing seen.
+    pub const fn new() -> Self {
+        AccelUnits {
+            still: 0,
+            near_g: 0,
+            sum: 0.0,
+        }
+    }
+
+    /// One sample taken with every rate below the still threshold: `fa = |f|` as read.
+    pub fn push_still(&mut self, fa: f32) {
+        self.still = self.still.saturating_add(1);
+        if (0.5 * G..=2.0 * G).contains(&fa) {
+            self.near_g = self.near_g.saturating_add(1);
+        }
+        if fa.is_finite() {
+            self.sum += fa;
+        }
+    }
+
+    /// One sample: rates `w` (rad/s), specific force `f` as read; counted when every rate is
+    /// below `still_rate` (rad/s).
+    pub fn push(&mut self, w: [f32; 3], f: [f32; 3], still_rate: f32) {
+        if w.iter().all(|x| x.abs() < still_rate) {
+            self.push_still(sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]));
+        }
+    }
+
+    /// True when the still samples say the accelerometer is not in m/s^2.
+    pub fn looks_wrong(&self) -> bool {
+        self.still >= Self::MIN_STILL && (self.near_g as u64) * 20 < self.still as u64
+    }
+
+    /// Still samples seen.
+    pub fn still_samples(&self) -> u32 {
+        self.still
+    }
+
+    /// Mean `|f|` over the still samples, as read (`None` before one).
+    pub fn mean(&self) -> Option<f32> {
+        (self.still > 0).then(|| self.sum / self.still as f32)
+    }
+}
 
 /// Standard gravity, m/s^2.
 pub const G: f32 = 9.806_65;
@@ -242,6 +310,8 @@ pub struct FreeFlightGate {
     still_n: u32,
     /// Samples behind the bias in use (the longest still run so far).
     bias_n: u32,
+    /// The accelerometer's magnitude while the gyro is still.
+    units: AccelUnits,
 }
 
 impl FreeFlightGate {
@@ -261,6 +331,7 @@ impl FreeFlightGate {
             still_sum: [0.0; 3],
             still_n: 0,
             bias_n: 0,
+            units: AccelUnits::new(),
         })
     }
 
@@ -277,6 +348,11 @@ impl FreeFlightGate {
     /// Gyro bias from the latest still window (rad/s), `None` before one was seen.
     pub fn bias(&self) -> Option<[f32; 3]> {
         self.bias
+    }
+
+    /// What the still samples say of the accelerometer's unit ([`AccelUnits`]).
+    pub fn accel_units(&self) -> AccelUnits {
+        self.units
     }
 
     /// Forgets the window (after a gap or a bad sample: the next window starts afresh).
@@ -301,6 +377,7 @@ impl FreeFlightGate {
         // The rates first: in flight they are never small, and the square root is skipped.
         let still = omega.iter().all(|w| w.abs() < self.settings.still_rate) && {
             let fa = sqrt(accel[0] * accel[0] + accel[1] * accel[1] + accel[2] * accel[2]);
+            self.units.push_still(fa);
             (fa - G).abs() < self.settings.still_accel
         };
         self.open.still &= still;
@@ -505,6 +582,36 @@ fn add_normal(s: &mut BlockSums, k: &[[f32; 3]; 3], f: [f32; 3]) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A bench read in m/s^2 says nothing wrong; the same in g (about 1) or milli-g does, once
+    /// fifty still samples were seen; a release's few still samples reading zero among a
+    /// bench's do not outvote it; rates above the still threshold are not counted.
+    #[test]
+    fn the_accelerometer_unit_is_judged_on_still_samples() {
+        let bench = |scale: f32, n: usize| {
+            let mut u = AccelUnits::new();
+            for k in 0..n {
+                let tilt = 0.01 * (k % 7) as f32;
+                u.push([0.001, -0.002, 0.0], [tilt * scale, 0.0, G * scale], 0.05);
+            }
+            u
+        };
+        assert!(!bench(1.0, 500).looks_wrong());
+        assert!(bench(1.0 / G, 500).looks_wrong());
+        assert!(bench(1000.0 / G, 500).looks_wrong());
+        assert!(!bench(1.0 / G, 49).looks_wrong(), "too few to judge");
+        let mut u = bench(1.0, 200);
+        for _ in 0..5 {
+            u.push([0.0; 3], [0.0; 3], 0.05);
+        }
+        assert!(!u.looks_wrong());
+        let mut u = AccelUnits::new();
+        for _ in 0..500 {
+            u.push([3.0, 0.0, 0.0], [1.0, 0.0, 0.0], 0.05);
+        }
+        assert_eq!(u.still_samples(), 0);
+        assert!(!u.looks_wrong());
+    }
 
     #[test]
     fn windows_are_about_40_ms_and_never_under_16_samples() {

@@ -104,7 +104,7 @@ pub use convergence::{Convergence, ConvergenceMonitor};
 pub use extended::{
     ExtendedEstimate, ExtendedIdentifier, ExtendedSettings, ExtendedStatus, ExtraEffect,
 };
-pub use free_flight::{FreeFlightGate, GateSettings, WindowFit};
+pub use free_flight::{AccelUnits, FreeFlightGate, GateSettings, WindowFit};
 pub use identifier::Identifier;
 pub use inertia::{consistency, InertiaRatios};
 pub use pipeline::{

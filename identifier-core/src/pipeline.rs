@@ -444,6 +444,12 @@ impl<const N: usize> Pipeline<N> {
         if unmodelled_bias && converged(t.status) {
             t.status = TensorStatus::ModelMismatch;
         }
+        // An accelerometer not in m/s^2 (`AccelUnits`): the gate's free flights and bias
+        // mean nothing, so neither does what was fitted to them.
+        if self.gate.accel_units().looks_wrong() {
+            t.status = TensorStatus::UnitsLookWrong;
+            r.status = TensorStatus::UnitsLookWrong;
+        }
         (t, r)
     }
 

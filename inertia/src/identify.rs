@@ -250,6 +250,8 @@ pub enum IdentifyError {
     TooShort,
     /// The gate found no free flight.
     NoFreeFlight,
+    /// The gate found no free flight, and the accelerometer's unit looks wrong (the warning).
+    NoFreeFlightUnits(String),
     /// A rotor was given but the log has no rotor-speed channel, or eRPM without poles.
     Rotor(String),
     /// Settings could not be built (rate or noise not finite).
@@ -269,6 +271,7 @@ impl std::fmt::Display for IdentifyError {
                 "no free flight found: the accelerometer never read pure rotation about the \
                  centre of mass (give --segments to choose the stretches by hand)"
             ),
+            IdentifyError::NoFreeFlightUnits(m) => write!(f, "no free flight found: {m}"),
             IdentifyError::Rotor(m) => write!(f, "{m}"),
             IdentifyError::Settings(m) => write!(f, "{m}"),
             IdentifyError::Read(e) => write!(f, "{e}"),
@@ -492,7 +495,10 @@ pub fn identify_source(
         t.done = true;
     }
     if runs.is_empty() {
-        return Err(IdentifyError::NoFreeFlight);
+        return Err(match sv.accel_units.take() {
+            Some(m) => IdentifyError::NoFreeFlightUnits(m),
+            None => IdentifyError::NoFreeFlight,
+        });
     }
     // Throws begun with another bias than the final one are fed again with the final one.
     let again: Vec<&passes::Run> = runs
@@ -516,11 +522,19 @@ pub fn identify_source(
     let (first, last) = (runs[0].span.0, runs[runs.len() - 1].span.1);
     let mut pooled_json = EstimateJson::from(&pooled.estimate, &pooled.ratios, first, last);
     pooled_json.samples = pooled.fed_inputs;
-    if pooled.ratios.status != TensorStatus::Converged {
-        warnings.push(format!(
-            "pooled estimate is not to be trusted: {:?}",
-            pooled.ratios.status
-        ));
+    // An accelerometer not in m/s^2 misleads the gate (a hand's motion taken for free flight,
+    // no bench for the bias): nothing found with it is to be trusted, whatever the fits say.
+    let mut status = pooled.ratios.status;
+    if sv.accel_units.is_some() {
+        status = TensorStatus::UnitsLookWrong;
+        let wrong = format!("{status:?}");
+        for j in throws.iter_mut().map(|(_, j)| j).chain([&mut pooled_json]) {
+            j.status.clone_from(&wrong);
+            j.tensor_status.clone_from(&wrong);
+        }
+    }
+    if status != TensorStatus::Converged {
+        warnings.push(format!("pooled estimate is not to be trusted: {status:?}"));
     }
     warnings.extend(scale_floor_warning(&pooled_json));
     Ok(Report {

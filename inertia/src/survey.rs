@@ -5,7 +5,7 @@
 //! The medians are exact ([`crate::select`]); when the first reading leaves one open (many
 //! distinct values), the log is read again for it, the time step and the gyro only.
 
-use crate::readers::{ReadError, UnitCheck};
+use crate::readers::{AccelCheck, ReadError, UnitCheck};
 use crate::select::Median;
 use crate::source::{Flow, Source};
 use crate::unhold::{Plan, Planner, LOOKAHEAD};
@@ -42,6 +42,8 @@ pub struct Survey {
     pub rate_max: f32,
     /// The rotor speed's resolution, rad/s, when wanted and the speed ever changed.
     pub rotor_step: Option<f32>,
+    /// The accelerometer's unit warning ([`AccelCheck`]), also in `warnings`.
+    pub accel_units: Option<String>,
 }
 
 /// The resolution of a rotor-speed channel: the smallest change between consecutive logged
@@ -173,6 +175,7 @@ pub fn survey(
     let mut dt = DtStats::default();
     let mut noise = NoiseStats::default();
     let mut units = UnitCheck::default();
+    let mut accel = src.channels().accel.then(AccelCheck::default);
     let mut planner = wanted.unhold.map(|_| Planner::new(LOOKAHEAD));
     let factor = wanted.unhold.flatten();
     let mut rotor_step = RotorStep::default();
@@ -185,6 +188,9 @@ pub fn survey(
                 noise.push(s.gyro);
             }
             units.push(s.t, s.gyro);
+            if let Some(c) = &mut accel {
+                c.push(s.gyro, s.accel);
+            }
             if let Some(p) = &mut planner {
                 p.push(s.t, factor.map_or(s.rotor, |k| s.rotor * k));
             }
@@ -224,6 +230,8 @@ pub fn survey(
     let median_dt = dt.median();
     let mut warnings: Vec<String> = reading.duplicates.into_iter().collect();
     warnings.extend(units.warnings(median_dt));
+    let accel_units = accel.and_then(|c| c.warning());
+    warnings.extend(accel_units.clone());
     Ok(Survey {
         samples: reading.samples,
         median_dt,
@@ -233,6 +241,7 @@ pub fn survey(
         span: span.unwrap_or((0.0, 0.0)),
         rate_max,
         rotor_step: wanted.rotor_step.and(rotor_step.step()),
+        accel_units,
     })
 }
 

@@ -539,3 +539,58 @@ fn racquet_tosses_whose_fit_fails_report_the_refined_identifier() {
         );
     }
 }
+
+/// A bench (1 s still, the accelerometer reading one g), a free tumble with the IMU at the
+/// centre of mass (it reads zero) and the bench again, the accelerometer scaled by `accel`
+/// (1: m/s^2, `1/G`: g, `1000/G`: milli-g).
+fn bench_toss_bench(path: &Path, accel: f64) {
+    const G: f64 = 9.80665;
+    let rate = 500.0;
+    let still = toss(MOM, [0.0; 3], rate, 1.0, 2e-3, 21);
+    let free = toss(MOM, [1.0, 1.0, 1.0], rate, 4.0, 2e-3, 22);
+    let after = toss(MOM, [0.0; 3], rate, 1.0, 2e-3, 23);
+    let mut s = String::from("t,wx,wy,wz,ax,ay,az\n");
+    let mut k = 0usize;
+    for (rows, f) in [(&still, G), (&free, 0.0), (&after, G)] {
+        for r in rows.iter() {
+            let t = k as f64 / rate;
+            s += &format!("{t},{},{},{},0,0,{}\n", r[1], r[2], r[3], f * accel);
+            k += 1;
+        }
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+/// An accelerometer in g or milli-g where m/s^2 is expected: the gate's thresholds mean nothing
+/// then (in g a hand's motion would pass for free flight), so the tool says which unit it
+/// looks like and nothing comes out `Converged`; in m/s^2 the same log is `Converged`.
+#[test]
+fn an_accelerometer_not_in_m_s2_is_named_and_not_trusted() {
+    let d = out_dir();
+    let p = d.join("accel-si.csv");
+    bench_toss_bench(&p, 1.0);
+    let (code, v, err) = run(&["--input", p.to_str().unwrap()], &d.join("accel-si.json"));
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(v["pooled"]["status"], "Converged", "{err}");
+    assert!(!err.contains("accelerometer reads"), "{err}");
+
+    let p = d.join("accel-g.csv");
+    bench_toss_bench(&p, 1.0 / 9.80665);
+    let (_, v, err) = run(&["--input", p.to_str().unwrap()], &d.join("accel-g.json"));
+    println!("accelerometer in g: {} / {err}", v["pooled"]["status"]);
+    assert!(err.contains("looks like g, not m/s^2"), "{err}");
+    assert_eq!(v["pooled"]["status"], "UnitsLookWrong");
+    for t in v["throws"].as_array().expect("throws") {
+        assert_eq!(t["status"], "UnitsLookWrong");
+        assert_eq!(t["tensor_status"], "UnitsLookWrong");
+    }
+
+    let p = d.join("accel-mg.csv");
+    bench_toss_bench(&p, 1000.0 / 9.80665);
+    let (code, v, err) = run(&["--input", p.to_str().unwrap()], &d.join("accel-mg.json"));
+    println!("accelerometer in milli-g: exit {code} / {err}");
+    assert!(err.contains("looks like milli-g"), "{err}");
+    // Here the free flight reads zero in any unit, so it is still found; with an IMU off the
+    // centre of mass it would not be (then the error names the unit).
+    assert_eq!(v["pooled"]["status"], "UnitsLookWrong");
+}

@@ -1,7 +1,8 @@
 //! Unit sanity warnings: sustained rates above 50 rad/s (deg/s read as rad/s?) and a median
 //! time step outside `[1e-5 s, 1 s]` (wrong time unit?). [`UnitCheck`] follows the samples as
 //! they come; the median time step is given to it at the end (exact medians need the whole
-//! log: [`crate::select`]).
+//! log: [`crate::select`]). [`AccelCheck`] does the same for the accelerometer: while the
+//! gyro is still it must read about one `g` in m/s^2.
 
 /// Rates above this, sustained, look like deg/s read as rad/s.
 pub const DEG_PER_SEC_SUSPECT_RAD_S: f32 = 50.0;
@@ -75,4 +76,50 @@ pub fn unit_warnings(t: &[f64], gyro: &[[f32; 3]]) -> Vec<String> {
         *dt.select_nth_unstable_by(mid, f64::total_cmp).1
     });
     check.warnings(median)
+}
+
+/// Rates below this on every axis count as a still gyro for [`AccelCheck`], rad/s (the gate's
+/// `still_rate`).
+pub const STILL_RATE_RAD_S: f32 = 0.05;
+
+/// The accelerometer's unit judged from the whole log with the gate's own rule
+/// ([`identifier_core::AccelUnits`]: while the gyro is still, one `g` in m/s^2), and the
+/// warning that says which unit it looks like.
+#[derive(Clone, Debug, Default)]
+pub struct AccelCheck {
+    units: identifier_core::AccelUnits,
+}
+
+impl AccelCheck {
+    /// The next sample: rates (rad/s) and specific force (as read).
+    #[inline]
+    pub fn push(&mut self, w: [f32; 3], a: [f32; 3]) {
+        self.units.push(w, a, STILL_RATE_RAD_S);
+    }
+
+    /// The warning when the still stretches say the accelerometer is not in m/s^2.
+    pub fn warning(&self) -> Option<String> {
+        if !self.units.looks_wrong() {
+            return None;
+        }
+        let mean = self.units.mean().unwrap_or(0.0);
+        let g = identifier_core::free_flight::G;
+        let guess = if (0.5..=2.0).contains(&mean) {
+            "g"
+        } else if (500.0..=2000.0).contains(&mean) {
+            "milli-g"
+        } else if (0.5 * g * 1000.0..=2.0 * g * 1000.0).contains(&mean) {
+            "mm/s^2"
+        } else if mean < 0.5 {
+            "no signal, or a unit far larger than m/s^2"
+        } else {
+            "raw counts or another unit"
+        };
+        Some(format!(
+            "while the gyro is still ({} samples) the accelerometer reads {mean:.4} on average, \
+             where 1 g is {g:.3} m/s^2: that looks like {guess}, not m/s^2; ax,ay,az must be in \
+             m/s^2 (the free-flight detection and the bench's gyro bias rely on it)",
+            self.units.still_samples()
+        ))
+    }
 }
