@@ -400,10 +400,10 @@ impl<const N: usize> Pipeline<N> {
     ///   the output-error fit of the whole trajectory ([`RatioFit`], all three
     ///   axes jointly, the rigid-body constraint built in, a constant bias when its
     ///   likelihood-ratio test finds one), the efficient estimator for white gyro noise;
-    /// * once a free flight has ended, that fit not fitting to the noise and the tensor not
-    ///   `Converged` with products of inertia: the refined identifier's, `ModelMismatch` (the
-    ///   torque-free model does not hold; of the estimators here it is the least affected on
-    ///   real tosses through air);
+    /// * once a free flight has ended, that fit not fitting to the noise (or failing outright,
+    ///   [`StretchOutcome::Failed`]) and the tensor not `Converged` with products of inertia:
+    ///   the refined identifier's, `ModelMismatch` (the torque-free model does not hold; of the
+    ///   estimators here it is the least affected on real tosses through air);
     /// * a constant gyro bias detected (the refined identifier and its bias-augmented twin
     ///   [`RefinedBias`] disagree beyond their noise): the bias model's, never `Converged` when
     ///   the tensor also wants products of inertia (the two cannot be told apart);
@@ -412,7 +412,12 @@ impl<const N: usize> Pipeline<N> {
     /// * otherwise (during the first free flight, or no fit) the refined identifier's
     ///   ([`Refined`], fed exactly the same samples): it models the integral's own noise and
     ///   stays near the Cramer-Rao bound, and its standard deviation uses the noise seen in its
-    ///   residuals. Its [`Trust`] is reported as the [`TensorStatus`] of the same meaning.
+    ///   residuals. Its [`Trust`] is reported as the [`TensorStatus`] of the same meaning, at
+    ///   most `Converging` while no gyro bias was measured and no end-of-flight fit has ruled
+    ///   one out (it has no bias model).
+    ///
+    /// Whatever the source, an accelerometer whose still samples say it is not in m/s^2
+    /// ([`crate::AccelUnits`]) makes the status `UnitsLookWrong`.
     pub fn ratios(&self) -> Ratios {
         self.estimate_and_ratios().1
     }
