@@ -351,7 +351,8 @@ impl<const N: usize> Pipeline<N> {
     /// `Converging` when a gyro bias was detected ([`Pipeline::ratios`] from
     /// [`RatioSource::RefinedBias`]): the equation error has no bias model and takes a bias for
     /// products of inertia (during a gyro-only flight with a bias of 2e-3 rad/s it said
-    /// `Converged`, with products of inertia on a body that has none).
+    /// `Converged`, with products of inertia on a body that has none). `UnitsLookWrong` when
+    /// the accelerometer's still samples say it is not in m/s^2 ([`crate::AccelUnits`]).
     pub fn estimate(&self) -> TensorEstimate {
         self.estimate_and_ratios().0
     }
