@@ -536,6 +536,21 @@ pub fn identify_source(
     if status != TensorStatus::Converged {
         warnings.push(format!("pooled estimate is not to be trusted: {status:?}"));
     }
+    // A throw whose output-error fit failed (no motion of the model follows its samples: a
+    // hand, a catch, a stretch the gate should not have passed) is not in the pooled fit;
+    // say which, since the pooled sample count includes it. (With a rotor the fit is
+    // reported whenever it ran; without one also only where it fits to the noise.)
+    if opts.rotor.is_some() && pooled_json.tensor_method == "OutputError" {
+        for (k, j) in &throws {
+            if j.tensor_method != "OutputError" {
+                warnings.push(format!(
+                    "throw {k} ({:.3}-{:.3} s): its output-error fit failed (the model follows \
+                     none of its motion: a hand or a catch?), so the pooled tensor leaves it out",
+                    j.start_s, j.end_s
+                ));
+            }
+        }
+    }
     warnings.extend(scale_floor_warning(&pooled_json));
     Ok(Report {
         input: src.name(),
