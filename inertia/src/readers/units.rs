@@ -111,7 +111,8 @@ impl AccelCheck {
         } else if (0.5 * g * 1000.0..=2.0 * g * 1000.0).contains(&mean) {
             "mm/s^2"
         } else if mean < 0.5 {
-            "no signal, or a unit far larger than m/s^2"
+            "a linear acceleration with gravity taken out (the gate needs the specific force, \
+             gravity included), or no signal"
         } else {
             "raw counts or another unit"
         };
