@@ -13,5 +13,5 @@ pub mod source;
 pub mod survey;
 pub mod unhold;
 
-pub use readers::{read, Format, GyroUnit, ReadError, ReadOptions, TimeUnit};
+pub use readers::{read, AccelUnit, Format, GyroUnit, ReadError, ReadOptions, TimeUnit};
 pub use recording::{Recording, RotorSpeed};

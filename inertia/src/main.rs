@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use inertia::close_loop::{analysis, report};
 use inertia::identify::{identify_source, parse_axis, IdentifyOptions, Progress, Rotor, RotorHold};
-use inertia::{read, Format, GyroUnit, ReadOptions, TimeUnit};
+use inertia::{read, AccelUnit, Format, GyroUnit, ReadOptions, TimeUnit};
 
 mod replay;
 mod telemetry;
@@ -73,6 +73,9 @@ struct CloseLoopArgs {
     /// Time unit of a CSV: s, ms or us (also confirms a time step that looks wrong).
     #[arg(long, value_parser = parse_time_unit)]
     time_unit: Option<TimeUnit>,
+    /// Accelerometer unit of a CSV: m/s^2, g or mg (the specific force, gravity included).
+    #[arg(long, value_parser = parse_accel_unit)]
+    accel_unit: Option<AccelUnit>,
     /// With a rotor, the base model becomes the inertia tensor with the rotor momentum
     /// (products of inertia and the rotor exact), on the free flights `identify` finds (or the
     /// segments given).
@@ -178,6 +181,9 @@ struct IdentifyArgs {
     /// Time unit of a CSV: s, ms or us.
     #[arg(long, value_parser = parse_time_unit)]
     time_unit: Option<TimeUnit>,
+    /// Accelerometer unit of a CSV: m/s^2, g or mg (the specific force, gravity included).
+    #[arg(long, value_parser = parse_accel_unit)]
+    accel_unit: Option<AccelUnit>,
     /// Gyro white noise, rad/s (estimated from the data when absent).
     #[arg(long)]
     noise_std: Option<f32>,
@@ -200,6 +206,15 @@ fn parse_gyro_unit(s: &str) -> Result<GyroUnit, String> {
         "rad/s" | "rad_s" | "rads" => Ok(GyroUnit::RadPerSec),
         "deg/s" | "deg_s" | "dps" => Ok(GyroUnit::DegPerSec),
         o => Err(format!("{o:?}: use rad/s or deg/s")),
+    }
+}
+
+fn parse_accel_unit(s: &str) -> Result<AccelUnit, String> {
+    match s {
+        "m/s^2" | "m/s2" | "m_s2" | "mps2" => Ok(AccelUnit::MetersPerSec2),
+        "g" => Ok(AccelUnit::G),
+        "mg" | "milli-g" => Ok(AccelUnit::MilliG),
+        o => Err(format!("{o:?}: use m/s^2, g or mg")),
     }
 }
 
@@ -360,6 +375,7 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
     let opts = ReadOptions {
         gyro_unit: args.gyro_unit,
         time_unit: args.time_unit,
+        accel_unit: args.accel_unit,
     };
     let src = inertia::source::open(&args.input, &opts).map_err(|e| e.to_string())?;
     let iopts = IdentifyOptions {
@@ -434,6 +450,7 @@ fn run_close_loop(args: CloseLoopArgs) -> Result<ExitCode, String> {
     let units = ReadOptions {
         gyro_unit: args.gyro_unit,
         time_unit: args.time_unit,
+        accel_unit: args.accel_unit,
     };
     if let Some(rotor) = args.rotor.rotor()? {
         return run_close_loop_tensor(&args, rotor, &units);
@@ -586,6 +603,9 @@ struct ExportReplayArgs {
     /// Time unit of a CSV: s, ms or us.
     #[arg(long, value_parser = parse_time_unit)]
     time_unit: Option<TimeUnit>,
+    /// Accelerometer unit of a CSV: m/s^2, g or mg (the specific force, gravity included).
+    #[arg(long, value_parser = parse_accel_unit)]
+    accel_unit: Option<AccelUnit>,
     /// Gyro white noise, rad/s (estimated from the data when absent, as `identify` does).
     #[arg(long)]
     noise_std: Option<f32>,
@@ -610,6 +630,7 @@ fn run_export_replay(args: ExportReplayArgs) -> Result<ExitCode, String> {
     let opts = ReadOptions {
         gyro_unit: args.gyro_unit,
         time_unit: args.time_unit,
+        accel_unit: args.accel_unit,
     };
     let rec = read(&args.input, &opts).map_err(|e| e.to_string())?;
     let e = replay::export(&rec, rotor, args.noise_std, args.rotor.hold(), &args.out)?;

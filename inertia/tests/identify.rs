@@ -563,7 +563,8 @@ fn bench_toss_bench(path: &Path, accel: f64) {
 
 /// An accelerometer in g or milli-g where m/s^2 is expected: the gate's thresholds mean nothing
 /// then (in g a hand's motion would pass for free flight), so the tool says which unit it
-/// looks like and nothing comes out `Converged`; in m/s^2 the same log is `Converged`.
+/// looks like and nothing comes out `Converged`; in m/s^2, or declared with `--accel-unit`,
+/// the same log is `Converged`.
 #[test]
 fn an_accelerometer_not_in_m_s2_is_named_and_not_trusted() {
     let d = out_dir();
@@ -584,6 +585,13 @@ fn an_accelerometer_not_in_m_s2_is_named_and_not_trusted() {
         assert_eq!(t["status"], "UnitsLookWrong");
         assert_eq!(t["tensor_status"], "UnitsLookWrong");
     }
+    // Declared, the same log is read in m/s^2.
+    let (code, v, err) = run(
+        &["--input", p.to_str().unwrap(), "--accel-unit", "g"],
+        &d.join("accel-g-declared.json"),
+    );
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(v["pooled"]["status"], "Converged", "{err}");
 
     let p = d.join("accel-mg.csv");
     bench_toss_bench(&p, 1000.0 / 9.80665);
@@ -593,4 +601,10 @@ fn an_accelerometer_not_in_m_s2_is_named_and_not_trusted() {
     // Here the free flight reads zero in any unit, so it is still found; with an IMU off the
     // centre of mass it would not be (then the error names the unit).
     assert_eq!(v["pooled"]["status"], "UnitsLookWrong");
+    let (code, v, err) = run(
+        &["--input", p.to_str().unwrap(), "--accel-unit", "mg"],
+        &d.join("accel-mg-declared.json"),
+    );
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(v["pooled"]["status"], "Converged", "{err}");
 }

@@ -7,7 +7,7 @@
 //! |---|---|---|
 //! | time (required) | `t` or `time` | [`ReadOptions::time_unit`], default seconds |
 //! | gyro (required) | `wx,wy,wz` or `gx,gy,gz` | [`ReadOptions::gyro_unit`], default rad/s |
-//! | accelerometer (optional) | `ax,ay,az` | m/s^2 |
+//! | accelerometer (optional) | `ax,ay,az` | [`ReadOptions::accel_unit`], default m/s^2 (gravity included) |
 //! | rotor speed (optional) | `rotor_rad_s` (rad/s) or `erpm` (true eRPM) | |
 //!
 //! The plain `t,wx,wy,wz` (seconds, rad/s) reads as it always did. Separators `,`, `;` (with
@@ -90,6 +90,8 @@ pub struct CsvSource {
     c: Columns,
     kt: f64,
     kw: f64,
+    /// Factor of the accelerometer columns to m/s^2.
+    ka: f64,
     /// The highest column a row must have.
     need: usize,
     /// For each column up to `need`, the slot its value fills (or [`NO_SLOT`]).
@@ -105,6 +107,7 @@ impl CsvSource {
         let c = columns(path, &header).map_err(|e| text::utf8_first(path, e))?;
         let kt = opts.time_unit.unwrap_or_default().to_seconds();
         let kw = opts.gyro_unit.unwrap_or_default().to_rad_per_sec();
+        let ka = opts.accel_unit.unwrap_or_default().to_meters_per_sec2();
         let mut need = c.t.max(c.gyro[0]).max(c.gyro[1]).max(c.gyro[2]);
         if let Some(a) = c.accel {
             need = need.max(a[0]).max(a[1]).max(a[2]);
@@ -135,6 +138,7 @@ impl CsvSource {
             c,
             kt,
             kw,
+            ka,
             need,
             slot_of,
         })
@@ -231,7 +235,10 @@ impl CsvSource {
     fn row(&self, n: usize, line: &str, scratch: &mut String) -> Result<Option<Row>, ReadError> {
         if let Some(v) = self.plain_row(line) {
             let w = [v[1], v[2], v[3]].map(|x| x * self.kw);
-            let a = self.c.accel.map(|_| [v[4], v[5], v[6]]);
+            let a = self
+                .c
+                .accel
+                .map(|_| [v[4], v[5], v[6]].map(|x| x * self.ka));
             let r = self.c.rotor.map(|_| v[7]);
             return Ok(Some((v[0] * self.kt, w, a, r)));
         }
@@ -270,7 +277,7 @@ impl CsvSource {
             Some(_) => {
                 let mut a = [0.0; 3];
                 for (k, name) in ["ax", "ay", "az"].iter().enumerate() {
-                    a[k] = text::number(path, n, name, f[4 + k], dc, scratch)?;
+                    a[k] = text::number(path, n, name, f[4 + k], dc, scratch)? * self.ka;
                 }
                 Some(a)
             }
@@ -318,7 +325,7 @@ impl Source for CsvSource {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::readers::{GyroUnit, TimeUnit};
+    use crate::readers::{AccelUnit, GyroUnit, TimeUnit};
     use crate::recording::RotorSpeed;
     use crate::source::{Flow, Sample};
 
@@ -341,12 +348,33 @@ mod tests {
         let o = ReadOptions {
             gyro_unit: Some(GyroUnit::DegPerSec),
             time_unit: Some(TimeUnit::Ms),
+            accel_unit: None,
         };
         let r = read_csv(&p, &o).unwrap();
         assert_eq!(r.t, vec![0.0, 0.01]);
         assert!((r.gyro[0][2] - 3.0f32.to_radians()).abs() < 1e-7);
         assert_eq!(r.accel.as_ref().unwrap()[0], [0.0, 0.0, 9.8]);
         assert_eq!(r.rotor, Some(RotorSpeed::Erpm(vec![100.0, 200.0])));
+
+        // The accelerometer declared in g or milli-g, on the common row and on one the
+        // general path reads (a decimal comma).
+        let p = tmp(
+            "g.csv",
+            b"t,wx,wy,wz,ax,ay,az\n0,0,0,0,0,0,1\n0.01,0,0,0,0,0,1\n",
+        );
+        let mut o = ReadOptions {
+            accel_unit: Some(AccelUnit::G),
+            ..ReadOptions::default()
+        };
+        let r = read_csv(&p, &o).unwrap();
+        assert_eq!(r.accel.as_ref().unwrap()[1], [0.0, 0.0, 9.806_65]);
+        let p = tmp(
+            "mg.csv",
+            b"t;wx;wy;wz;ax;ay;az\n0;0;0;0;0;0;1000,0\n0,01;0;0;0;0;0;1000,0\n",
+        );
+        o.accel_unit = Some(AccelUnit::MilliG);
+        let r = read_csv(&p, &o).unwrap();
+        assert_eq!(r.accel.as_ref().unwrap()[0], [0.0, 0.0, 9.806_65]);
     }
 
     /// The one-pass reading of the common row gives the general path's values bit for bit,

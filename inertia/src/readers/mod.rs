@@ -128,6 +128,29 @@ impl GyroUnit {
     }
 }
 
+/// Unit of the accelerometer columns of a CSV (the specific force, gravity included).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum AccelUnit {
+    /// m/s^2 (the default).
+    #[default]
+    MetersPerSec2,
+    /// Standard gravities, 9.80665 m/s^2.
+    G,
+    /// Thousandths of a standard gravity.
+    MilliG,
+}
+
+impl AccelUnit {
+    /// Factor from this unit to m/s^2.
+    pub fn to_meters_per_sec2(self) -> f64 {
+        match self {
+            AccelUnit::MetersPerSec2 => 1.0,
+            AccelUnit::G => 9.806_65,
+            AccelUnit::MilliG => 9.806_65e-3,
+        }
+    }
+}
+
 /// Unit of the time column of a CSV.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum TimeUnit {
@@ -159,6 +182,8 @@ pub struct ReadOptions {
     pub gyro_unit: Option<GyroUnit>,
     /// Time unit of a CSV; `None` means seconds.
     pub time_unit: Option<TimeUnit>,
+    /// Accelerometer unit of a CSV; `None` means m/s^2.
+    pub accel_unit: Option<AccelUnit>,
 }
 
 /// The formats [`read`] knows.

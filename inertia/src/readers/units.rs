@@ -104,22 +104,25 @@ impl AccelCheck {
         }
         let mean = self.units.mean().unwrap_or(0.0);
         let g = identifier_core::free_flight::G;
-        let guess = if (0.5..=2.0).contains(&mean) {
-            "g"
+        let (guess, fix) = if (0.5..=2.0).contains(&mean) {
+            ("g", "declare --accel-unit g")
         } else if (500.0..=2000.0).contains(&mean) {
-            "milli-g"
+            ("milli-g", "declare --accel-unit mg")
         } else if (0.5 * g * 1000.0..=2.0 * g * 1000.0).contains(&mean) {
-            "mm/s^2"
+            ("mm/s^2", "write ax,ay,az in m/s^2")
         } else if mean < 0.5 {
-            "a linear acceleration with gravity taken out (the gate needs the specific force, \
-             gravity included), or no signal"
+            (
+                "a linear acceleration with gravity taken out (the gate needs the specific \
+                 force, gravity included), or no signal",
+                "write the specific force in m/s^2",
+            )
         } else {
-            "raw counts or another unit"
+            ("raw counts or another unit", "write ax,ay,az in m/s^2")
         };
         Some(format!(
             "while the gyro is still ({} samples) the accelerometer reads {mean:.4} on average, \
-             where 1 g is {g:.3} m/s^2: that looks like {guess}, not m/s^2; ax,ay,az must be in \
-             m/s^2 (the free-flight detection and the bench's gyro bias rely on it)",
+             where 1 g is {g:.3} m/s^2: that looks like {guess}, not m/s^2: {fix} (the \
+             free-flight detection and the bench's gyro bias rely on it)",
             self.units.still_samples()
         ))
     }
