@@ -117,6 +117,10 @@ impl AccelUnits {
 /// Standard gravity, m/s^2.
 pub const G: f32 = 9.806_65;
 
+/// Rates below this on every axis are a still gyro, rad/s: [`GateSettings::still_rate`] of
+/// [`GateSettings::for_rate`], and what a host judging a whole log by [`AccelUnits`] uses.
+pub const STILL_RATE: f32 = 0.05;
+
 /// Most blocks in a window.
 pub const MAX_WINDOW_BLOCKS: usize = 16;
 
@@ -187,7 +191,7 @@ impl GateSettings {
             max_residual: 2.0,
             max_offset: 0.1,
             still_accel: 0.5,
-            still_rate: 0.05,
+            still_rate: STILL_RATE,
             still_spread: 0.01,
             lowpass_hz: 30.0,
         }

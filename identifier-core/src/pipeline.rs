@@ -518,12 +518,7 @@ impl<const N: usize> Pipeline<N> {
             // refined identifier's estimate is the least affected, and marked as such.
             let tensor_fits = !principal && t.status == TensorStatus::Converged;
             if !fits && !tensor_fits && informed {
-                return Ratios {
-                    a: Some(self.refined.block_estimate()),
-                    std_a: Some(self.refined.std_a()),
-                    status: data_verdict(status).unwrap_or(TensorStatus::ModelMismatch),
-                    source: RatioSource::Refined,
-                };
+                return self.refined_mismatch(status);
             }
         } else if self.trajectory.last_outcome() == StretchOutcome::Failed
             && t.status != TensorStatus::Converged
@@ -535,12 +530,7 @@ impl<const N: usize> Pipeline<N> {
             // tensor's products had been taken for a misaligned sensor and its `a` reported,
             // 0.4 off on `a_2` where the refined identifier's was within 0.02 of the other
             // tosses' (both `ModelMismatch`).
-            return Ratios {
-                a: Some(self.refined.block_estimate()),
-                std_a: Some(self.refined.std_a()),
-                status: data_verdict(status).unwrap_or(TensorStatus::ModelMismatch),
-                source: RatioSource::Refined,
-            };
+            return self.refined_mismatch(status);
         }
         let (a_r, s_r) = (self.refined.block_estimate(), self.refined.std_a());
         // Hausman test of a constant gyro bias: without one, the refined identifier and its
@@ -605,6 +595,18 @@ impl<const N: usize> Pipeline<N> {
             a: informed.then_some(a_r),
             std_a: informed.then_some(s_r),
             status,
+            source: RatioSource::Refined,
+        }
+    }
+
+    /// The refined identifier's ratios where the torque-free model does not hold on the flight
+    /// (its fit above the noise or failed): `ModelMismatch` unless a data-side verdict of
+    /// `status` says more ([`data_verdict`]).
+    fn refined_mismatch(&self, status: TensorStatus) -> Ratios {
+        Ratios {
+            a: Some(self.refined.block_estimate()),
+            std_a: Some(self.refined.std_a()),
+            status: data_verdict(status).unwrap_or(TensorStatus::ModelMismatch),
             source: RatioSource::Refined,
         }
     }

@@ -78,10 +78,6 @@ pub fn unit_warnings(t: &[f64], gyro: &[[f32; 3]]) -> Vec<String> {
     check.warnings(median)
 }
 
-/// Rates below this on every axis count as a still gyro for [`AccelCheck`], rad/s (the gate's
-/// `still_rate`).
-pub const STILL_RATE_RAD_S: f32 = 0.05;
-
 /// The accelerometer's unit judged from the whole log with the gate's own rule
 /// ([`identifier_core::AccelUnits`]: while the gyro is still, one `g` in m/s^2), and the
 /// warning that says which unit it looks like.
@@ -91,10 +87,12 @@ pub struct AccelCheck {
 }
 
 impl AccelCheck {
-    /// The next sample: rates (rad/s) and specific force (as read).
+    /// The next sample: rates (rad/s) and specific force (as read); still below the gate's
+    /// [`identifier_core::free_flight::STILL_RATE`].
     #[inline]
     pub fn push(&mut self, w: [f32; 3], a: [f32; 3]) {
-        self.units.push(w, a, STILL_RATE_RAD_S);
+        self.units
+            .push(w, a, identifier_core::free_flight::STILL_RATE);
     }
 
     /// The warning when the still stretches say the accelerometer is not in m/s^2.
