@@ -250,7 +250,8 @@ pub enum IdentifyError {
     TooShort,
     /// The gate found no free flight.
     NoFreeFlight,
-    /// The gate found no free flight, and the accelerometer's unit looks wrong (the warning).
+    /// The gate found no free flight, and the accelerometer's or the gyro's unit looks wrong (the
+    /// warning).
     NoFreeFlightUnits(String),
     /// A rotor was given but the log has no rotor-speed channel, or eRPM without poles.
     Rotor(String),
@@ -495,7 +496,7 @@ pub fn identify_source(
         t.done = true;
     }
     if runs.is_empty() {
-        return Err(match sv.accel_units.take() {
+        return Err(match sv.accel_units.take().or(sv.gyro_units.take()) {
             Some(m) => IdentifyError::NoFreeFlightUnits(m),
             None => IdentifyError::NoFreeFlight,
         });
@@ -523,9 +524,11 @@ pub fn identify_source(
     let mut pooled_json = EstimateJson::from(&pooled.estimate, &pooled.ratios, first, last);
     pooled_json.samples = pooled.fed_inputs;
     // An accelerometer not in m/s^2 misleads the gate (a hand's motion taken for free flight,
-    // no bench for the bias): nothing found with it is to be trusted, whatever the fits say.
+    // no bench for the bias), and a gyro read in the wrong unit feeds the fits only what its
+    // full scale or the plausible rates let through: nothing found with either is to be
+    // trusted, whatever the fits say.
     let mut status = pooled.ratios.status;
-    if sv.accel_units.is_some() {
+    if sv.accel_units.is_some() || sv.gyro_units.is_some() {
         status = TensorStatus::UnitsLookWrong;
         let wrong = format!("{status:?}");
         for j in throws.iter_mut().map(|(_, j)| j).chain([&mut pooled_json]) {

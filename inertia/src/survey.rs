@@ -5,7 +5,7 @@
 //! The medians are exact ([`crate::select`]); when the first reading leaves one open (many
 //! distinct values), the log is read again for it, the time step and the gyro only.
 
-use crate::readers::{AccelCheck, ReadError, UnitCheck};
+use crate::readers::{time_warning, AccelCheck, ReadError, UnitCheck};
 use crate::select::Median;
 use crate::source::{Flow, Source};
 use crate::unhold::{Plan, Planner, LOOKAHEAD};
@@ -44,6 +44,9 @@ pub struct Survey {
     pub rotor_step: Option<f32>,
     /// The accelerometer's unit warning ([`AccelCheck`]), also in `warnings`.
     pub accel_units: Option<String>,
+    /// The gyro's unit warning ([`UnitCheck::rate_warning`]: rates sustained above 50 rad/s),
+    /// also in `warnings`.
+    pub gyro_units: Option<String>,
 }
 
 /// The resolution of a rotor-speed channel: the smallest change between consecutive logged
@@ -229,7 +232,9 @@ pub fn survey(
     }
     let median_dt = dt.median();
     let mut warnings: Vec<String> = reading.duplicates.into_iter().collect();
-    warnings.extend(units.warnings(median_dt));
+    let gyro_units = units.rate_warning(src.full_scale());
+    warnings.extend(gyro_units.clone());
+    warnings.extend(time_warning(median_dt));
     let accel_units = accel.and_then(|c| c.warning());
     warnings.extend(accel_units.clone());
     Ok(Survey {
@@ -242,6 +247,7 @@ pub fn survey(
         rate_max,
         rotor_step: wanted.rotor_step.and(rotor_step.step()),
         accel_units,
+        gyro_units,
     })
 }
 

@@ -608,3 +608,56 @@ fn an_accelerometer_not_in_m_s2_is_named_and_not_trusted() {
     assert_eq!(code, 0, "{err}");
     assert_eq!(v["pooled"]["status"], "Converged", "{err}");
 }
+
+/// A blackbox log whose `gyroADC` holds raw counts (16.384 per deg/s) under Betaflight's name,
+/// which logs deg/s: every rate is read 16.4x too large, so the throw's rates stay far beyond
+/// the gyro's full scale. The unit is named and nothing is trusted (it was `TooFewSamples`:
+/// the clipped samples starved the fits, and the warning blamed deg/s read as rad/s).
+#[test]
+fn a_blackbox_gyro_in_the_wrong_unit_is_named_and_not_trusted() {
+    let Some(root) = shared() else {
+        eprintln!("../shared/data/thrown-fc absent: skipped");
+        return;
+    };
+    let data = std::fs::read(root.join("device_only/LOG00119.BFL")).unwrap();
+    let text = String::from_utf8_lossy(&data[..4096]).to_string();
+    let at = text.find("H Firmware revision:").unwrap();
+    let end = at + text[at..].find('\n').unwrap();
+    let res = text.find("H blackbox_high_resolution:1").unwrap();
+    let mut edited = data.clone();
+    // Same length, so nothing after the header moves.
+    let name = format!(
+        "{:<w$}",
+        "H Firmware revision:Betaflight 4.4.2",
+        w = end - at
+    );
+    edited[at..end].copy_from_slice(name.as_bytes());
+    edited[res + "H blackbox_high_resolution:".len()] = b'0';
+    let d = out_dir();
+    let p = d.join("betaflight-named.BFL");
+    std::fs::write(&p, &edited).unwrap();
+    let rotor = [
+        "--rotor-inertia",
+        "1.467e-6",
+        "--rotor-axis",
+        "-z",
+        "--rotor-poles",
+        "12",
+    ];
+    let mut args = vec!["--input", p.to_str().unwrap()];
+    args.extend(rotor);
+    let (_, v, err) = run(&args, &d.join("betaflight-named.json"));
+    println!(
+        "raw counts read as deg/s: {} / {err}",
+        v["pooled"]["status"]
+    );
+    assert!(
+        err.contains("gyroADC read as deg/s (Betaflight's unit)"),
+        "{err}"
+    );
+    assert!(err.contains("beyond the gyro's full scale"), "{err}");
+    assert_eq!(v["pooled"]["status"], "UnitsLookWrong", "{err}");
+    for t in v["throws"].as_array().expect("throws") {
+        assert_eq!(t["status"], "UnitsLookWrong");
+    }
+}

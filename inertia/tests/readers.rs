@@ -109,6 +109,79 @@ fn thrown_fc_blackbox_logs() {
     }
 }
 
+/// `data` with the value of its first `H key:` header line replaced by `value`.
+fn set_header(data: &[u8], key: &str, value: &str) -> Vec<u8> {
+    let key = format!("H {key}:");
+    let at = data
+        .windows(key.len())
+        .position(|w| w == key.as_bytes())
+        .unwrap();
+    let end = at + data[at..].iter().position(|&b| b == b'\n').unwrap();
+    let mut out = data[..at].to_vec();
+    out.extend_from_slice(format!("{key}{value}\n").as_bytes());
+    out.extend_from_slice(&data[end + 1..]);
+    out
+}
+
+/// Betaflight logs `gyroADC` in deg/s (tenths with `blackbox_high_resolution`), INDIflight in
+/// raw counts (16.384 per deg/s), both under `gyro_scale` 1.0: the reader goes by the
+/// firmware's name. The same frames under Betaflight's names read as 16.384 (1.6384) times the
+/// INDIflight rates; versions `blackbox-log` refuses (4.1, 2025.12) are read too.
+#[test]
+fn blackbox_gyro_unit_follows_the_firmware() {
+    let Some(p) = thrown_logs().into_iter().next() else {
+        return;
+    };
+    let data = std::fs::read(&p).unwrap();
+    let indi = read(&p, &ReadOptions::default()).unwrap();
+    // These logs say `blackbox_high_resolution:1` (INDIflight writes it, and still logs counts).
+    for (revision, high_resolution, factor) in [
+        ("Betaflight 4.4.2 (abc) STM32F405", "0", 16.384),
+        ("Betaflight 2025.12.1 (abc) STM32H743", "0", 16.384),
+        ("Betaflight 4.1.0 (abc) STM32F405", "0", 16.384),
+        ("INAV 7.1.0 (abc) MATEKF405", "0", 16.384),
+        ("Betaflight 4.5.1 (abc) STM32F7X2", "1", 1.6384),
+        ("Rotorflight 2.1.0 (abc) STM32F7X2", "0", 16.384),
+    ] {
+        let edited = set_header(&data, "Firmware revision", revision);
+        let edited = set_header(&edited, "blackbox_high_resolution", high_resolution);
+        let file = tmp("revision.BFL", &edited);
+        let r = read(&file, &ReadOptions::default()).unwrap_or_else(|e| panic!("{revision}: {e}"));
+        assert_eq!(r.len(), indi.len(), "{revision}");
+        for (a, b) in r.gyro.iter().zip(&indi.gyro).step_by(97) {
+            for k in 0..3 {
+                let want = b[k] * factor;
+                assert!(
+                    (a[k] - want).abs() <= 1e-5 * want.abs().max(1.0),
+                    "{revision}: {a:?} {b:?}"
+                );
+            }
+        }
+        assert!(
+            r.warnings
+                .iter()
+                .any(|w| w.contains("deg/s (") || w.contains("tenths of deg/s")),
+            "{revision}: {:?}",
+            r.warnings
+        );
+        assert!(
+            r.warnings.iter().all(|w| !w.contains("raw counts")),
+            "{:?}",
+            r.warnings
+        );
+    }
+    // An unknown fork: raw counts, as INDIflight, with a warning that says what if not.
+    let edited = set_header(&data, "Firmware revision", "Someflight 1.0.0 (x) F4");
+    let file = tmp("revision.BFL", &edited);
+    let r = read(&file, &ReadOptions::default()).unwrap();
+    assert_eq!(r.gyro, indi.gyro);
+    assert!(
+        r.warnings.iter().any(|w| w.contains("16.4x too small")),
+        "{:?}",
+        r.warnings
+    );
+}
+
 #[test]
 fn thrown_fc_truncated_and_damaged_never_panic() {
     let Some(p) = thrown_logs().into_iter().next() else {

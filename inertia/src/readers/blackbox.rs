@@ -6,13 +6,16 @@
 //! | field | unit in the log | in the [`Recording`] |
 //! |---|---|---|
 //! | frame time | microseconds | `t`, seconds |
-//! | `gyroADC[0..2]` | raw counts, 16.384 LSB per deg/s (+-2000 deg/s) | `gyro`, rad/s |
+//! | `gyroADC[0..2]` | by firmware, see [`GyroAdcUnit`] | `gyro`, rad/s |
 //! | `accSmooth[0..2]` | counts, `acc_1G` per g (2048 when the header lacks it) | `accel`, m/s^2 |
-//! | `erpm[0]` | eRPM / 100 | `rotor`, [`RotorSpeed::Erpm`] (true eRPM) |
+//! | `erpm[0]` or `eRPM[0]` | eRPM / 100 | `rotor`, [`RotorSpeed::Erpm`] (true eRPM) |
 //!
-//! The unit trap: the header's `gyro_scale` says 1.0, yet INDIflight logs `gyroADC` in raw
-//! counts of the +-2000 deg/s range; trusting the header gives rates 16.4x too large. The
-//! header is therefore ignored for the gyro.
+//! The unit trap: the header's `gyro_scale` says 1.0 in both firmwares, yet Betaflight logs
+//! `gyroADC` in deg/s (`lrintf(gyro.gyroADCf)`, tenths of deg/s with
+//! `blackbox_high_resolution`) and INDIflight in raw counts of the +-2000 deg/s range (16.384
+//! per deg/s). The header's scale is therefore ignored and the unit chosen from the firmware's
+//! name; a wrong choice is 16.4x either way, which the rates' range check (too fast) or the
+//! free-flight gate and the model tests (too slow: no free flight, `ModelMismatch`) catch.
 
 use std::path::{Path, PathBuf};
 
@@ -41,17 +44,96 @@ pub const ERPM_LOG_FACTOR: f32 = 100.0;
 const STAND_IN_REVISION: &[u8] = b"Betaflight 4.5.0";
 const REVISION_KEY: &[u8] = b"H Firmware revision:";
 
-/// Rewrites, in the header block of every log in `data`, a `Firmware revision` that is neither
-/// Betaflight nor INAV to a Betaflight revision; returns the new bytes and the revisions
-/// replaced.
+/// What a log's `gyroADC` counts, chosen from its firmware's name (the header's `gyro_scale`
+/// says 1.0 either way).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum GyroAdcUnit {
+    /// Raw sensor counts of the +-2000 deg/s range, 16.384 per deg/s: INDIflight, whose logs
+    /// in `../shared/data/thrown-fc/` were checked against its authors' reader; also taken
+    /// for a firmware this reader does not know, with a warning.
+    RawCounts,
+    /// deg/s (`lrintf(gyro.gyroADCf)`): Betaflight, INAV, EmuFlight, Rotorflight.
+    DegPerS,
+    /// Tenths of deg/s: Betaflight with `blackbox_high_resolution` set.
+    DeciDegPerS,
+}
+
+impl GyroAdcUnit {
+    /// The unit of the log whose `Firmware revision` is `revision` and whose header says
+    /// `high_resolution` (the value of `blackbox_high_resolution`, if any).
+    pub fn of(revision: &str, high_resolution: Option<&str>) -> Self {
+        let name = revision.split(' ').next().unwrap_or_default();
+        let logs_deg_s = ["betaflight", "inav", "emuflight", "rotorflight"]
+            .iter()
+            .any(|f| name.eq_ignore_ascii_case(f));
+        if !logs_deg_s {
+            GyroAdcUnit::RawCounts
+        } else if high_resolution.is_some_and(|v| v.trim() == "1") {
+            GyroAdcUnit::DeciDegPerS
+        } else {
+            GyroAdcUnit::DegPerS
+        }
+    }
+
+    /// rad/s per logged unit.
+    pub fn rad_s_per_unit(self) -> f64 {
+        match self {
+            GyroAdcUnit::RawCounts => (1.0 / GYRO_LSB_PER_DEG_S).to_radians(),
+            GyroAdcUnit::DegPerS => 1.0f64.to_radians(),
+            GyroAdcUnit::DeciDegPerS => 0.1f64.to_radians(),
+        }
+    }
+
+    fn describe(self) -> String {
+        match self {
+            GyroAdcUnit::RawCounts => format!("raw counts, {GYRO_LSB_PER_DEG_S} per deg/s"),
+            GyroAdcUnit::DegPerS => "deg/s".to_string(),
+            GyroAdcUnit::DeciDegPerS => "tenths of deg/s (blackbox_high_resolution)".to_string(),
+        }
+    }
+}
+
+/// Whether `blackbox-log` 0.4 accepts the revision as it is: Betaflight 4.2 to 4.5, INAV 5
+/// to 8.
+fn crate_accepts(revision: &[u8]) -> bool {
+    let text = String::from_utf8_lossy(revision);
+    let mut words = text.split(' ');
+    let name = words.next().unwrap_or_default();
+    let mut version = words
+        .next()
+        .unwrap_or_default()
+        .split('.')
+        .map(|v| v.parse::<u32>().ok());
+    let major = version.next().flatten();
+    let minor = version.next().flatten();
+    if name.eq_ignore_ascii_case("betaflight") {
+        major == Some(4) && minor.is_some_and(|m| (2..=5).contains(&m))
+    } else if name.eq_ignore_ascii_case("inav") {
+        major.is_some_and(|m| (5..=8).contains(&m))
+    } else {
+        false
+    }
+}
+
+/// Rewrites, in the header block of every log in `data`, a `Firmware revision` that
+/// `blackbox-log` would refuse to a Betaflight revision it accepts; returns the new bytes and
+/// the revisions replaced.
 ///
-/// Why: `blackbox-log` refuses any firmware name but Betaflight (4.2 to 4.5) and INAV (5 to
-/// 8), and INDIflight (a Betaflight 4 fork) writes `Indiflight 5.0.0 ...`. The frame layout
+/// Why: `blackbox-log` refuses any firmware but Betaflight 4.2 to 4.5 and INAV 5 to 8, so
+/// INDIflight (a Betaflight 4 fork writing `Indiflight 5.0.0 ...`), Betaflight 4.1 or 2025.12
+/// and the other forks would not be read at all. The frame layout
 /// (field names, predictors, encodings) is fully described by the `H Field ...` headers,
 /// which the fork keeps in Betaflight's format; the firmware name only selects the meaning of
 /// flag and mode enumerations, none of which this reader uses. Checked against an independent
 /// decoder (`scripts/check-blackbox-reader.sh`). The file on disk is never touched.
 pub fn rewrite_unknown_firmware(data: &[u8]) -> (Vec<u8>, Vec<String>) {
+    rewrite_firmware(data, false)
+}
+
+/// [`rewrite_unknown_firmware`], or with `every` every revision, accepted or not: a log of a
+/// supported firmware whose headers `blackbox-log` still refuses (an enumeration value it does
+/// not know, such as a newer motor protocol) is then read as Betaflight 4.5's.
+fn rewrite_firmware(data: &[u8], every: bool) -> (Vec<u8>, Vec<String>) {
     let mut out = Vec::with_capacity(data.len() + 64);
     let mut replaced = Vec::new();
     let mut copied = 0;
@@ -65,10 +147,7 @@ pub fn rewrite_unknown_firmware(data: &[u8]) -> (Vec<u8>, Vec<String>) {
                 .position(|&b| b == b'\n')
                 .map_or(data.len(), |i| line + i);
             if let Some(value) = data[line..end].strip_prefix(REVISION_KEY) {
-                let name = value.split(|&b| b == b' ').next().unwrap_or_default();
-                let known =
-                    name.eq_ignore_ascii_case(b"betaflight") || name.eq_ignore_ascii_case(b"inav");
-                if !known {
+                if every || !crate_accepts(value.strip_suffix(b"\r").unwrap_or(value)) {
                     out.extend_from_slice(&data[copied..line]);
                     out.extend_from_slice(REVISION_KEY);
                     out.extend_from_slice(STAND_IN_REVISION);
@@ -121,7 +200,7 @@ fn fields(headers: &Headers) -> Result<Fields, String> {
                 acc_signed[k] = f.signed;
             }
         }
-        if f.name == "erpm[0]" {
+        if f.name.eq_ignore_ascii_case("erpm[0]") {
             erpm = Some(i);
         }
     }
@@ -290,8 +369,10 @@ pub struct BlackboxSource {
     data: Vec<u8>,
     /// The log read (the one with the most main frames).
     index: usize,
-    /// Its `H name:value` lines.
+    /// Its `H name:value` lines, as written.
     block: Vec<(String, String)>,
+    /// What its `gyroADC` counts.
+    gyro_unit: GyroAdcUnit,
     name: String,
     channels: Channels,
     /// Warnings about the file as a whole (firmware, units, several logs).
@@ -307,52 +388,75 @@ impl BlackboxSource {
     }
 
     /// Chooses the log of `data` (`path` only names it in messages).
-    pub fn from_bytes(path: &Path, data: &[u8]) -> Result<Self, ReadError> {
-        if !data.starts_with(BLACKBOX_MARKER) {
+    pub fn from_bytes(path: &Path, input: &[u8]) -> Result<Self, ReadError> {
+        if !input.starts_with(BLACKBOX_MARKER) {
             return Err(ReadError::at(
                 path,
                 Location::Line(1),
                 "not a blackbox log: it does not start with \"H Product:Blackbox flight data recorder\"",
             ));
         }
-        let (data, replaced) = rewrite_unknown_firmware(data);
-        let chosen = guard(path, "blackbox", || choose_log(path, &data))??;
+        let original = header_blocks(input);
+        let (mut data, mut replaced) = rewrite_unknown_firmware(input);
+        let mut chosen = guard(path, "blackbox", || choose_log(path, &data))?;
+        if chosen.is_err() {
+            let (every, all) = rewrite_firmware(input, true);
+            if let Ok(Ok(c)) = guard(path, "blackbox", || choose_log(path, &every)) {
+                (data, replaced, chosen) = (every, all, Ok(c));
+            }
+        }
+        let chosen = chosen?;
         let Chosen {
             index,
             count,
-            name,
             channels,
         } = chosen;
+        // The chosen log's header lines as written (its own firmware revision, not the
+        // stand-in handed to the decoder).
+        let block = original.into_iter().nth(index).unwrap_or_default();
+        let header = |k: &str| {
+            block
+                .iter()
+                .find(|(key, _)| key == k)
+                .map(|(_, v)| v.trim())
+        };
+        let revision = header("Firmware revision").unwrap_or("unknown firmware");
+        let gyro_unit = GyroAdcUnit::of(revision, header("blackbox_high_resolution"));
+        let name = format!("{} (blackbox, {revision})", path.display());
         let mut notes = Vec::new();
         for r in replaced {
             notes.push(format!(
-                "firmware revision {r:?} read as a Betaflight 4 log (same frame format); gyroADC \
-                 taken as raw counts, {GYRO_LSB_PER_DEG_S} per deg/s"
+                "firmware revision {r:?} read as a Betaflight 4.5 log (same frame format)"
             ));
         }
-        if notes.is_empty() {
-            // Only INDIflight's units are verified (see the module documentation); Betaflight 4
-            // itself may log gyroADC already in deg/s, which this scale would make 16.4x too
-            // small.
-            notes.push(format!(
-                "gyroADC taken as raw counts, {GYRO_LSB_PER_DEG_S} per deg/s, as INDIflight logs \
-                 it; check the rates if this log's firmware ({name}) logs deg/s"
-            ));
-        }
+        let firmware = revision.split(' ').next().unwrap_or_default();
+        let known =
+            gyro_unit != GyroAdcUnit::RawCounts || firmware.eq_ignore_ascii_case("indiflight");
+        // Only INDIflight's raw counts are verified; an unknown fork may log deg/s like
+        // Betaflight, which this scale would make 16.4x too slow.
+        notes.push(if known {
+            format!(
+                "gyroADC read as {} ({firmware}'s unit)",
+                gyro_unit.describe()
+            )
+        } else {
+            format!(
+                "gyroADC of firmware {firmware:?} read as {}, as INDIflight logs it; if this \
+                 firmware logs deg/s like Betaflight, the rates are 16.4x too small",
+                gyro_unit.describe()
+            )
+        });
         if count > 1 {
             notes.push(format!(
                 "the file holds {count} logs; the one with the most main frames was read"
             ));
         }
-        let block = header_blocks(&data)
-            .into_iter()
-            .nth(index)
-            .unwrap_or_default();
         Ok(BlackboxSource {
             path: path.to_path_buf(),
             data,
             index,
             block,
+            gyro_unit,
             name,
             channels,
             notes,
@@ -364,7 +468,6 @@ impl BlackboxSource {
 struct Chosen {
     index: usize,
     count: usize,
-    name: String,
     channels: Channels,
 }
 
@@ -421,11 +524,6 @@ fn choose_log(path: &Path, data: &[u8]) -> Result<Chosen, ReadError> {
     Ok(Chosen {
         index,
         count,
-        name: format!(
-            "{} (blackbox, {})",
-            path.display(),
-            headers.firmware_revision()
-        ),
         channels: Channels {
             accel: f.acc.is_some(),
             rotor: f.erpm.map(|_| RotorUnit::Erpm),
@@ -458,7 +556,7 @@ impl Source for BlackboxSource {
                 Some(Ok(h)) => h,
                 _ => return Err(ReadError::new(path, "the log's headers no longer parse")),
             };
-            read_log(path, &headers, &self.block, visit, progress)
+            read_log(path, &headers, &self.block, self.gyro_unit, visit, progress)
         })?
     }
 
@@ -474,6 +572,7 @@ fn read_log(
     path: &Path,
     headers: &Headers,
     block: &[(String, String)],
+    gyro_unit: GyroAdcUnit,
     visit: &mut Visit<'_>,
     progress: &mut dyn FnMut(f32),
 ) -> Result<Reading, ReadError> {
@@ -523,7 +622,7 @@ fn read_log(
         .and_then(|s| s.trim().parse::<f64>().ok())
         .filter(|&g| g > 0.0)
         .unwrap_or(DEFAULT_ACC_1G);
-    let kw = (1.0 / GYRO_LSB_PER_DEG_S).to_radians();
+    let kw = gyro_unit.rad_s_per_unit();
     let ka = G / acc_1g;
     let mut check = Checker::new(path);
     let mut parser = headers.data_parser();
@@ -600,5 +699,11 @@ mod tests {
         assert!(s.ends_with("I\u{0}H Firmware revision:Indiflight\n"), "{s}");
         let bf = b"H Product:Blackbox flight data recorder by Nicholas Sherlock\nH Firmware revision:Betaflight 4.4.2\n";
         assert_eq!(rewrite_unknown_firmware(bf), (bf.to_vec(), vec![]));
+        // Betaflight versions `blackbox-log` 0.4 refuses are rewritten too.
+        let old = b"H Product:Blackbox flight data recorder by Nicholas Sherlock\nH Firmware revision:Betaflight 2025.12.1 (x) F7\n";
+        assert_eq!(
+            rewrite_unknown_firmware(old).1,
+            vec!["Betaflight 2025.12.1 (x) F7".to_string()]
+        );
     }
 }

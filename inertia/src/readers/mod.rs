@@ -26,7 +26,9 @@ mod text;
 pub mod ulog;
 mod units;
 
-pub use units::{unit_warnings, AccelCheck, UnitCheck, DEG_PER_SEC_SUSPECT_RAD_S, SUSTAINED_S};
+pub use units::{
+    time_warning, unit_warnings, AccelCheck, UnitCheck, DEG_PER_SEC_SUSPECT_RAD_S, SUSTAINED_S,
+};
 
 use std::fmt;
 use std::path::{Path, PathBuf};

@@ -37,30 +37,49 @@ impl UnitCheck {
 
     /// The warnings, given the median time step (`None` with fewer than two samples).
     pub fn warnings(&self, median_dt: Option<f64>) -> Vec<String> {
-        let mut out = Vec::new();
-        if let Some((t0, span)) = self.best {
-            if span >= SUSTAINED_S {
-                out.push(format!(
-                    "gyro rate stays above {DEG_PER_SEC_SUSPECT_RAD_S} rad/s for {span:.3} s \
-                     (from t = {t0:.3} s): that looks like deg/s read as rad/s; check the gyro \
-                     unit"
-                ));
-            }
-        }
-        if let Some(median) = median_dt {
-            if median < 1e-5 {
-                out.push(format!(
-                    "median time step {median:.3e} s is below 1e-5 s: is the time in ms or us \
-                     read as seconds? check the time unit"
-                ));
-            } else if median > 1.0 {
-                out.push(format!(
-                    "median time step {median:.3e} s is above 1 s: is the time in ms or us read \
-                     as seconds? check the time unit"
-                ));
-            }
-        }
+        let mut out: Vec<String> = self.rate_warning(f32::INFINITY).into_iter().collect();
+        out.extend(time_warning(median_dt));
         out
+    }
+
+    /// The warning when the rate stayed above [`DEG_PER_SEC_SUSPECT_RAD_S`] for
+    /// [`SUSTAINED_S`] or longer; `full_scale` (rad/s, infinite when unknown) is the gyro's
+    /// range as the reader knows it: a rate sustained beyond it is no clipped reading but
+    /// another unit.
+    pub fn rate_warning(&self, full_scale: f32) -> Option<String> {
+        let (t0, span) = self.best.filter(|(_, span)| *span >= SUSTAINED_S)?;
+        let head = format!(
+            "gyro rate stays above {DEG_PER_SEC_SUSPECT_RAD_S} rad/s for {span:.3} s (from t = \
+             {t0:.3} s)"
+        );
+        Some(if full_scale < DEG_PER_SEC_SUSPECT_RAD_S {
+            format!(
+                "{head}, beyond the gyro's full scale of {full_scale:.1} rad/s: the rates are \
+                 not in the unit they were read in (deg/s read as rad/s, or raw counts read as \
+                 deg/s); check the gyro unit"
+            )
+        } else {
+            format!("{head}: that looks like deg/s read as rad/s; check the gyro unit")
+        })
+    }
+}
+
+/// The warning when the median time step (`None` with fewer than two samples) looks like
+/// another unit: below `1e-5` s or above 1 s.
+pub fn time_warning(median_dt: Option<f64>) -> Option<String> {
+    let median = median_dt?;
+    if median < 1e-5 {
+        Some(format!(
+            "median time step {median:.3e} s is below 1e-5 s: is the time in ms or us read as \
+             seconds? check the time unit"
+        ))
+    } else if median > 1.0 {
+        Some(format!(
+            "median time step {median:.3e} s is above 1 s: is the time in ms or us read as \
+             seconds? check the time unit"
+        ))
+    } else {
+        None
     }
 }
 
