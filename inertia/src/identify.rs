@@ -250,8 +250,8 @@ pub enum IdentifyError {
     TooShort,
     /// The gate found no free flight.
     NoFreeFlight,
-    /// The gate found no free flight, and the accelerometer's or the gyro's unit looks wrong (the
-    /// warning).
+    /// The gate found no free flight, and the accelerometer's or the gyro's unit looks wrong, or
+    /// stretches fitted rotation about a point beyond the gate's offset (the sentence).
     NoFreeFlightUnits(String),
     /// A rotor was given but the log has no rotor-speed channel, or eRPM without poles.
     Rotor(String),
@@ -475,6 +475,7 @@ pub fn identify_source(
     // Which samples count as free flight, and the pooled on-board estimate.
     progress.stage("identifying");
     let detection;
+    let mut far = passes::FarRotation::default();
     let (pooled, runs, mut throws) = match &opts.segments {
         Some(segs) => {
             detection = false;
@@ -489,14 +490,18 @@ pub fn identify_source(
         }
         None => {
             detection = ch.accel;
-            passes::gate(&inputs, settings, ch.accel, rate, &mut trace, progress)?
+            let (p, runs, throws, f) =
+                passes::gate(&inputs, settings, ch.accel, rate, &mut trace, progress)?;
+            far = f;
+            (p, runs, throws)
         }
     };
     if let Some(t) = &mut trace {
         t.done = true;
     }
     if runs.is_empty() {
-        return Err(match sv.accel_units.take().or(sv.gyro_units.take()) {
+        let why = sv.accel_units.take().or(sv.gyro_units.take());
+        return Err(match why.or_else(|| far.describe(&settings.gate)) {
             Some(m) => IdentifyError::NoFreeFlightUnits(m),
             None => IdentifyError::NoFreeFlight,
         });

@@ -661,3 +661,71 @@ fn a_blackbox_gyro_in_the_wrong_unit_is_named_and_not_trusted() {
         assert_eq!(t["status"], "UnitsLookWrong");
     }
 }
+
+/// The flight controller 0.2 m from the centre of mass of what was thrown: in free flight the
+/// accelerometer reads `w x (w x r) + w' x r` for that `r`, beyond the gate's 0.1 m, so no free
+/// flight is found; the error says what the gate saw (rotation about a point 0.21 m away) and
+/// what to do, instead of blaming the motion. The same log cut by hand is identified.
+#[test]
+fn an_accelerometer_far_from_the_centre_of_mass_is_named() {
+    const G: f64 = 9.80665;
+    let rate = 500.0;
+    let r = [0.2, 0.05, 0.0];
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let f = |w: [f64; 3]| {
+        [
+            (MOM[1] - MOM[2]) / MOM[0] * w[1] * w[2],
+            (MOM[2] - MOM[0]) / MOM[1] * w[2] * w[0],
+            (MOM[0] - MOM[1]) / MOM[2] * w[0] * w[1],
+        ]
+    };
+    let still = toss(MOM, [0.0; 3], rate, 1.0, 2e-3, 31);
+    let free = toss(MOM, [4.0, 3.0, 2.0], rate, 3.0, 2e-3, 32);
+    let mut s = String::from("t,wx,wy,wz,ax,ay,az\n");
+    let mut k = 0usize;
+    for (rows, flying) in [(&still, false), (&free, true), (&still, false)] {
+        for row in rows.iter() {
+            let t = k as f64 / rate;
+            let w = [row[1], row[2], row[3]];
+            let a = if flying {
+                let c = cross(w, cross(w, r));
+                let d = cross(f(w), r);
+                [c[0] + d[0], c[1] + d[1], c[2] + d[2]]
+            } else {
+                [0.0, 0.0, G]
+            };
+            s += &format!(
+                "{t},{},{},{},{},{},{}\n",
+                w[0], w[1], w[2], a[0], a[1], a[2]
+            );
+            k += 1;
+        }
+    }
+    let d = out_dir();
+    let p = d.join("far-imu.csv");
+    std::fs::write(&p, s).unwrap();
+    let (code, _, err) = run(&["--input", p.to_str().unwrap()], &d.join("far-imu.json"));
+    println!("accelerometer 0.21 m from the centre of mass: exit {code} / {err}");
+    assert_eq!(code, 3, "{err}");
+    assert!(err.contains("about a point 0.21 m from it"), "{err}");
+    assert!(err.contains("--segments"), "{err}");
+    let segs = d.join("far-imu-segments.csv");
+    std::fs::write(&segs, "1.1,3.9\n").unwrap();
+    let (code, v, err) = run(
+        &[
+            "--input",
+            p.to_str().unwrap(),
+            "--segments",
+            segs.to_str().unwrap(),
+        ],
+        &d.join("far-imu-cut.json"),
+    );
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(v["pooled"]["status"], "Converged", "{err}");
+}

@@ -38,6 +38,10 @@ struct Args {
     /// Sample rate, Hz (the scenario's own, 4000, by default).
     #[arg(long)]
     rate: Option<f64>,
+    /// The centre of mass seen from the IMU, m, `x,y,z` (the scenario's own by default): the
+    /// accelerometer's lever arm, to try the free-flight gate on a large object.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    com_from_imu: Option<Vec<f64>>,
 }
 
 fn main() -> Result<()> {
@@ -56,6 +60,12 @@ fn main() -> Result<()> {
         cfg.rate_hz = r;
         // Keep the internal step near 16 kHz or finer.
         cfg.substeps = ((16000.0 / r).ceil() as usize).max(1);
+    }
+    if let Some(c) = &args.com_from_imu {
+        if c.len() != 3 || !c.iter().all(|x| x.is_finite()) {
+            bail!("--com-from-imu must be three finite numbers");
+        }
+        cfg.com_from_imu = [c[0], c[1], c[2]];
     }
     let sim = simulate(&cfg);
     sim.write_csv(

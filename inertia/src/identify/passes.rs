@@ -11,7 +11,9 @@
 
 use std::ops::Range;
 
-use identifier_core::{FlightPipeline, PipelineSettings, Ratios, TensorEstimate};
+use identifier_core::{
+    FlightPipeline, GateSettings, PipelineSettings, Ratios, TensorEstimate, WindowFit,
+};
 
 use super::inputs::{Input, Inputs};
 use super::throws::{Fed, Pool};
@@ -127,9 +129,65 @@ pub(crate) fn workers_beside_pooled() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get().saturating_sub(1).max(1))
 }
 
+/// The longest stretch whose gate windows fitted pure rotation (F1) within the gate's residual
+/// but about a point farther from the accelerometer than [`GateSettings::max_offset`]: what
+/// the gate refused for the offset alone. A large object with the flight controller far from
+/// its centre of mass gives it, and so does a gyro read too low (a unit mistake: the fit's
+/// offset grows with the square of the missing factor). Said when no free flight is found.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct FarRotation {
+    /// The stretch in progress: first and last time, sum of the offsets' lengths, samples.
+    open: Option<(f64, f64, f64, u32)>,
+    /// The longest closed or open stretch: first time, span, mean offset (m).
+    best: Option<(f64, f64, f64)>,
+}
+
+impl FarRotation {
+    /// Shortest stretch worth saying, s: a hand's swing may fit for a window or two.
+    const LEAST_S: f64 = 0.1;
+
+    fn push(&mut self, t: f64, fit: Option<WindowFit>, gate: &GateSettings) {
+        let far = fit.and_then(|f| {
+            let r = f.offset;
+            let rn = f64::from((r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt());
+            (!f.free
+                && !f.still
+                && f.residual < gate.max_residual
+                && rn.is_finite()
+                && rn > f64::from(gate.max_offset))
+            .then_some(rn)
+        });
+        match far {
+            Some(rn) => {
+                let (t0, _, sum, n) = self.open.unwrap_or((t, t, 0.0, 0));
+                let open = (t0, t, sum + rn, n.saturating_add(1));
+                self.open = Some(open);
+                let span = t - t0;
+                if self.best.is_none_or(|(_, b, _)| span > b) {
+                    self.best = Some((t0, span, open.2 / f64::from(open.3)));
+                }
+            }
+            None => self.open = None,
+        }
+    }
+
+    /// The sentence for the error, when the stretch lasted [`FarRotation::LEAST_S`] or more.
+    pub(crate) fn describe(&self, gate: &GateSettings) -> Option<String> {
+        let (t0, span, r) = self.best.filter(|(_, span, _)| *span >= Self::LEAST_S)?;
+        Some(format!(
+            "for {span:.2} s from t = {t0:.2} s the accelerometer read pure rotation, but about \
+             a point {r:.2} m from it, beyond the {:.2} m the gate allows: if the flight \
+             controller sits that far from the centre of mass of what was thrown, give \
+             --segments; if not, the gyro reads too low (check its unit)",
+            gate.max_offset
+        ))
+    }
+}
+
 /// The gate's reading: the pooled pipeline over every sample (free flights from the
-/// accelerometer, or every sample without one), the runs it fed, and the per-throw estimates
-/// with the guessed bias (see the module documentation).
+/// accelerometer, or every sample without one), the runs it fed, the per-throw estimates
+/// with the guessed bias (see the module documentation), and what the gate refused for the
+/// offset alone.
 pub(crate) fn gate(
     inputs: &Inputs<'_>,
     settings: PipelineSettings,
@@ -137,7 +195,7 @@ pub(crate) fn gate(
     rate: f32,
     trace: &mut Option<Trace>,
     progress: &mut dyn Progress,
-) -> Result<(Pooled, Vec<Run>, Throws), IdentifyError> {
+) -> Result<(Pooled, Vec<Run>, Throws, FarRotation), IdentifyError> {
     let n = inputs.samples;
     let mut p = FlightPipeline::new(settings, with_accel)
         .ok_or_else(|| IdentifyError::Settings("invalid pipeline settings".into()))?;
@@ -147,12 +205,17 @@ pub(crate) fn gate(
         let mut recent = Recent::new();
         let mut runs: Vec<Run> = Vec::new();
         let mut last_fed: Option<usize> = None;
+        let mut far = FarRotation::default();
         let mut step = |x: &Input| -> Result<(), IdentifyError> {
             recent.put(x);
             if let Some(t) = trace.as_mut() {
                 t.push(x);
             }
-            let Some(exit) = p.step(x.gyro, x.accel, x.h, x.dt) else {
+            let exit = p.step(x.gyro, x.accel, x.h, x.dt);
+            if with_accel {
+                far.push(x.t, p.gate_fit(), &settings.gate);
+            }
+            let Some(exit) = exit else {
                 return Ok(());
             };
             if exit.fed.is_none() {
@@ -190,7 +253,7 @@ pub(crate) fn gate(
             pool.finish(r.ordinal, r.span)?;
         }
         let pooled = Pooled::of(&p, p.measured_bias());
-        Ok((pooled, runs, pool.join()?))
+        Ok((pooled, runs, pool.join()?, far))
     })
 }
 
