@@ -3,7 +3,8 @@
 //! reaches the estimators, most of the free flight does, and a still or clipped log is never
 //! `Converged`.
 use host_tests::throw_sim::{
-    board_throw, clipped_toss, no_rotor_toss, still, tumbling_with_spinup, SimThrow,
+    board_throw, clipped_toss, no_rotor_toss, simulate, still, tumbling_with_spinup,
+    tumbling_with_spinup_config, SimThrow,
 };
 use identifier_core::{FlightPipeline, PipelineSettings, TensorStatus};
 
@@ -88,5 +89,31 @@ fn still_and_clipped_are_never_converged() {
         let o = run(&clipped_toss(seed));
         println!("clipped {seed}: fed {}, {:?}", o.fed, o.status);
         assert_ne!(o.status, TensorStatus::Converged);
+    }
+}
+
+/// The flight controller 0.15 and 0.2 m from the centre of mass (a large object): beyond the
+/// offset (F1) alone may give, so the free flight is found through (F2); still no sample of
+/// the hand or the catch is fed, most of the free flight is, and the estimate converges.
+#[test]
+fn far_from_the_centre_of_mass_hand_and_catch_still_excluded() {
+    for com in [[0.15, 0.05, 0.02], [-0.05, 0.18, -0.08]] {
+        for seed in 1..=6 {
+            let mut cfg = tumbling_with_spinup_config(seed);
+            cfg.com_from_imu = com;
+            let sim = simulate(&cfg);
+            let (r, c) = (sim.release_s.unwrap(), sim.catch_s.unwrap());
+            let free = sim.free_flight().unwrap().len();
+            let o = run(&sim);
+            let (a, b) = (o.fed_first.expect("nothing fed"), o.fed_last.unwrap());
+            println!(
+                "IMU {com:?} from the centre of mass, seed {seed}: release {r:.3} catch {c:.3}; fed {a:.3}..{b:.3} ({} of {free} free samples), {:?}",
+                o.fed, o.status
+            );
+            assert!(a >= r, "{com:?} {seed}: a sample before the release was fed");
+            assert!(c - b >= 0.02, "{com:?} {seed}: fed within 20 ms of the catch");
+            assert!(o.fed * 10 >= free * 6, "{com:?} {seed}: less than 60 % fed");
+            assert_eq!(o.status, TensorStatus::Converged, "{com:?} {seed}");
+        }
     }
 }

@@ -18,6 +18,23 @@
 //! [`GateSettings::max_offset`]. A plain `|f| < threshold` test would fail: at 30 rad/s and
 //! 11 mm, (F1) exceeds 1 g.
 //!
+//! A hand's slow turn can pass that test with a large `r`: what the hand adds to gravity's
+//! support stays nearly constant in the body over a window, and `K r` for a large `r` turning
+//! slowly imitates part of it. So (F1) alone may only give offsets up to
+//! [`GateSettings::max_offset`] (0.1 m); a window whose offset lies beyond it, up to
+//! [`GateSettings::far_offset`] (0.3 m: a large object whose flight controller sits off its
+//! centre of mass), must also pass a test of that constant force,
+//!
+//! ```text
+//! f = K(w, w') r + c,     c constant over the window                              (F2)
+//! ```
+//!
+//! fitted on the window's sums centred on their means: in free flight there is no `c` to
+//! find and (F2) takes only noise from the residual of (F1); in a hand it finds the support.
+//! The window is free when the RMS (F2) takes is below [`GateSettings::max_support`]
+//! (0.5 m/s^2; on the simulated throws of `gate_sim`, at most 0.2 m/s^2 in free flight with
+//! the IMU 0.16 m off, 0.75 m/s^2 and more in a hand with offsets of 0.1-0.3 m).
+//!
 //! Both sides of (F1) pass through the same low-pass filter ([`GateSettings::lowpass_hz`])
 //! before the fit: a linear filter keeps `f = K r` exact for a constant `r`, and it removes what
 //! is no contact force but no rigid-body rotation either, the vibration of a spinning rotor's
@@ -138,8 +155,21 @@ pub struct GateSettings {
     pub window_blocks: u8,
     /// Largest RMS residual of (F1) in a free window, m/s^2.
     pub max_residual: f32,
-    /// Largest plausible distance from the accelerometer to the centre of mass, m.
+    /// Largest distance from the accelerometer to the centre of mass that the fit of (F1) alone
+    /// may give a free window, m. Beyond it a hand's slow turn can pass: what a hand adds to
+    /// gravity's support stays nearly constant in the body over a window, and a large `r`
+    /// turning slowly imitates part of it within [`GateSettings::max_residual`].
     pub max_offset: f32,
+    /// Largest distance, m, a free window may have when (F2) also holds: a constant force `c`
+    /// beside `K r` explains at most [`GateSettings::max_support`] of the residual. (For a
+    /// large object whose flight controller sits off its centre of mass.)
+    pub far_offset: f32,
+    /// Largest RMS, m/s^2, that the constant force of (F2) may take from the (F1) residual in
+    /// a window whose offset lies beyond [`GateSettings::max_offset`]: in free flight there is
+    /// none to find and it takes only noise (at most 0.2 m/s^2 on the simulated throws of
+    /// `gate_sim` with the IMU 0.16 m off), in a hand it finds the support (0.75 m/s^2 and
+    /// more there).
+    pub max_support: f32,
     /// Still: `| |f| - g |` below this, m/s^2, on every sample of the window.
     pub still_accel: f32,
     /// Still: every rate component below this, rad/s (above any plausible gyro bias).
@@ -160,7 +190,8 @@ impl GateSettings {
     /// fit, at most [`MAX_WINDOW_BLOCKS`]: the window's length in time decides how long a touch
     /// must last to be seen) but never fewer than 16 samples (below 400 Hz the window is 16
     /// one-sample blocks, longer than 40 ms: three offsets are fitted to it), residual 2 m/s^2
-    /// (0.2 g), offset up to 0.1 m, still within 0.5 m/s^2 of `g`, rates below 0.05 rad/s
+    /// (0.2 g), offset up to 0.1 m (0.3 m when (F2) finds no support beyond 0.5 m/s^2), still
+    /// within 0.5 m/s^2 of `g`, rates below 0.05 rad/s
     /// (3 deg/s) and their spread over the window below 0.01 rad/s.
     pub fn for_rate(rate_hz: f32) -> Self {
         // Samples per block: about 2.5 ms, rounded (1 to 1024).
@@ -190,6 +221,8 @@ impl GateSettings {
             window_blocks,
             max_residual: 2.0,
             max_offset: 0.1,
+            far_offset: 0.3,
+            max_support: 0.5,
             still_accel: 0.5,
             still_rate: STILL_RATE,
             still_spread: 0.01,
@@ -206,6 +239,8 @@ impl GateSettings {
             && self.window_blocks as usize <= MAX_WINDOW_BLOCKS
             && pos(self.max_residual)
             && pos(self.max_offset)
+            && pos(self.far_offset)
+            && pos(self.max_support)
             && pos(self.still_accel)
             && pos(self.still_rate)
             && pos(self.still_spread)
@@ -271,6 +306,11 @@ pub struct WindowFit {
     pub residual: f32,
     /// Fitted accelerometer offset from the centre of mass, m.
     pub offset: [f32; 3],
+    /// The RMS, m/s^2, that the constant force of (F2) takes from the (F1) residual,
+    /// `sqrt((rss1 - rss2) / n)`, where it was fitted: a window whose offset lies between
+    /// [`GateSettings::max_offset`] and [`GateSettings::far_offset`] and whose (F1) residual
+    /// is small.
+    pub support: Option<f32>,
     /// Samples in the window.
     pub samples: u32,
 }
@@ -308,6 +348,11 @@ pub struct FreeFlightGate {
     /// A whole chunk has been seen since the window was last broken (`suffix` is valid).
     filled: bool,
     last_fit: Option<WindowFit>,
+    /// The open block's (F2) sums, and those of the window's latest blocks (a ring written at
+    /// `forces_next`: once the window is `filled`, every slot holds one of its blocks).
+    open_forces: ForceSums,
+    forces: [ForceSums; MAX_WINDOW_BLOCKS],
+    forces_next: u8,
     bias: Option<[f32; 3]>,
     /// Sum of the rates and sample count over the current run of still windows.
     still_sum: [f32; 3],
@@ -331,6 +376,9 @@ impl FreeFlightGate {
             chunk: 0,
             filled: false,
             last_fit: None,
+            open_forces: ForceSums::ZERO,
+            forces: [ForceSums::ZERO; MAX_WINDOW_BLOCKS],
+            forces_next: 0,
             bias: None,
             still_sum: [0.0; 3],
             still_n: 0,
@@ -368,6 +416,7 @@ impl FreeFlightGate {
         self.chunk = 0;
         self.filled = false;
         self.last_fit = None;
+        self.open_forces = ForceSums::ZERO;
     }
 
     /// Adds one sample (`omega` rad/s, `accel` m/s^2, `dt` s since the previous one). Returns
@@ -407,6 +456,7 @@ impl FreeFlightGate {
             let k = kmatrix(w, wd);
             let (k, f) = self.filter(k, f, dt);
             add_normal(&mut self.open, &k, f);
+            self.open_forces.add_sample(&k, f);
         }
         self.prev = Some((omega, accel));
         self.open.n = self.open.n.saturating_add(1);
@@ -424,6 +474,15 @@ impl FreeFlightGate {
         if let Some(slot) = self.suffix.get_mut(c) {
             *slot = newest;
         }
+        if let Some(slot) = self.forces.get_mut(self.forces_next as usize) {
+            *slot = self.open_forces;
+        }
+        self.open_forces = ForceSums::ZERO;
+        self.forces_next = if self.forces_next + 1 >= wb {
+            0
+        } else {
+            self.forces_next + 1
+        };
         self.prefix.add(&newest);
         self.chunk += 1;
         let sum = if self.chunk >= wb {
@@ -517,9 +576,21 @@ impl FreeFlightGate {
         let rss = s.ff - explained;
         let residual = sqrt(if rss > 0.0 { rss / n } else { 0.0 });
         let rn = sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2]);
-        let free = residual < self.settings.max_residual
-            && rn <= self.settings.max_offset
-            && r.iter().all(|x| x.is_finite());
+        let fits = residual < self.settings.max_residual && r.iter().all(|x| x.is_finite());
+        // (F2) only where (F1) alone would not do: a far offset that might be a hand's.
+        let support = (fits && rn > self.settings.max_offset && rn <= self.settings.far_offset)
+            .then(|| {
+                let mut forces = ForceSums::ZERO;
+                let wb = usize::from(self.settings.window_blocks).min(MAX_WINDOW_BLOCKS);
+                for b in self.forces.iter().take(wb) {
+                    forces.add(b);
+                }
+                support_rms(s, &forces, ridge, rss)
+            })
+            .flatten();
+        let free = fits
+            && (rn <= self.settings.max_offset
+                || support.is_some_and(|share| share <= self.settings.max_support));
         WindowFit {
             free,
             still: s.still && {
@@ -531,9 +602,42 @@ impl FreeFlightGate {
             },
             residual,
             offset: r,
+            support,
             samples: s.n as u32,
         }
     }
+}
+
+/// What (F2), `f = K r + c` with `c` constant over the window, takes from the (F1) residual
+/// sum of squares `rss1`, as an RMS: `sqrt((rss1 - rss2) / n)`, with `rss2 = sum |f|^2 -
+/// |sum f|^2 / n - r . b` for `r` solving the sums centred on the window's means (`sum K^T K -
+/// (sum K)^T (sum K) / n` against `b = sum K^T f - (sum K)^T (sum f) / n`). `None` when the
+/// centred system is singular or the result not finite.
+fn support_rms(s: &BlockSums, forces: &ForceSums, ridge: f32, rss1: f32) -> Option<f32> {
+    let n = if s.n > 0 { s.n as f32 } else { 1.0 };
+    let col = |j: usize| -> [f32; 3] {
+        let at = |i: usize| forces.k.get(3 * i + j).copied().unwrap_or(0.0);
+        [at(0), at(1), at(2)]
+    };
+    let (c0, c1, c2) = (col(0), col(1), col(2));
+    let d = |a: [f32; 3], b: [f32; 3]| (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) / n;
+    let [xx, yy, zz, xy, xz, yz] = s.kk;
+    let m = [
+        [xx - d(c0, c0) + ridge, xy - d(c0, c1), xz - d(c0, c2)],
+        [xy - d(c0, c1), yy - d(c1, c1) + ridge, yz - d(c1, c2)],
+        [xz - d(c0, c2), yz - d(c1, c2), zz - d(c2, c2) + ridge],
+    ];
+    let sf = forces.f;
+    let b = [
+        s.kf[0] - d(c0, sf),
+        s.kf[1] - d(c1, sf),
+        s.kf[2] - d(c2, sf),
+    ];
+    let r = cholesky(&m).map(|l| cholesky_solve(&l, &b))?;
+    let rss2 = s.ff - d(sf, sf) - (r[0] * b[0] + r[1] * b[1] + r[2] * b[2]);
+    let taken = rss1 - rss2;
+    let rms = sqrt(if taken > 0.0 { taken / n } else { 0.0 });
+    rms.is_finite().then_some(rms)
 }
 
 #[inline(always)]
@@ -581,6 +685,45 @@ fn add_normal(s: &mut BlockSums, k: &[[f32; 3]; 3], f: [f32; 3]) {
     s.kf[1] += d(c1, f);
     s.kf[2] += d(c2, f);
     s.ff += d(f, f);
+}
+
+/// `sum K` (by rows) and `sum f` over the samples of one block: what (F2) centres on. Kept
+/// apart from [`BlockSums`], one per block of the window in a ring, and summed only for a
+/// window that needs (F2): the window machinery's chunks and suffix sums stay as small as
+/// (F1) needs (carrying these twelve sums through them cost the pipeline a tenth more per
+/// sample).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+struct ForceSums {
+    k: [f32; 9],
+    f: [f32; 3],
+}
+
+impl ForceSums {
+    const ZERO: ForceSums = ForceSums {
+        k: [0.0; 9],
+        f: [0.0; 3],
+    };
+
+    #[inline(always)]
+    fn add_sample(&mut self, k: &[[f32; 3]; 3], f: [f32; 3]) {
+        let [[k0, k1, k2], [k3, k4, k5], [k6, k7, k8]] = *k;
+        for (a, b) in self.k.iter_mut().zip([k0, k1, k2, k3, k4, k5, k6, k7, k8]) {
+            *a += b;
+        }
+        for (a, b) in self.f.iter_mut().zip(f) {
+            *a += b;
+        }
+    }
+
+    fn add(&mut self, o: &ForceSums) {
+        for (a, b) in self.k.iter_mut().zip(o.k.iter()) {
+            *a += b;
+        }
+        for (a, b) in self.f.iter_mut().zip(o.f.iter()) {
+            *a += b;
+        }
+    }
 }
 
 #[cfg(test)]

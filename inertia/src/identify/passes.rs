@@ -130,7 +130,7 @@ pub(crate) fn workers_beside_pooled() -> usize {
 }
 
 /// The longest stretch whose gate windows fitted pure rotation (F1) within the gate's residual
-/// but about a point farther from the accelerometer than [`GateSettings::max_offset`]: what
+/// but about a point farther from the accelerometer than [`GateSettings::far_offset`]: what
 /// the gate refused for the offset alone. A large object with the flight controller far from
 /// its centre of mass gives it, and so does a gyro read too low (a unit mistake: the fit's
 /// offset grows with the square of the missing factor). Said when no free flight is found.
@@ -154,7 +154,7 @@ impl FarRotation {
                 && !f.still
                 && f.residual < gate.max_residual
                 && rn.is_finite()
-                && rn > f64::from(gate.max_offset))
+                && rn > f64::from(gate.far_offset))
             .then_some(rn)
         });
         match far {
@@ -179,7 +179,7 @@ impl FarRotation {
              a point {r:.2} m from it, beyond the {:.2} m the gate allows: if the flight \
              controller sits that far from the centre of mass of what was thrown, give \
              --segments; if not, the gyro reads too low (check its unit)",
-            gate.max_offset
+            gate.far_offset
         ))
     }
 }
