@@ -110,8 +110,14 @@ fn far_from_the_centre_of_mass_hand_and_catch_still_excluded() {
                 "IMU {com:?} from the centre of mass, seed {seed}: release {r:.3} catch {c:.3}; fed {a:.3}..{b:.3} ({} of {free} free samples), {:?}",
                 o.fed, o.status
             );
-            assert!(a >= r, "{com:?} {seed}: a sample before the release was fed");
-            assert!(c - b >= 0.02, "{com:?} {seed}: fed within 20 ms of the catch");
+            assert!(
+                a >= r,
+                "{com:?} {seed}: a sample before the release was fed"
+            );
+            assert!(
+                c - b >= 0.02,
+                "{com:?} {seed}: fed within 20 ms of the catch"
+            );
             assert!(o.fed * 10 >= free * 6, "{com:?} {seed}: less than 60 % fed");
             assert_eq!(o.status, TensorStatus::Converged, "{com:?} {seed}");
         }
