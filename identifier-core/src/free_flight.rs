@@ -161,7 +161,7 @@ pub struct GateSettings {
     /// turning slowly imitates part of it within [`GateSettings::max_residual`].
     pub max_offset: f32,
     /// Largest distance, m, a free window may have when (F2) also holds: a constant force `c`
-    /// beside `K r` explains at most [`GateSettings::max_support`] of the residual. (For a
+    /// beside `K r` takes at most [`GateSettings::max_support`] (RMS) from the residual. (For a
     /// large object whose flight controller sits off its centre of mass.)
     pub far_offset: f32,
     /// Largest RMS, m/s^2, that the constant force of (F2) may take from the (F1) residual in
@@ -590,7 +590,7 @@ impl FreeFlightGate {
             .flatten();
         let free = fits
             && (rn <= self.settings.max_offset
-                || support.is_some_and(|share| share <= self.settings.max_support));
+                || support.is_some_and(|rms| rms <= self.settings.max_support));
         WindowFit {
             free,
             still: s.still && {
