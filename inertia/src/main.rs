@@ -1,6 +1,6 @@
 //! `inertia`: the product's host tool. See `inertia --help` and the README.
 use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
@@ -172,9 +172,7 @@ struct IdentifyArgs {
     input: PathBuf,
     #[command(flatten)]
     rotor: RotorArgs,
-    /// CSV of hand-chosen free flights, one `start_s,end_s` per line (log time), or a table with
-    /// `start`, `end` (and `keep`) columns; default for a log without accelerometer: a phyphox
-    /// export's own `meta/segments.csv`, else the whole log.
+    /// CSV of hand-chosen free flights, one `start_s,end_s` per line (log time).
     #[arg(long)]
     segments: Option<PathBuf>,
     /// Gyro unit of a CSV: rad/s or deg/s.
@@ -226,27 +224,6 @@ fn parse_time_unit(s: &str) -> Result<TimeUnit, String> {
         "ms" => Ok(TimeUnit::Ms),
         "us" | "µs" => Ok(TimeUnit::Us),
         o => Err(format!("{o:?}: use s, ms or us")),
-    }
-}
-
-/// Free-flight windows `(start_s, end_s)`.
-type Segments = Vec<(f64, f64)>;
-
-/// The free flights `identify` uses: `--segments` when given; else, for a
-/// log without an accelerometer (which the gate cannot cut), a phyphox export's own
-/// `meta/segments.csv` when it has one (as `close-loop` does), with its path for a warning;
-/// else none (the gate, or the whole log).
-fn segments_or_export(
-    given: Option<&PathBuf>,
-    input: &Path,
-    accel: bool,
-) -> Result<(Option<Segments>, Option<PathBuf>), String> {
-    if let Some(p) = given {
-        return Ok((Some(parse_segments(p)?), None));
-    }
-    match inertia::readers::phyphox::segments_file(input).filter(|_| !accel) {
-        Some(p) => Ok((Some(parse_segments(&p)?), Some(p))),
-        None => Ok((None, None)),
     }
 }
 
@@ -394,14 +371,13 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
         }
     }
     let rotor = rotor_and_noise(&args.rotor, args.noise_std)?;
+    let segments = args.segments.as_ref().map(parse_segments).transpose()?;
     let opts = ReadOptions {
         gyro_unit: args.gyro_unit,
         time_unit: args.time_unit,
         accel_unit: args.accel_unit,
     };
     let src = inertia::source::open(&args.input, &opts).map_err(|e| e.to_string())?;
-    let (segments, from_export) =
-        segments_or_export(args.segments.as_ref(), &args.input, src.channels().accel)?;
     let iopts = IdentifyOptions {
         rotor,
         segments,
@@ -413,16 +389,6 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
     let report = identify_source(&*src, &iopts, &mut bar).map_err(|e| e.to_string());
     bar.clear();
     let mut report = report?;
-    if let Some(p) = from_export {
-        report.warnings.insert(
-            0,
-            format!(
-                "free flights from {} (the export's hand-marked segments; give --segments to \
-                 choose others)",
-                p.display()
-            ),
-        );
-    }
     if let Some(tol) = args.gyro_scale_tolerance {
         eprintln!("identifying the log three more times, one gyro axis scaled by {tol} % each");
         // The estimate stands without it: a re-identification that fails is a warning.

@@ -213,54 +213,6 @@ fn segments_in_the_phyphox_table_format() {
     );
 }
 
-/// A phyphox export folder with its own `meta/segments.csv`: without `--segments` its kept rows
-/// are the free flights (as `close-loop` takes them), said in a warning; the same as giving the
-/// file. Without the file the whole log is one flight.
-#[test]
-fn a_phyphox_export_brings_its_own_segments() {
-    let d = out_dir().join("phyphox-export");
-    std::fs::create_dir_all(d.join("meta")).unwrap();
-    // The directory outlives a run: start without the segments file.
-    let _ = std::fs::remove_file(d.join("meta/segments.csv"));
-    let rows = toss(MOM, [1.0, 1.0, 1.0], 100.0, 10.0, 2e-3, 5);
-    let mut raw = String::from(
-        "\"Time (s)\",\"Gyroscope x (rad/s)\",\"Gyroscope y (rad/s)\",\"Gyroscope z (rad/s)\",\"Absolute (rad/s)\"\n",
-    );
-    for r in &rows {
-        let abs = (r[1] * r[1] + r[2] * r[2] + r[3] * r[3]).sqrt();
-        raw += &format!("{:e},{:e},{:e},{:e},{:e}\n", r[0], r[1], r[2], r[3], abs);
-    }
-    std::fs::write(d.join("Raw Data.csv"), raw).unwrap();
-    let (code, whole, err) = run(&["--input", d.to_str().unwrap()], &d.join("whole.json"));
-    assert_eq!(code, 0, "{err}");
-    assert_eq!(whole["throws"].as_array().map(Vec::len), Some(1), "{err}");
-    let segs = d.join("meta/segments.csv");
-    std::fs::write(
-        &segs,
-        "segment,start,end,keep,comment\n0, 0.5,4.0,,a\n1,4.5,9.5,,b\n2,9.6,9.9,false,c",
-    )
-    .unwrap();
-    let (code, own, err) = run(&["--input", d.to_str().unwrap()], &d.join("own.json"));
-    assert_eq!(code, 0, "{err}");
-    assert!(
-        err.contains("meta/segments.csv (the export's hand-marked segments"),
-        "{err}"
-    );
-    assert_eq!(own["throws"].as_array().map(Vec::len), Some(2), "{err}");
-    let (code, given, err) = run(
-        &[
-            "--input",
-            d.to_str().unwrap(),
-            "--segments",
-            segs.to_str().unwrap(),
-        ],
-        &d.join("given.json"),
-    );
-    assert_eq!(code, 0, "{err}");
-    assert_eq!(own["pooled"], given["pooled"]);
-    assert_eq!(own["throws"], given["throws"]);
-}
-
 #[test]
 fn declared_units_are_honoured_and_undeclared_mistakes_are_not_trusted() {
     let d = out_dir();
