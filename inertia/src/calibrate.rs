@@ -730,17 +730,18 @@ pub struct CalibrationReport {
     pub proof_in_sample: Comparison,
     /// The proof body recovered from each assembly throw with `j` calibrated on the others.
     pub proof_leave_one_out: Vec<Comparison>,
-    /// Standard deviation of the rotor inertia, kg m^2 ([`Uncertainty`]).
+    /// Standard deviation of the rotor inertia, kg m^2 (the throws' jackknife).
     pub rotor_inertia_std_kg_m2: Option<f64>,
-    /// Standard deviation of each entry of the board tensor, kg m^2 ([`Uncertainty`]).
+    /// Standard deviation of each entry of the board tensor, kg m^2 (the throws' jackknife).
     pub board_tensor_std_kg_m2: Option<M3>,
     /// The unknown object about its centre of mass, kg m^2, when `--object` was given.
     pub object_tensor_kg_m2: Option<M3>,
-    /// Standard deviation of each entry of the object's tensor, kg m^2 ([`Uncertainty`]).
+    /// Standard deviation of each entry of the object's tensor, kg m^2 (the groups' jackknife,
+    /// with a one-throw group's own reported uncertainty and centre of mass).
     pub object_tensor_std_kg_m2: Option<M3>,
     /// The object's principal moments, ascending, kg m^2.
     pub object_principal_moments_kg_m2: Option<[f64; 3]>,
-    /// Their standard deviations, kg m^2 ([`Uncertainty`]).
+    /// Their standard deviations, kg m^2 (as the entries').
     pub object_principal_moments_std_kg_m2: Option<[f64; 3]>,
     /// The object's principal axes (unit vectors, rows, in the order of the moments).
     pub object_principal_axes: Option<[[f64; 3]; 3]>,
