@@ -18,7 +18,7 @@ cargo build -p identifier-core --release --target thumbv7em-none-eabihf
 cargo clippy -p identifier-core --target thumbv7em-none-eabihf -- -D warnings
 
 log "docs without warnings"
-RUSTDOCFLAGS="-D warnings" cargo doc -p identifier-core --no-deps
+RUSTDOCFLAGS="-D warnings" cargo doc -p identifier-core -p inertia -p host-tests --no-deps
 
 log "host tests"
 cargo test --release --workspace
