@@ -378,6 +378,27 @@ fn csv_units_converted() {
         r.rotor,
         Some(RotorSpeed::RadPerSec(vec![100.0, 101.0, 102.0]))
     );
+
+    // The rotor in mechanical rpm (both row paths: plain and with a `;` separator).
+    for (name, text) in [
+        (
+            "rpm.csv",
+            "t,wx,wy,wz,rotor_rpm\n0,0.1,0.2,0.3,600\n0.01,0.1,0.2,0.3,-1200\n",
+        ),
+        (
+            "rpm-semi.csv",
+            "t;wx;wy;wz;rotor_rpm\n0;0,1;0,2;0,3;600\n0,01;0,1;0,2;0,3;-1200\n",
+        ),
+    ] {
+        let r = read(&tmp(name, text.as_bytes()), &ReadOptions::default()).unwrap();
+        let Some(RotorSpeed::RadPerSec(v)) = &r.rotor else {
+            panic!("{name}: {:?}", r.rotor);
+        };
+        let want = [20.0 * std::f32::consts::PI, -40.0 * std::f32::consts::PI];
+        for (a, b) in v.iter().zip(want) {
+            assert!((a - b).abs() < 1e-4, "{name}: {v:?}");
+        }
+    }
 }
 
 #[test]

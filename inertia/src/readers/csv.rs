@@ -8,7 +8,7 @@
 //! | time (required) | `t` or `time` | [`ReadOptions::time_unit`], default seconds |
 //! | gyro (required) | `wx,wy,wz` or `gx,gy,gz` | [`ReadOptions::gyro_unit`], default rad/s |
 //! | accelerometer (optional) | `ax,ay,az` | [`ReadOptions::accel_unit`], default m/s^2 (gravity included) |
-//! | rotor speed (optional) | `rotor_rad_s` (rad/s) or `erpm` (true eRPM) | |
+//! | rotor speed (optional) | `rotor_rad_s` (rad/s), `rotor_rpm` (mechanical rpm) or `erpm` (true eRPM) | |
 //!
 //! The plain `t,wx,wy,wz` (seconds, rad/s) reads as it always did. Separators `,`, `;` (with
 //! decimal commas) and tab are accepted, as in [`super::phyphox`].
@@ -25,6 +25,8 @@ struct Columns {
     gyro: [usize; 3],
     accel: Option<[usize; 3]>,
     rotor: Option<(usize, RotorUnit)>,
+    /// What the rotor column's values are multiplied by (`rotor_rpm`: 2 pi / 60 to rad/s).
+    rotor_scale: f64,
 }
 
 fn columns(path: &Path, header: &str) -> Result<Columns, ReadError> {
@@ -46,7 +48,7 @@ fn columns(path: &Path, header: &str) -> Result<Columns, ReadError> {
             Location::Line(1),
             format!(
                 "header {} has no {what}: expected t (or time), wx,wy,wz (or gx,gy,gz), \
-                 optional ax,ay,az and rotor_rad_s or erpm",
+                 optional ax,ay,az and rotor_rad_s, rotor_rpm or erpm",
                 quote(header)
             ),
         )
@@ -58,16 +60,19 @@ fn columns(path: &Path, header: &str) -> Result<Columns, ReadError> {
         .or_else(|| triple("g"))
         .ok_or_else(|| bad("gyro columns"))?;
     let accel = triple("a");
-    let rotor = match (col("rotor_rad_s"), col("erpm")) {
-        (Some(c), _) => Some((c, RotorUnit::RadPerSec)),
-        (None, Some(c)) => Some((c, RotorUnit::Erpm)),
-        (None, None) => None,
+    let rpm = core::f64::consts::TAU / 60.0;
+    let (rotor, rotor_scale) = match (col("rotor_rad_s"), col("rotor_rpm"), col("erpm")) {
+        (Some(c), _, _) => (Some((c, RotorUnit::RadPerSec)), 1.0),
+        (None, Some(c), _) => (Some((c, RotorUnit::RadPerSec)), rpm),
+        (None, None, Some(c)) => (Some((c, RotorUnit::Erpm)), 1.0),
+        (None, None, None) => (None, 1.0),
     };
     Ok(Columns {
         t,
         gyro,
         accel,
         rotor,
+        rotor_scale,
     })
 }
 
@@ -239,7 +244,7 @@ impl CsvSource {
                 .c
                 .accel
                 .map(|_| [v[4], v[5], v[6]].map(|x| x * self.ka));
-            let r = self.c.rotor.map(|_| v[7]);
+            let r = self.c.rotor.map(|_| v[7] * self.c.rotor_scale);
             return Ok(Some((v[0] * self.kt, w, a, r)));
         }
         self.general_row(n, line, scratch)
@@ -284,7 +289,9 @@ impl CsvSource {
             None => None,
         };
         let r = match self.c.rotor {
-            Some(_) => Some(text::number(path, n, "rotor speed", f[7], dc, scratch)?),
+            Some(_) => {
+                Some(text::number(path, n, "rotor speed", f[7], dc, scratch)? * self.c.rotor_scale)
+            }
             None => None,
         };
         Ok(Some((t, w, a, r)))
