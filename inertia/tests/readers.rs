@@ -379,6 +379,16 @@ fn csv_units_converted() {
         Some(RotorSpeed::RadPerSec(vec![100.0, 101.0, 102.0]))
     );
 
+    // Other common names of the same columns.
+    let p = tmp(
+        "aliases.csv",
+        b"time_s,gyro_x,gyro_y,gyro_z,acc_x,acc_y,acc_z\n0,0.1,0.2,0.3,0,0,9.8\n0.01,0.1,0.2,0.3,0,0,9.8\n",
+    );
+    let r = read(&p, &ReadOptions::default()).unwrap();
+    assert_eq!(r.t, vec![0.0, 0.01]);
+    assert_eq!(r.gyro[1], [0.1, 0.2, 0.3]);
+    assert_eq!(r.accel.as_ref().unwrap()[0], [0.0, 0.0, 9.8]);
+
     // The rotor in mechanical rpm (both row paths: plain and with a `;` separator).
     for (name, text) in [
         (

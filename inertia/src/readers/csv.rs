@@ -5,9 +5,9 @@
 //!
 //! | quantity | header names | unit |
 //! |---|---|---|
-//! | time (required) | `t` or `time` | [`ReadOptions::time_unit`], default seconds |
-//! | gyro (required) | `wx,wy,wz` or `gx,gy,gz` | [`ReadOptions::gyro_unit`], default rad/s |
-//! | accelerometer (optional) | `ax,ay,az` | [`ReadOptions::accel_unit`], default m/s^2 (gravity included) |
+//! | time (required) | `t`, `time`, `t_s` or `time_s` | [`ReadOptions::time_unit`], default seconds |
+//! | gyro (required) | `wx,wy,wz`, `gx,gy,gz`, `w_x,...`, `gyro_x,...` or `omega_x,...` | [`ReadOptions::gyro_unit`], default rad/s |
+//! | accelerometer (optional) | `ax,ay,az`, `a_x,...`, `acc_x,...` or `accel_x,...` | [`ReadOptions::accel_unit`], default m/s^2 (gravity included) |
 //! | rotor speed (optional) | `rotor_rad_s` (rad/s), `rotor_rpm` (mechanical rpm) or `erpm` (true eRPM) | |
 //!
 //! The plain `t,wx,wy,wz` (seconds, rad/s) reads as it always did. Separators `,`, `;` (with
@@ -53,13 +53,11 @@ fn columns(path: &Path, header: &str) -> Result<Columns, ReadError> {
             ),
         )
     };
-    let t = col("t")
-        .or_else(|| col("time"))
-        .ok_or_else(|| bad("time column"))?;
-    let gyro = triple("w")
-        .or_else(|| triple("g"))
-        .ok_or_else(|| bad("gyro columns"))?;
-    let accel = triple("a");
+    let first = |names: &[&str]| names.iter().find_map(|n| col(n));
+    let first3 = |prefixes: &[&str]| prefixes.iter().find_map(|p| triple(p));
+    let t = first(&["t", "time", "t_s", "time_s"]).ok_or_else(|| bad("time column"))?;
+    let gyro = first3(&["w", "g", "w_", "gyro_", "omega_"]).ok_or_else(|| bad("gyro columns"))?;
+    let accel = first3(&["a", "a_", "acc_", "accel_"]);
     let rpm = core::f64::consts::TAU / 60.0;
     let (rotor, rotor_scale) = match (col("rotor_rad_s"), col("rotor_rpm"), col("erpm")) {
         (Some(c), _, _) => (Some((c, RotorUnit::RadPerSec)), 1.0),
