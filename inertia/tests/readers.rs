@@ -463,6 +463,11 @@ fn msg(out: &mut Vec<u8>, kind: u8, payload: &[u8]) {
 /// `(0, 0, -9.8)`) and esc_status at 100 Hz (rpm `1000 + 10 j`), starting 2 ms after the
 /// gyro.
 fn ulog(n: usize, nan_at: Option<usize>) -> Vec<u8> {
+    ulog_clipped(n, nan_at, None)
+}
+
+/// [`ulog`] with `gyro_clipping` logged: bit 2 (z) set at sample `clip_at`.
+fn ulog_clipped(n: usize, nan_at: Option<usize>, clip_at: Option<usize>) -> Vec<u8> {
     let mut f = b"ULog\x01\x12\x35".to_vec();
     f.push(1); // version
     f.extend_from_slice(&1_000u64.to_le_bytes()); // start timestamp, us
@@ -471,7 +476,7 @@ fn ulog(n: usize, nan_at: Option<usize>) -> Vec<u8> {
     msg(
         &mut f,
         b'F',
-        b"sensor_combined:uint64_t timestamp;float[3] gyro_rad;uint32_t gyro_integral_dt;float[3] accelerometer_m_s2;",
+        b"sensor_combined:uint64_t timestamp;float[3] gyro_rad;uint32_t gyro_integral_dt;float[3] accelerometer_m_s2;uint8_t gyro_clipping;",
     );
     msg(
         &mut f,
@@ -520,6 +525,7 @@ fn ulog(n: usize, nan_at: Option<usize>) -> Vec<u8> {
         for v in [0.0f32, 0.0, -9.8] {
             d.extend_from_slice(&v.to_le_bytes());
         }
+        d.push(if clip_at == Some(i) { 0b100 } else { 0 });
         msg(&mut f, b'D', &d);
     }
     f
@@ -549,6 +555,23 @@ fn ulog_synthetic() {
         r.warnings.iter().any(|w| w.contains("esc_status starts")),
         "{:?}",
         r.warnings
+    );
+    // gyro_clipping logged: the full scale is PX4's 2000 deg/s, and the clipped axis of the
+    // marked sample reads at it (saturated); the other axes and samples as logged.
+    assert!(
+        (r.gyro_full_scale - 34.906_586).abs() < 1e-4,
+        "{}",
+        r.gyro_full_scale
+    );
+    let p = tmp("clipped.ulg.bin", &ulog_clipped(100, None, Some(40)));
+    let c = read(&p, &ReadOptions::default()).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(c.gyro[40][..2], r.gyro[40][..2]);
+    assert_eq!(c.gyro[40][2], c.gyro_full_scale);
+    assert_eq!(c.gyro[41], r.gyro[41]);
+    assert!(
+        c.warnings.iter().any(|w| w.contains("1 sample(s) clipped")),
+        "{:?}",
+        c.warnings
     );
 }
 

@@ -6,6 +6,13 @@
 //! | `sensor_combined.gyro_rad[0..2]` | rad/s | `gyro` |
 //! | `sensor_combined.accelerometer_m_s2[0..2]` | m/s^2 | `accel` |
 //! | `esc_status.esc[0].esc_rpm` (optional) | mechanical rpm | `rotor`, [`RotorSpeed::RadPerSec`], sample-and-hold onto the gyro times |
+//! | `sensor_combined.gyro_clipping` (optional) | bit `k` set: axis `k` clipped | that axis at the full scale (saturated) |
+//!
+//! The gyro's range is not in the log. With `gyro_clipping` the full scale is taken as
+//! 2000 deg/s (PX4's IMU drivers' range), or the largest unclipped rate when that is higher,
+//! and a clipped axis reads at it, so the estimators count it saturated (its value, the mean
+//! over an integration interval in which the sensor clipped, is too small). Without the field
+//! the full scale is unknown and a clipped toss is left to the model tests.
 //!
 //! The first instance (lowest multi id) of each topic is read. Axes are PX4's body frame as
 //! logged.
@@ -37,6 +44,9 @@ fn as_f64(v: &SomeVec) -> Vec<f64> {
 }
 
 type Topic = HashMap<String, SomeVec>;
+
+/// The gyro range PX4's IMU drivers set, rad/s (2000 deg/s).
+const PX4_GYRO_RANGE_RAD_S: f64 = 2000.0 * core::f64::consts::PI / 180.0;
 
 /// The first instance of a topic.
 fn first_instance<'a>(
@@ -93,8 +103,10 @@ pub fn read_ulog(path: &Path) -> Result<Recording, ReadError> {
     let accel: Option<Vec<Vec<f64>>> = (0..3)
         .map(|k| topic.get(&format!("accelerometer_m_s2[{k}]")).map(as_f64))
         .collect();
+    let clipping = topic.get("gyro_clipping").map(as_f64);
     let n = t.len();
-    if gyro.iter().any(|g| g.len() != n)
+    if clipping.as_ref().is_some_and(|c| c.len() != n)
+        || gyro.iter().any(|g| g.len() != n)
         || accel
             .as_ref()
             .is_some_and(|a| a.iter().any(|c| c.len() != n))
@@ -138,22 +150,50 @@ pub fn read_ulog(path: &Path) -> Result<Recording, ReadError> {
         None => None,
     };
 
+    // Bit k of gyro_clipping: axis k clipped (exact small integers, so the test is exact).
+    let clipped = |i: usize, k: usize| {
+        clipping
+            .as_ref()
+            .and_then(|c| c.get(i))
+            .is_some_and(|&bits| bits >= 0.0 && (bits as u64 >> k) & 1 == 1)
+    };
+    let full_scale = clipping.as_ref().map(|_| {
+        let widest = (0..n)
+            .flat_map(|i| (0..3).filter(move |&k| !clipped(i, k)).map(move |k| (i, k)))
+            .map(|(i, k)| gyro[k][i].abs())
+            .filter(|x| x.is_finite())
+            .fold(0.0, f64::max);
+        // Strictly above every unclipped rate: only the clipped axes read at it.
+        PX4_GYRO_RANGE_RAD_S.max(widest * (1.0 + 1e-6)) as f32
+    });
     let mut samples = Samples::new(path);
+    let mut clipped_samples = 0usize;
     for i in 0..n {
         let a = accel.as_ref().map(|a| [a[0][i], a[1][i], a[2][i]]);
         let r = rotor.as_ref().map(|r| r[i]);
-        samples.push(
-            Location::Frame(i),
-            t[i] * 1e-6,
-            [gyro[0][i], gyro[1][i], gyro[2][i]],
-            a,
-            r,
-        )?;
+        let mut w = [gyro[0][i], gyro[1][i], gyro[2][i]];
+        if let Some(fs) = full_scale {
+            let mut any = false;
+            for (k, x) in w.iter_mut().enumerate() {
+                if clipped(i, k) && x.is_finite() {
+                    *x = f64::from(fs).copysign(*x);
+                    any = true;
+                }
+            }
+            clipped_samples += usize::from(any);
+        }
+        samples.push(Location::Frame(i), t[i] * 1e-6, w, a, r)?;
+    }
+    if clipped_samples > 0 {
+        warnings.push(format!(
+            "sensor_combined.gyro_clipping marks {clipped_samples} sample(s) clipped: read as \
+             saturated"
+        ));
     }
     samples.finish(
         format!("{} (ulog)", path.display()),
         rotor.map(|_| RotorSpeed::RadPerSec as RotorWrap),
-        f32::INFINITY,
+        full_scale.unwrap_or(f32::INFINITY),
         warnings,
     )
 }
