@@ -48,6 +48,27 @@ fn run(sim: &SimThrow) -> Outcome {
     out
 }
 
+/// Runs `sim` through the pipeline and checks what reached the estimators: nothing before the
+/// release, nothing within 20 ms of the catch, at least 60 % of the free flight.
+fn fed_only_free_flight(label: &str, sim: &SimThrow) -> Outcome {
+    let (r, c) = (sim.release_s.unwrap(), sim.catch_s.unwrap());
+    let free = sim.free_flight().unwrap().len();
+    let o = run(sim);
+    let (a, b) = (o.fed_first.expect("nothing fed"), o.fed_last.unwrap());
+    println!(
+        "{label}: release {r:.3} catch {c:.3}; fed {a:.3}..{b:.3} ({} of {free} free samples), {:?}",
+        o.fed, o.status
+    );
+    assert!(a >= r, "{label}: a sample before the release was fed");
+    assert!(b < c, "{label}: a sample after the catch was fed");
+    assert!(c - b >= 0.02, "{label}: fed within 20 ms of the catch");
+    assert!(
+        o.fed * 10 >= free * 6,
+        "{label}: less than 60 % of the free flight fed"
+    );
+    o
+}
+
 #[test]
 fn hand_and_catch_never_reach_the_estimators() {
     let scenarios: [Scenario; 3] = [
@@ -57,25 +78,7 @@ fn hand_and_catch_never_reach_the_estimators() {
     ];
     for (name, f) in scenarios {
         for seed in 1..=6 {
-            let sim = f(seed);
-            let (r, c) = (sim.release_s.unwrap(), sim.catch_s.unwrap());
-            let free = sim.free_flight().unwrap().len();
-            let o = run(&sim);
-            let (a, b) = (o.fed_first.expect("nothing fed"), o.fed_last.unwrap());
-            println!(
-                "{name} seed {seed}: release {r:.3} catch {c:.3}; fed {a:.3}..{b:.3} ({} of {free} free samples), {:?}",
-                o.fed, o.status
-            );
-            assert!(a >= r, "{name} {seed}: a sample before the release was fed");
-            assert!(b < c, "{name} {seed}: a sample after the catch was fed");
-            assert!(
-                c - b >= 0.02,
-                "{name} {seed}: fed within 20 ms of the catch"
-            );
-            assert!(
-                o.fed * 10 >= free * 6,
-                "{name} {seed}: less than 60 % of the free flight fed"
-            );
+            fed_only_free_flight(&format!("{name} seed {seed}"), &f(seed));
         }
     }
 }
@@ -101,25 +104,9 @@ fn far_from_the_centre_of_mass_hand_and_catch_still_excluded() {
         for seed in 1..=6 {
             let mut cfg = tumbling_with_spinup_config(seed);
             cfg.com_from_imu = com;
-            let sim = simulate(&cfg);
-            let (r, c) = (sim.release_s.unwrap(), sim.catch_s.unwrap());
-            let free = sim.free_flight().unwrap().len();
-            let o = run(&sim);
-            let (a, b) = (o.fed_first.expect("nothing fed"), o.fed_last.unwrap());
-            println!(
-                "IMU {com:?} from the centre of mass, seed {seed}: release {r:.3} catch {c:.3}; fed {a:.3}..{b:.3} ({} of {free} free samples), {:?}",
-                o.fed, o.status
-            );
-            assert!(
-                a >= r,
-                "{com:?} {seed}: a sample before the release was fed"
-            );
-            assert!(
-                c - b >= 0.02,
-                "{com:?} {seed}: fed within 20 ms of the catch"
-            );
-            assert!(o.fed * 10 >= free * 6, "{com:?} {seed}: less than 60 % fed");
-            assert_eq!(o.status, TensorStatus::Converged, "{com:?} {seed}");
+            let label = format!("IMU {com:?} from the centre of mass, seed {seed}");
+            let o = fed_only_free_flight(&label, &simulate(&cfg));
+            assert_eq!(o.status, TensorStatus::Converged, "{label}");
         }
     }
 }

@@ -69,6 +69,7 @@
 //! far from it on nearly every such sample, and then the gate's thresholds, set in m/s^2, mean
 //! nothing (in g a hand's motion looks 9.8 times smaller and passes for free flight).
 
+use crate::linalg::dot;
 use crate::symmetric::{cholesky, cholesky_solve, sqrt};
 
 /// The accelerometer's magnitude while the gyro is still (see the module docs): `looks_wrong`
@@ -620,7 +621,7 @@ fn support_rms(s: &BlockSums, forces: &ForceSums, ridge: f32, rss1: f32) -> Opti
         [at(0), at(1), at(2)]
     };
     let (c0, c1, c2) = (col(0), col(1), col(2));
-    let d = |a: [f32; 3], b: [f32; 3]| (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) / n;
+    let d = |a: [f32; 3], b: [f32; 3]| dot(a, b) / n;
     let [xx, yy, zz, xy, xz, yz] = s.kk;
     let m = [
         [xx - d(c0, c0) + ridge, xy - d(c0, c1), xz - d(c0, c2)],

@@ -312,6 +312,14 @@ impl Replay {
     }
 }
 
+/// The value of the `H key:value` line `key` of a header block.
+fn header_value<'a>(block: &'a [(String, String)], key: &str) -> Option<&'a str> {
+    block
+        .iter()
+        .find(|(k, _)| k == key)
+        .map(|(_, v)| v.as_str())
+}
+
 /// The `H name:value` lines of each log's header block, in the order of the logs.
 fn header_blocks(data: &[u8]) -> Vec<Vec<(String, String)>> {
     let mut out = Vec::new();
@@ -414,14 +422,9 @@ impl BlackboxSource {
         // The chosen log's header lines as written (its own firmware revision, not the
         // stand-in handed to the decoder).
         let block = original.into_iter().nth(index).unwrap_or_default();
-        let header = |k: &str| {
-            block
-                .iter()
-                .find(|(key, _)| key == k)
-                .map(|(_, v)| v.trim())
-        };
-        let revision = header("Firmware revision").unwrap_or("unknown firmware");
-        let gyro_unit = GyroAdcUnit::of(revision, header("blackbox_high_resolution"));
+        let revision =
+            header_value(&block, "Firmware revision").map_or("unknown firmware", str::trim);
+        let gyro_unit = GyroAdcUnit::of(revision, header_value(&block, "blackbox_high_resolution"));
         let name = format!("{} (blackbox, {revision})", path.display());
         let mut notes = Vec::new();
         for r in replaced {
@@ -577,12 +580,7 @@ fn read_log(
     progress: &mut dyn FnMut(f32),
 ) -> Result<Reading, ReadError> {
     let f = fields(headers).map_err(|e| ReadError::new(path, e))?;
-    let header = |k: &str| {
-        block
-            .iter()
-            .find(|(key, _)| key == k)
-            .map(|(_, v)| v.as_str())
-    };
+    let header = |k: &str| header_value(block, k);
     // P-frame predictors by field name. (The header lists include `time`, which the crate's
     // frame definition leaves out: match by name, never by position.)
     let names: Vec<&str> = header("Field I name")
