@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! offset 0  magic  b"IRPL"
-//!        4  u32    version (2)
+//!        4  u32    version (3)
 //!        8  f32    sample rate, Hz (1 / median dt of the log)
 //!       12  f32    gyro noise, rad/s
 //!       16  f32    gyro full scale, rad/s (the estimator's saturation level)
@@ -12,21 +12,26 @@
 //!       24  f32    rotor inertia, kg m^2 (0 without a rotor)
 //!       28  f32x3  rotor axis, unit vector in the gyro frame
 //!       40  f32    rotor speed resolution, rad/s (the telemetry's step; 0: exact)
-//!       44  u32    number of samples n
-//!       48  n x { f32x3 rate rad/s, f32x3 specific force m/s^2, f32 rotor speed rad/s,
+//!       44  f32    gyro averaging: the share of each sample interval a reading is the mean
+//!                  over (0: readings at instants; 1: PX4's sensor_combined)
+//!       48  u32    number of samples n
+//!       52  n x { f32x3 rate rad/s, f32x3 specific force m/s^2, f32 rotor speed rad/s,
 //!                 f32 dt s }   (32 bytes each)
 //! ```
 //!
 //! Version 2 (2026-11-26) added the resolution: the tensor's uncertainty counts the rotor
 //! momentum's quantisation, so the replay gives the firmware the figure `inertia identify`
-//! uses.
+//! uses. Version 3 (2026-11-27) added the gyro averaging: the output-error fits count a
+//! reading's window in their block means
+//! (`identifier_core::PipelineSettings::with_averaging_gyro`), so the firmware must be given
+//! it to match `inertia identify` on a PX4 log.
 
 /// First four bytes.
 pub const MAGIC: [u8; 4] = *b"IRPL";
 /// Format version.
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
 /// Header length, bytes.
-pub const HEADER_LEN: usize = 48;
+pub const HEADER_LEN: usize = 52;
 /// One sample, bytes.
 pub const SAMPLE_LEN: usize = 32;
 
@@ -46,6 +51,8 @@ pub struct ReplayHeader {
     pub rotor: Option<(f32, [f32; 3])>,
     /// The rotor speed's resolution, rad/s (0: taken as exact).
     pub rotor_resolution: f32,
+    /// The share of each sample interval a gyro reading is the mean over (0: instants).
+    pub gyro_averaging: f32,
     /// Samples that follow.
     pub samples: u32,
 }
@@ -104,7 +111,8 @@ impl ReplayHeader {
             rotor: (flags & 2 != 0)
                 .then(|| (f32_at(b, 24), [f32_at(b, 28), f32_at(b, 32), f32_at(b, 36)])),
             rotor_resolution: f32_at(b, 40),
-            samples: u32_at(b, 44),
+            gyro_averaging: f32_at(b, 44),
+            samples: u32_at(b, 48),
         })
     }
 }

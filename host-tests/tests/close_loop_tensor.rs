@@ -27,6 +27,7 @@ fn recording(sim: &SimThrow, lag: usize) -> Recording {
         accel: Some(sim.accel.clone()),
         rotor: Some(RotorSpeed::RadPerSec(rotor)),
         gyro_full_scale: f32::INFINITY,
+        gyro_averaging: 0.0,
         warnings: Vec::new(),
     }
 }

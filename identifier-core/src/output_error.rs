@@ -14,6 +14,17 @@
 //! mean_k x(t_k) = x(tbar) + v/2 x''(tbar) + O(dt^3 x''')                          (B1)
 //! ```
 //!
+//! A sample that is itself a mean (of `m` readings of a decimated gyro, each perhaps the mean
+//! of the rate over a window, as a gyro driver that integrates over the sample interval
+//! reports it) carries the time variance of what it averages into `v`:
+//!
+//! ```text
+//! v_sample = ((m^2 - 1) / 12 + window) (dt / m)^2                              (B0)
+//! ```
+//!
+//! `window` the time variance of one reading's window over its interval squared (0 for a
+//! reading at an instant, `1/12` for the mean over the whole interval).
+//!
 //! When the `N` blocks are full, neighbours are merged (sums referred to the earlier block's
 //! `t0`) and the block length doubles, so any flight fits and blocks stay as short as the
 //! buffer allows.
@@ -321,13 +332,27 @@ pub(crate) fn scaled_inverse<const P: usize>(f: &Sym<P>) -> Option<Sym<P>> {
     Some(inv)
 }
 
-/// The variance of the times of `inputs` equally spaced readings spanning a step `dt` (their
-/// mean is one sample): `(m^2 - 1) / 12 (dt / m)^2`.
-pub(crate) fn mean_spread(dt: f32, inputs: u8) -> f32 {
-    let m = f32::from(inputs);
-    if m > 1.0 && dt.is_finite() {
+/// The variance of the times behind one sample that is the mean of `inputs` equally spaced
+/// readings spanning a step `dt`, each reading itself the mean of the rate over a window whose
+/// time variance is `window` times its own interval squared (0 for a reading at an instant,
+/// `1/12` for the mean over the whole interval, as a PX4 `sensor_combined` gyro reports):
+///
+/// ```text
+/// v = ((m^2 - 1) / 12 + window) (dt / m)^2                                   (B0)
+/// ```
+///
+/// (the spread of the readings' centres plus the mean of their own spreads). With `m = 1`
+/// and `window = 1/12` it is `dt^2 / 12`, the uniform window's.
+pub(crate) fn mean_spread(dt: f32, inputs: u8, window: f32) -> f32 {
+    let m = f32::from(inputs.max(1));
+    let w = if window > 0.0 && window < 1.0 {
+        window
+    } else {
+        0.0
+    };
+    if dt.is_finite() {
         let d = dt / m;
-        (m * m - 1.0) / 12.0 * d * d
+        ((m * m - 1.0) / 12.0 + w) * d * d
     } else {
         0.0
     }

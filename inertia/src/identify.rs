@@ -457,7 +457,8 @@ pub fn identify_source(
     let quantum = momentum_quantum(opts, sv.rotor_step);
     let settings = PipelineSettings::for_rate(rate, noise)
         .with_full_scale(src.full_scale())
-        .with_momentum_resolution(quantum);
+        .with_momentum_resolution(quantum)
+        .with_averaging_gyro(src.gyro_averaging());
     let inputs = Inputs {
         src,
         samples: n,

@@ -61,6 +61,12 @@ pub struct Recording {
     pub rotor: Option<RotorSpeed>,
     /// Gyro full scale in rad/s when the log states it (saturation detection), else infinite.
     pub gyro_full_scale: f32,
+    /// Each gyro sample is the mean rate over a window of this fraction of the sample
+    /// interval, centred on its time (PX4's `sensor_combined`: the rate integrated over the
+    /// sampling period, 1 when every period is logged); 0 for readings at instants (every
+    /// other format). The fits count the window's time spread
+    /// (`identifier_core::PipelineSettings::with_averaging_gyro`).
+    pub gyro_averaging: f32,
     /// Warnings raised while reading (unit guesses, skipped rows), for the user.
     pub warnings: Vec<String>,
 }

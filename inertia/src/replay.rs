@@ -77,9 +77,9 @@ pub fn export(
         }
     };
     let with_accel = rec.accel.is_some();
-    let mut b: Vec<u8> = Vec::with_capacity(48 + 32 * n);
+    let mut b: Vec<u8> = Vec::with_capacity(52 + 32 * n);
     b.extend_from_slice(b"IRPL");
-    b.extend_from_slice(&2u32.to_le_bytes());
+    b.extend_from_slice(&3u32.to_le_bytes());
     b.extend_from_slice(&rate.to_le_bytes());
     b.extend_from_slice(&noise.to_le_bytes());
     b.extend_from_slice(&rec.gyro_full_scale.to_le_bytes());
@@ -92,6 +92,7 @@ pub fn export(
     }
     let resolution = step.unwrap_or(0.0);
     b.extend_from_slice(&resolution.to_le_bytes());
+    b.extend_from_slice(&rec.gyro_averaging.to_le_bytes());
     b.extend_from_slice(&(n as u32).to_le_bytes());
     for i in 0..n {
         let f = rec.accel.as_ref().map(|a| a[i]).unwrap_or([0.0; 3]);

@@ -106,6 +106,11 @@ pub trait Source: Sync {
     fn channels(&self) -> Channels;
     /// The gyro's full scale, rad/s (infinite when the log does not state it).
     fn full_scale(&self) -> f32;
+    /// [`Recording::gyro_averaging`]: the fraction of each sample interval the gyro's reading
+    /// is the mean over (0, the default: readings at instants).
+    fn gyro_averaging(&self) -> f32 {
+        0.0
+    }
     /// One reading: `visit` gets every sample in order (until it says [`Flow::Stop`]);
     /// `progress` now and then the fraction of the log read. A malformed log fails with the
     /// error [`crate::read`] gives for it; an error of `visit` ends the reading with that
@@ -167,6 +172,10 @@ impl Source for RecordingSource<'_> {
 
     fn full_scale(&self) -> f32 {
         self.rec.gyro_full_scale
+    }
+
+    fn gyro_averaging(&self) -> f32 {
+        self.rec.gyro_averaging
     }
 
     fn read_all(
@@ -244,6 +253,10 @@ impl Source for ScaledSource<'_> {
 
     fn full_scale(&self) -> f32 {
         self.inner.full_scale()
+    }
+
+    fn gyro_averaging(&self) -> f32 {
+        self.inner.gyro_averaging()
     }
 
     fn read_all(

@@ -39,11 +39,35 @@ fn toss(
     noise: f64,
     seed: u64,
 ) -> Vec<[f64; 4]> {
-    let f = |w: [f64; 3]| {
+    toss_read(a_mom, w0, rate, secs, noise, seed, false)
+}
+
+/// [`toss`], each row's rate either at its instant or (`means`) the mean over the interval
+/// that ends there (a gyro that integrates, as PX4's `sensor_combined` reports it): (1) and
+/// its integral by RK4 together, the mean the integral's increment over the interval.
+fn toss_read(
+    a_mom: [f64; 3],
+    w0: [f64; 3],
+    rate: f64,
+    secs: f64,
+    noise: f64,
+    seed: u64,
+    means: bool,
+) -> Vec<[f64; 4]> {
+    let a = [
+        (a_mom[1] - a_mom[2]) / a_mom[0],
+        (a_mom[2] - a_mom[0]) / a_mom[1],
+        (a_mom[0] - a_mom[1]) / a_mom[2],
+    ];
+    // State (w, W), W' = w.
+    let f = |x: [f64; 6]| {
         [
-            (a_mom[1] - a_mom[2]) / a_mom[0] * w[1] * w[2],
-            (a_mom[2] - a_mom[0]) / a_mom[1] * w[2] * w[0],
-            (a_mom[0] - a_mom[1]) / a_mom[2] * w[0] * w[1],
+            a[0] * x[1] * x[2],
+            a[1] * x[2] * x[0],
+            a[2] * x[0] * x[1],
+            x[0],
+            x[1],
+            x[2],
         ]
     };
     let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
@@ -58,22 +82,32 @@ fn toss(
         acc - 6.0
     };
     let h = 1.0 / rate / 4.0;
-    let mut w = w0;
+    let mut x = [w0[0], w0[1], w0[2], 0.0, 0.0, 0.0];
     let mut out = Vec::new();
     for k in 0..(secs * rate) as usize {
+        let before = x;
+        for _ in 0..4 {
+            let k1 = f(x);
+            let k2 = f(std::array::from_fn(|i| x[i] + h / 2.0 * k1[i]));
+            let k3 = f(std::array::from_fn(|i| x[i] + h / 2.0 * k2[i]));
+            let k4 = f(std::array::from_fn(|i| x[i] + h * k3[i]));
+            for i in 0..6 {
+                x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            }
+        }
+        // Instants: the state at the row's time (the start of the step just taken).
+        let w: [f64; 3] = if means {
+            std::array::from_fn(|i| (x[3 + i] - before[3 + i]) * rate)
+        } else {
+            [before[0], before[1], before[2]]
+        };
+        let t = if means { k + 1 } else { k } as f64 / rate;
         out.push([
-            k as f64 / rate,
+            t,
             w[0] + noise * gauss(),
             w[1] + noise * gauss(),
             w[2] + noise * gauss(),
         ]);
-        for _ in 0..4 {
-            let k1 = f(w);
-            let k2 = f([0, 1, 2].map(|i| w[i] + h / 2.0 * k1[i]));
-            let k3 = f([0, 1, 2].map(|i| w[i] + h / 2.0 * k2[i]));
-            let k4 = f([0, 1, 2].map(|i| w[i] + h * k3[i]));
-            w = [0, 1, 2].map(|i| w[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]));
-        }
     }
     out
 }
@@ -753,4 +787,90 @@ fn write_far_imu(p: &Path, r: [f64; 3]) {
         }
     }
     std::fs::write(p, s).unwrap();
+}
+
+/// One ULog message: size, kind, payload.
+fn ulog_msg(out: &mut Vec<u8>, kind: u8, payload: &[u8]) {
+    out.extend_from_slice(&(payload.len() as u16).to_le_bytes());
+    out.push(kind);
+    out.extend_from_slice(payload);
+}
+
+/// A PX4 ULog holding `sensor_combined` with only `timestamp`, `gyro_rad` and
+/// `gyro_integral_dt` (each row's interval, `1 / rate`), from `t,wx,wy,wz` rows.
+fn write_px4_ulog(path: &Path, rows: &[[f64; 4]], rate: f64) {
+    let mut f = b"ULog\x01\x12\x35".to_vec();
+    f.push(1);
+    f.extend_from_slice(&0u64.to_le_bytes());
+    ulog_msg(&mut f, b'B', &[0u8; 40]);
+    ulog_msg(
+        &mut f,
+        b'F',
+        b"sensor_combined:uint64_t timestamp;float[3] gyro_rad;uint32_t gyro_integral_dt;",
+    );
+    let mut a = vec![0u8];
+    a.extend_from_slice(&0u16.to_le_bytes());
+    a.extend_from_slice(b"sensor_combined");
+    ulog_msg(&mut f, b'A', &a);
+    let interval = (1e6 / rate).round() as u32;
+    for r in rows {
+        let mut d = 0u16.to_le_bytes().to_vec();
+        d.extend_from_slice(&((r[0] * 1e6).round() as u64 + 1_000_000).to_le_bytes());
+        for w in &r[1..] {
+            d.extend_from_slice(&(*w as f32).to_le_bytes());
+        }
+        d.extend_from_slice(&interval.to_le_bytes());
+        ulog_msg(&mut f, b'D', &d);
+    }
+    std::fs::write(path, f).unwrap();
+}
+
+/// PX4's `sensor_combined.gyro_rad` is the mean rate over each `gyro_integral_dt`, not the
+/// rate at an instant. A racquet-like body tumbling at 24 rad/s, logged at 250 Hz that way:
+/// read from the ULog (the window counted) `a` is within its standard deviations and
+/// `Converged`; the same readings in a CSV, which cannot say so and are taken for instants,
+/// are many standard deviations off (what every ULog gave before the window was read).
+#[test]
+fn a_px4_gyro_that_averages_over_its_interval_is_read_as_means() {
+    let d = out_dir();
+    let mom = [12.3, 1.0, 13.3];
+    let truth = [
+        (mom[1] - mom[2]) / mom[0],
+        (mom[2] - mom[0]) / mom[1],
+        (mom[0] - mom[1]) / mom[2],
+    ];
+    let (mut z_ulog, mut z_csv) = (Vec::new(), Vec::new());
+    for seed in 0..4u64 {
+        let rows = toss_read(mom, [23.7, -5.4, 1.5], 250.0, 1.0, 3e-3, seed, true);
+        let ulg = d.join(format!("px4_means_{seed}.ulg"));
+        write_px4_ulog(&ulg, &rows, 250.0);
+        let (code, v, err) = run(
+            &["--input", ulg.to_str().unwrap()],
+            &d.join(format!("px4_means_{seed}.json")),
+        );
+        assert_eq!(code, 0, "{err}");
+        assert_eq!(v["pooled"]["status"], "Converged", "seed {seed}: {v}");
+        let (a, s) = a_of(&v).unwrap();
+        z_ulog.push([0, 1, 2].map(|i| (a[i] - truth[i]) / s[i]));
+        let csv = d.join(format!("px4_means_{seed}.csv"));
+        write_csv(&csv, &rows, 1.0, 1.0);
+        let (_, v, _) = run(
+            &["--input", csv.to_str().unwrap()],
+            &d.join(format!("px4_means_{seed}_csv.json")),
+        );
+        let (a, s) = a_of(&v).unwrap();
+        z_csv.push([0, 1, 2].map(|i| (a[i] - truth[i]) / s[i]));
+    }
+    let rms = |z: &[[f64; 3]]| {
+        [0, 1, 2].map(|i| (z.iter().map(|r| r[i] * r[i]).sum::<f64>() / z.len() as f64).sqrt())
+    };
+    println!(
+        "error / std, RMS over 4 seeds: ULog (means) {:.2?}, CSV (instants) {:.2?}",
+        rms(&z_ulog),
+        rms(&z_csv)
+    );
+    for z in &z_ulog {
+        assert!(z.iter().all(|x| x.abs() < 4.0), "{z_ulog:?}");
+    }
+    assert!(rms(&z_csv).iter().all(|x| *x > 4.0), "{z_csv:?}");
 }

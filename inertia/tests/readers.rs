@@ -537,7 +537,10 @@ fn ulog_synthetic() {
     assert_eq!(detect(&p).unwrap(), Format::Ulog);
     let r = read(&p, &ReadOptions::default()).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(r.len(), 100);
-    assert!((r.t[0] - 0.010).abs() < 1e-12 && (r.t[99] - 0.109).abs() < 1e-12);
+    // Each reading is the mean over its 1 ms `gyro_integral_dt`, stamped at its end: the
+    // time is the interval's middle, and the whole step is averaged.
+    assert!((r.t[0] - 0.0095).abs() < 1e-12 && (r.t[99] - 0.1085).abs() < 1e-12);
+    assert_eq!(r.gyro_averaging, 1.0);
     assert!((r.gyro[5][0] - 0.5).abs() < 1e-6);
     assert_eq!(r.gyro[5][1..], [-0.2, 3.0]);
     assert_eq!(r.accel.as_ref().unwrap()[50], [0.0, 0.0, -9.8]);
@@ -545,11 +548,11 @@ fn ulog_synthetic() {
         panic!("{:?}", r.rotor);
     };
     let k = 2.0 * std::f32::consts::PI / 60.0;
-    // Held: sample 0 and 1 precede the first esc_status (value held backwards), 2..11 see
-    // j = 0, 12..21 see j = 1, ...
+    // Held at the intervals' middles: samples 0 to 2 precede the first esc_status (value held
+    // backwards), 3..12 see j = 0, 13..22 see j = 1, ...
     assert!((w[0] - 1000.0 * k).abs() < 1e-3);
-    assert!((w[11] - 1000.0 * k).abs() < 1e-3);
-    assert!((w[12] - 1010.0 * k).abs() < 1e-3);
+    assert!((w[12] - 1000.0 * k).abs() < 1e-3);
+    assert!((w[13] - 1010.0 * k).abs() < 1e-3);
     assert!((w[99] - 1090.0 * k).abs() < 1e-3);
     assert!(
         r.warnings.iter().any(|w| w.contains("esc_status starts")),

@@ -416,7 +416,8 @@ fn replay(path: &str, uart: &mut Usart1) -> ! {
         .map_or(0.0, |(inertia, _)| inertia * header.rotor_resolution);
     let settings = identifier_core::PipelineSettings::for_rate(header.rate_hz, header.noise_std)
         .with_full_scale(header.full_scale)
-        .with_momentum_resolution(quantum);
+        .with_momentum_resolution(quantum)
+        .with_averaging_gyro(header.gyro_averaging);
     let rotor = header
         .rotor
         .map(|(inertia, axis)| RotorConfig { inertia, axis });

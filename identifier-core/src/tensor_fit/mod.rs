@@ -274,6 +274,9 @@ pub struct TensorFit<const N: usize> {
     /// The most inputs averaged into one sample ([`TensorFit::step_mean`]): the readings a
     /// block's sample stands for in (F8).
     inputs: u8,
+    /// Time variance of each gyro reading's own averaging window over its interval squared
+    /// ([`TensorFit::with_reading_window`]).
+    window: f32,
 }
 
 /// The block buffer used by the pipeline: 256 blocks of rate and rotor momentum (16.7 KB in
@@ -764,7 +767,22 @@ impl<const N: usize> TensorFit<N> {
             noise_std,
             momentum_resolution: 0.0,
             inputs: 1,
+            window: 0.0,
         }
+    }
+
+    /// The same fit for a gyro whose every reading is the mean of the rate over a window
+    /// (PX4's `sensor_combined`: the rate integrated over the sample interval), `window` the
+    /// window's time variance over the interval squared (`1/12` for the whole interval, 0 by
+    /// default); see [`crate::RatioFit::with_reading_window`] and (B0). Values outside
+    /// `[0, 1)` count as 0.
+    pub const fn with_reading_window(mut self, window: f32) -> Self {
+        self.window = if window > 0.0 && window < 1.0 {
+            window
+        } else {
+            0.0
+        };
+        self
     }
 
     /// The rotor momentum's quantum and the readings per sample, for the fits.
@@ -804,9 +822,8 @@ impl<const N: usize> TensorFit<N> {
             && h.iter().all(|x| x.is_finite());
         let y = [omega[0], omega[1], omega[2], h[0], h[1], h[2]];
         self.inputs = self.inputs.max(inputs);
-        self.state
-            .buf
-            .add(&y, usable, dt, self.max_dt, mean_spread(dt, inputs));
+        let spread = mean_spread(dt, inputs, self.window);
+        self.state.buf.add(&y, usable, dt, self.max_dt, spread);
     }
 
     /// Ends the open stretch: fits it from the tensor `init` (kg m^2; a positive definite
@@ -964,6 +981,7 @@ impl<const N: usize> TensorFit<N> {
     /// Forgets everything: the open stretch and the pooled estimate.
     pub fn reset(&mut self) {
         *self = TensorFit::new(self.full_scale, self.max_dt, self.noise_std)
-            .with_momentum_resolution(self.momentum_resolution);
+            .with_momentum_resolution(self.momentum_resolution)
+            .with_reading_window(self.window);
     }
 }

@@ -76,7 +76,8 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
     let quantum = super::momentum_quantum(opts, step);
     let settings = PipelineSettings::for_rate(rate, noise)
         .with_full_scale(rec.gyro_full_scale)
-        .with_momentum_resolution(quantum);
+        .with_momentum_resolution(quantum)
+        .with_averaging_gyro(rec.gyro_averaging);
     let dt_of = |i: usize| -> f32 {
         if i == 0 {
             dt_med as f32

@@ -427,6 +427,7 @@ impl Samples {
             accel,
             rotor,
             gyro_full_scale,
+            gyro_averaging: 0.0,
             warnings,
         };
         rec.warnings.extend(unit_warnings(&rec.t, &rec.gyro));
@@ -464,6 +465,7 @@ pub(crate) fn collect(src: &dyn Source) -> Result<Recording, ReadError> {
         accel: ch.accel.then_some(accel),
         rotor: ch.rotor.map(|u| u.wrap(rotor)),
         gyro_full_scale: src.full_scale(),
+        gyro_averaging: src.gyro_averaging(),
         warnings: src.warnings(found),
     })
 }

@@ -2,8 +2,9 @@
 //!
 //! | topic, field | unit | in the [`Recording`] |
 //! |---|---|---|
-//! | `sensor_combined.timestamp` | microseconds | `t`, seconds |
+//! | `sensor_combined.timestamp` | microseconds | `t`, seconds, less half the median `gyro_integral_dt` |
 //! | `sensor_combined.gyro_rad[0..2]` | rad/s | `gyro` |
+//! | `sensor_combined.gyro_integral_dt` (optional) | microseconds | [`Recording::gyro_averaging`]: its median over the median time step |
 //! | `sensor_combined.accelerometer_m_s2[0..2]` | m/s^2 | `accel` |
 //! | `esc_status.esc[0].esc_rpm` (optional) | mechanical rpm | `rotor`, [`RotorSpeed::RadPerSec`], sample-and-hold onto the gyro times |
 //! | `sensor_combined.gyro_clipping` (optional) | bit `k` set: axis `k` clipped | that axis at the full scale (saturated) |
@@ -13,6 +14,13 @@
 //! and a clipped axis reads at it, so the estimators count it saturated (its value, the mean
 //! over an integration interval in which the sensor clipped, is too small). Without the field
 //! the full scale is unknown and a clipped toss is left to the model tests.
+//!
+//! PX4's `gyro_rad` is not the rate at an instant: it is the IMU's delta angle over the last
+//! `gyro_integral_dt` divided by it, the mean rate over that interval, stamped with the
+//! interval's last reading. Each time is moved to the interval's middle, and the fits are told
+//! the readings are means ([`Recording::gyro_averaging`]): taken for instants, a body tumbling
+//! at 24 rad/s logged at 250 Hz came out 11-14 standard deviations off (RMS over 16
+//! seeds), `Converged`.
 //!
 //! The first instance (lowest multi id) of each topic is read. Axes are PX4's body frame as
 //! logged.
@@ -104,8 +112,10 @@ pub fn read_ulog(path: &Path) -> Result<Recording, ReadError> {
         .map(|k| topic.get(&format!("accelerometer_m_s2[{k}]")).map(as_f64))
         .collect();
     let clipping = topic.get("gyro_clipping").map(as_f64);
+    let integral = topic.get("gyro_integral_dt").map(as_f64);
     let n = t.len();
     if clipping.as_ref().is_some_and(|c| c.len() != n)
+        || integral.as_ref().is_some_and(|c| c.len() != n)
         || gyro.iter().any(|g| g.len() != n)
         || accel
             .as_ref()
@@ -116,6 +126,15 @@ pub fn read_ulog(path: &Path) -> Result<Recording, ReadError> {
             "sensor_combined fields differ in length",
         ));
     }
+
+    // Each reading is the mean over its integration interval, which ends at its timestamp:
+    // the time moves to the interval's middle (by the median half-interval, so the order of
+    // the times is kept), and the interval's share of the time step is what the fits need.
+    let (shift_us, averaging) = integral
+        .as_ref()
+        .and_then(|i| averaging_of(&t, i))
+        .unwrap_or((0.0, 0.0));
+    let t: Vec<f64> = t.iter().map(|&x| x - shift_us).collect();
 
     // esc_status: esc[0].esc_rpm, sample-and-hold onto the gyro times.
     let rotor = match first_instance(&parsed.messages, "esc_status") {
@@ -190,10 +209,31 @@ pub fn read_ulog(path: &Path) -> Result<Recording, ReadError> {
              saturated"
         ));
     }
-    samples.finish(
+    let mut rec = samples.finish(
         format!("{} (ulog)", path.display()),
         rotor.map(|_| RotorSpeed::RadPerSec as RotorWrap),
         full_scale.unwrap_or(f32::INFINITY),
         warnings,
-    )
+    )?;
+    rec.gyro_averaging = averaging;
+    Ok(rec)
+}
+
+/// From the timestamps `t` and the integration intervals `integral` (both microseconds): half
+/// the median interval (the shift to the intervals' middles) and the median interval over the
+/// median time step (at most 1: a log that dropped messages has longer steps, not longer
+/// intervals). `None` without a positive finite median of both.
+fn averaging_of(t: &[f64], integral: &[f64]) -> Option<(f64, f32)> {
+    let median = |mut v: Vec<f64>| -> Option<f64> {
+        v.retain(|x| x.is_finite() && *x > 0.0);
+        if v.is_empty() {
+            return None;
+        }
+        let k = v.len() / 2;
+        let (_, m, _) = v.select_nth_unstable_by(k, f64::total_cmp);
+        Some(*m)
+    };
+    let dt = median(t.windows(2).map(|w| w[1] - w[0]).collect())?;
+    let span = median(integral.to_vec())?;
+    Some((span / 2.0, (span / dt).min(1.0) as f32))
 }
