@@ -344,15 +344,19 @@ pub(crate) fn scaled_inverse<const P: usize>(f: &Sym<P>) -> Option<Sym<P>> {
 /// (the spread of the readings' centres plus the mean of their own spreads). With `m = 1`
 /// and `window = 1/12` it is `dt^2 / 12`, the uniform window's.
 pub(crate) fn mean_spread(dt: f32, inputs: u8, window: f32) -> f32 {
-    let m = f32::from(inputs.max(1));
-    let w = if window > 0.0 && window < 1.0 {
-        window
-    } else {
-        0.0
-    };
+    // `window` is kept in [0, 1) by the fits' builders. One reading at an instant (every
+    // sample of a gyro below 1.5 kHz) returns at once: this runs on every sample.
+    if inputs <= 1 {
+        return if window > 0.0 && dt.is_finite() {
+            window * dt * dt
+        } else {
+            0.0
+        };
+    }
+    let m = f32::from(inputs);
     if dt.is_finite() {
         let d = dt / m;
-        ((m * m - 1.0) / 12.0 + w) * d * d
+        ((m * m - 1.0) / 12.0 + window) * d * d
     } else {
         0.0
     }
