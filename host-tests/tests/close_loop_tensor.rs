@@ -28,6 +28,7 @@ fn recording(sim: &SimThrow, lag: usize) -> Recording {
         rotor: Some(RotorSpeed::RadPerSec(rotor)),
         gyro_full_scale: f32::INFINITY,
         gyro_averaging: 0.0,
+        gyro_unit_stated: true,
         warnings: Vec::new(),
     }
 }

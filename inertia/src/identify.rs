@@ -534,6 +534,18 @@ pub fn identify_source(
     // full scale or the plausible rates let through: nothing found with either is to be
     // trusted, whatever the fits say.
     let mut status = pooled.ratios.status;
+    // A slow tumble logged in deg/s stays below the sustained-rate check; its ratios, 57 times
+    // too small, give it away (only where the unit was assumed).
+    if sv.gyro_units.is_none() && !src.gyro_unit_stated() {
+        if let Some(w) = pooled
+            .ratios
+            .a
+            .and_then(|a| crate::readers::ratios_warning(a, sv.rate_max))
+        {
+            warnings.push(w.clone());
+            sv.gyro_units = Some(w);
+        }
+    }
     if sv.accel_units.is_some() || sv.gyro_units.is_some() {
         status = TensorStatus::UnitsLookWrong;
         let wrong = format!("{status:?}");

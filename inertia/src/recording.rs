@@ -67,6 +67,11 @@ pub struct Recording {
     /// other format). The fits count the window's time spread
     /// (`identifier_core::PipelineSettings::with_averaging_gyro`).
     pub gyro_averaging: f32,
+    /// The gyro's unit is known: fixed by the format (blackbox by its firmware, ULog, phyphox)
+    /// or declared (`--gyro-unit`), not assumed (a CSV without it is taken as rad/s). Only an
+    /// assumed unit is questioned by the ratios' unit check
+    /// ([`crate::readers::ratios_warning`]).
+    pub gyro_unit_stated: bool,
     /// Warnings raised while reading (unit guesses, skipped rows), for the user.
     pub warnings: Vec<String>,
 }

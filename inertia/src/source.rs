@@ -111,6 +111,12 @@ pub trait Source: Sync {
     fn gyro_averaging(&self) -> f32 {
         0.0
     }
+    /// [`Recording::gyro_unit_stated`]: whether the gyro's unit is known (fixed by the format
+    /// or declared by the user) rather than assumed (a CSV without `--gyro-unit`). True by
+    /// default.
+    fn gyro_unit_stated(&self) -> bool {
+        true
+    }
     /// One reading: `visit` gets every sample in order (until it says [`Flow::Stop`]);
     /// `progress` now and then the fraction of the log read. A malformed log fails with the
     /// error [`crate::read`] gives for it; an error of `visit` ends the reading with that
@@ -176,6 +182,10 @@ impl Source for RecordingSource<'_> {
 
     fn gyro_averaging(&self) -> f32 {
         self.rec.gyro_averaging
+    }
+
+    fn gyro_unit_stated(&self) -> bool {
+        self.rec.gyro_unit_stated
     }
 
     fn read_all(
@@ -257,6 +267,10 @@ impl Source for ScaledSource<'_> {
 
     fn gyro_averaging(&self) -> f32 {
         self.inner.gyro_averaging()
+    }
+
+    fn gyro_unit_stated(&self) -> bool {
+        self.inner.gyro_unit_stated()
     }
 
     fn read_all(

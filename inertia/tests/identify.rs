@@ -874,3 +874,51 @@ fn a_px4_gyro_that_averages_over_its_interval_is_read_as_means() {
     }
     assert!(rms(&z_csv).iter().all(|x| *x > 4.0), "{z_csv:?}");
 }
+
+/// A slow tumble logged in deg/s stays below the sustained-rate check (50 rad/s as read), and
+/// for a body with one ratio near zero the 57.3x smaller ratios still satisfy the rigid-body
+/// constraint, so the fits cannot tell: it came out `Converged` with `a` 57 times too small.
+/// The ratios give it away (all within 0.02 while the gyro reads above 2 rad/s): not trusted
+/// unless the unit is declared; declared, it is identified or taken as said.
+#[test]
+fn a_slow_tumble_logged_in_deg_s_is_not_trusted() {
+    let d = out_dir();
+    let mom = [1.0, 1.0, 1.6];
+    let rows = toss(mom, [0.5, 0.3, 0.6], 200.0, 20.0, 2e-3, 7);
+    let deg = d.join("slow_deg.csv");
+    write_csv(&deg, &rows, 1.0, 180.0 / std::f64::consts::PI);
+    let (code, v, err) = run(
+        &["--input", deg.to_str().unwrap()],
+        &d.join("slow_deg.json"),
+    );
+    println!(
+        "undeclared: exit {code} {} {:?}",
+        v["pooled"]["status"], v["pooled"]["a"]
+    );
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(v["pooled"]["status"], "UnitsLookWrong");
+    let warned = v["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|w| w.as_str().unwrap().contains("deg/s read as rad/s"));
+    assert!(warned, "{}", v["warnings"]);
+    // Declared deg/s: the body itself, within its standard deviations.
+    let (code, v, err) = run(
+        &["--input", deg.to_str().unwrap(), "--gyro-unit", "deg/s"],
+        &d.join("slow_deg2.json"),
+    );
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(v["pooled"]["status"], "Converged");
+    let (a, s) = a_of(&v).unwrap();
+    let truth = [-0.6, 0.6, 0.0];
+    for i in 0..3 {
+        assert!((a[i] - truth[i]).abs() < 4.0 * s[i], "{a:?} +- {s:?}");
+    }
+    // Declared rad/s (a body within 2 % of a sphere, if that is what it is): as said.
+    let (_, v, _) = run(
+        &["--input", deg.to_str().unwrap(), "--gyro-unit", "rad/s"],
+        &d.join("slow_deg3.json"),
+    );
+    assert_ne!(v["pooled"]["status"], "UnitsLookWrong");
+}

@@ -97,6 +97,8 @@ pub struct CsvSource {
     ka: f64,
     /// The highest column a row must have.
     need: usize,
+    /// `--gyro-unit` was given (else rad/s is assumed).
+    gyro_unit_stated: bool,
     /// For each column up to `need`, the slot its value fills (or [`NO_SLOT`]).
     slot_of: Vec<u8>,
 }
@@ -144,6 +146,7 @@ impl CsvSource {
             ka,
             need,
             slot_of,
+            gyro_unit_stated: opts.gyro_unit.is_some(),
         })
     }
 
@@ -310,6 +313,10 @@ impl Source for CsvSource {
 
     fn full_scale(&self) -> f32 {
         f32::INFINITY
+    }
+
+    fn gyro_unit_stated(&self) -> bool {
+        self.gyro_unit_stated
     }
 
     fn read_all(

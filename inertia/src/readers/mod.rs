@@ -27,7 +27,8 @@ pub mod ulog;
 mod units;
 
 pub use units::{
-    time_warning, unit_warnings, AccelCheck, UnitCheck, DEG_PER_SEC_SUSPECT_RAD_S, SUSTAINED_S,
+    ratios_warning, time_warning, unit_warnings, AccelCheck, UnitCheck, DEG_PER_SEC_SUSPECT_RAD_S,
+    NEAR_SPHERE_RATIO, SLOW_DEG_PER_SEC_RAD_S, SUSTAINED_S,
 };
 
 use std::fmt;
@@ -428,6 +429,7 @@ impl Samples {
             rotor,
             gyro_full_scale,
             gyro_averaging: 0.0,
+            gyro_unit_stated: true,
             warnings,
         };
         rec.warnings.extend(unit_warnings(&rec.t, &rec.gyro));
@@ -466,6 +468,7 @@ pub(crate) fn collect(src: &dyn Source) -> Result<Recording, ReadError> {
         rotor: ch.rotor.map(|u| u.wrap(rotor)),
         gyro_full_scale: src.full_scale(),
         gyro_averaging: src.gyro_averaging(),
+        gyro_unit_stated: src.gyro_unit_stated(),
         warnings: src.warnings(found),
     })
 }

@@ -64,6 +64,36 @@ impl UnitCheck {
     }
 }
 
+/// Every ratio `|a_i|` at most this looks like deg/s read as rad/s, when the rates are above
+/// [`SLOW_DEG_PER_SEC_RAD_S`]: a rigid body has `|a_i| <= 1` (`|A_j - A_k| <= A_i`), so
+/// rates read 57.3 times too large give ratios 57.3 times too small, at most `1 / 57.3 =
+/// 0.0175`, and the motion is otherwise the same torque-free motion (for a body with one
+/// `a_i` near zero the ratios even satisfy the rigid-body constraint, so the fits' test of it
+/// cannot tell). In rad/s such ratios are a body within 2 % of a sphere.
+pub const NEAR_SPHERE_RATIO: f32 = 0.02;
+/// The rate (rad/s as read) above which [`NEAR_SPHERE_RATIO`] is questioned: a tumble of
+/// 2 deg/s and more read as rad/s; below it a log is too slow to say much either way.
+pub const SLOW_DEG_PER_SEC_RAD_S: f32 = 2.0;
+
+/// The warning when a gyro whose unit was assumed (not fixed by the format nor declared)
+/// gives ratios `a` that are all within [`NEAR_SPHERE_RATIO`] while it read up to `rate_max`
+/// rad/s (above [`SLOW_DEG_PER_SEC_RAD_S`]): what a slow tumble logged in deg/s gives, below
+/// the [`DEG_PER_SEC_SUSPECT_RAD_S`] the sustained-rate check needs. A simulated body
+/// (1, 1, 1.6) tumbling at 0.3-0.8 rad/s, logged in deg/s, came out `Converged` with `a` 57
+/// times too small before this check. The fix either way is to declare the unit.
+pub fn ratios_warning(a: [f32; 3], rate_max: f32) -> Option<String> {
+    let biggest = a.iter().fold(0.0f32, |m, x| m.max(x.abs()));
+    let near_sphere = a.iter().all(|x| x.is_finite()) && biggest <= NEAR_SPHERE_RATIO;
+    (near_sphere && rate_max > SLOW_DEG_PER_SEC_RAD_S).then(|| {
+        format!(
+            "every ratio |a_i| is at most {biggest:.4} while the gyro reads up to {rate_max:.1} \
+             rad/s: that is what deg/s read as rad/s gives (ratios 57.3 times too small; a \
+             rigid body's are at most 1, so at most 0.0175 that way), or a body within 2 % of \
+             a sphere; declare the gyro unit (--gyro-unit deg/s, or rad/s if that is right)"
+        )
+    })
+}
+
 /// The warning when the median time step (`None` with fewer than two samples) looks like
 /// another unit: below `1e-5` s or above 1 s.
 pub fn time_warning(median_dt: Option<f64>) -> Option<String> {
