@@ -332,6 +332,17 @@ pub(crate) fn scaled_inverse<const P: usize>(f: &Sym<P>) -> Option<Sym<P>> {
     Some(inv)
 }
 
+/// A reading's window for (B0) as the fits keep it: `window` when in `(0, 1)` (a window's
+/// time variance over its interval squared is at most `1/4`), else 0 (a reading at an
+/// instant).
+pub(crate) const fn reading_window(window: f32) -> f32 {
+    if window > 0.0 && window < 1.0 {
+        window
+    } else {
+        0.0
+    }
+}
+
 /// The variance of the times behind one sample that is the mean of `inputs` equally spaced
 /// readings spanning a step `dt`, each reading itself the mean of the rate over a window whose
 /// time variance is `window` times its own interval squared (0 for a reading at an instant,
@@ -344,7 +355,7 @@ pub(crate) fn scaled_inverse<const P: usize>(f: &Sym<P>) -> Option<Sym<P>> {
 /// (the spread of the readings' centres plus the mean of their own spreads). With `m = 1`
 /// and `window = 1/12` it is `dt^2 / 12`, the uniform window's.
 pub(crate) fn mean_spread(dt: f32, inputs: u8, window: f32) -> f32 {
-    // `window` is kept in [0, 1) by the fits' builders. One reading at an instant (every
+    // `window` is kept in [0, 1) by the fits' builders ([`reading_window`]). One reading at an instant (every
     // sample of a gyro below 1.5 kHz) returns at once: this runs on every sample.
     if inputs <= 1 {
         return if window > 0.0 && dt.is_finite() {

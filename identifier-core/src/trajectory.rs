@@ -162,9 +162,9 @@
 use crate::exact::{compensated_add, two_sum, weighted_squares};
 use crate::linalg::Gram2;
 use crate::output_error::{
-    bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, refit_cost,
-    scaled_inverse, score, score_beyond, score_rejects, score_rejects_at, staged_fit, substeps,
-    torque_confirmed, without, Block, FitState, Normal, NormalSums, Start, StretchResult,
+    bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, reading_window,
+    refit_cost, scaled_inverse, score, score_beyond, score_rejects, score_rejects_at, staged_fit,
+    substeps, torque_confirmed, without, Block, FitState, Normal, NormalSums, Start, StretchResult,
     TOLERANCE,
 };
 use crate::symmetric::{sqrt, Sym};
@@ -990,11 +990,7 @@ impl<const N: usize> RatioFit<N> {
     /// miss `v/2 w''` in every block mean, on a fast tumble many times the noise. Values
     /// outside `[0, 1)` count as 0.
     pub const fn with_reading_window(mut self, window: f32) -> Self {
-        self.window = if window > 0.0 && window < 1.0 {
-            window
-        } else {
-            0.0
-        };
+        self.window = reading_window(window);
         self
     }
 
@@ -1124,6 +1120,26 @@ mod tests {
         simulate_with_torque(m, w0, rate, n, [0.0; 3])
     }
 
+    /// `a` of (1) for the moments `m`.
+    fn ratios(m: [f64; 3]) -> [f64; 3] {
+        [
+            (m[1] - m[2]) / m[0],
+            (m[2] - m[0]) / m[1],
+            (m[0] - m[1]) / m[2],
+        ]
+    }
+
+    /// One classical RK4 step of `x' = f(x)` over `h`.
+    fn rk4_step<const K: usize>(f: impl Fn([f64; K]) -> [f64; K], x: &mut [f64; K], h: f64) {
+        let k1 = f(*x);
+        let k2 = f(core::array::from_fn(|i| x[i] + 0.5 * h * k1[i]));
+        let k3 = f(core::array::from_fn(|i| x[i] + 0.5 * h * k2[i]));
+        let k4 = f(core::array::from_fn(|i| x[i] + h * k3[i]));
+        for i in 0..K {
+            x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        }
+    }
+
     /// [`simulate`] with a constant angular acceleration `c` added to (1).
     fn simulate_with_torque(
         m: [f64; 3],
@@ -1132,11 +1148,7 @@ mod tests {
         n: usize,
         c: [f64; 3],
     ) -> Vec<[f32; 3]> {
-        let a = [
-            (m[1] - m[2]) / m[0],
-            (m[2] - m[0]) / m[1],
-            (m[0] - m[1]) / m[2],
-        ];
+        let a = ratios(m);
         let f = |w: [f64; 3]| {
             [
                 a[0] * w[1] * w[2] + c[0],
@@ -1150,13 +1162,7 @@ mod tests {
         for _ in 0..n {
             out.push(w.map(|x| x as f32));
             for _ in 0..20 {
-                let k1 = f(w);
-                let k2 = f(core::array::from_fn(|i| w[i] + 0.5 * h * k1[i]));
-                let k3 = f(core::array::from_fn(|i| w[i] + 0.5 * h * k2[i]));
-                let k4 = f(core::array::from_fn(|i| w[i] + h * k3[i]));
-                for i in 0..3 {
-                    w[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
-                }
+                rk4_step(f, &mut w, h);
             }
         }
         out
@@ -1170,11 +1176,7 @@ mod tests {
     /// its integral together, 20 steps per interval, the reading the integral's increment
     /// over the interval.
     fn simulate_means(m: [f64; 3], w0: [f64; 3], rate: f64, n: usize) -> Vec<[f32; 3]> {
-        let a = [
-            (m[1] - m[2]) / m[0],
-            (m[2] - m[0]) / m[1],
-            (m[0] - m[1]) / m[2],
-        ];
+        let a = ratios(m);
         // State (w, W), W' = w.
         let f = |x: [f64; 6]| {
             [
@@ -1193,13 +1195,7 @@ mod tests {
         for _ in 0..n {
             let start = [x[3], x[4], x[5]];
             for _ in 0..20 {
-                let k1 = f(x);
-                let k2 = f(core::array::from_fn(|i| x[i] + 0.5 * h * k1[i]));
-                let k3 = f(core::array::from_fn(|i| x[i] + 0.5 * h * k2[i]));
-                let k4 = f(core::array::from_fn(|i| x[i] + h * k3[i]));
-                for i in 0..6 {
-                    x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
-                }
+                rk4_step(f, &mut x, h);
             }
             out.push(core::array::from_fn(|i| {
                 ((x[3 + i] - start[i]) / dt) as f32
@@ -1241,11 +1237,7 @@ mod tests {
     }
 
     fn truth(m: [f64; 3]) -> [f32; 3] {
-        [
-            ((m[1] - m[2]) / m[0]) as f32,
-            ((m[2] - m[0]) / m[1]) as f32,
-            ((m[0] - m[1]) / m[2]) as f32,
-        ]
+        ratios(m).map(|x| x as f32)
     }
 
     #[test]

@@ -164,9 +164,10 @@
 use crate::exact::{compensated_add, quadratic_form, weighted_squares};
 use crate::linalg::{det, dot, solve, Gram2};
 use crate::output_error::{
-    bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, refit_cost,
-    scaled_inverse, score, score_beyond, score_rejects, staged_fit, substeps, torque_confirmed,
-    without, Block, FitState, Normal, NormalSums, Pooled, Start, StretchResult, TOLERANCE,
+    bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, reading_window,
+    refit_cost, scaled_inverse, score, score_beyond, score_rejects, staged_fit, substeps,
+    torque_confirmed, without, Block, FitState, Normal, NormalSums, Pooled, Start, StretchResult,
+    TOLERANCE,
 };
 use crate::symmetric::{eigen_symmetric3, sqrt, Sym};
 use crate::trajectory::StretchOutcome;
@@ -777,11 +778,7 @@ impl<const N: usize> TensorFit<N> {
     /// default); see [`crate::RatioFit::with_reading_window`] and (B0). Values outside
     /// `[0, 1)` count as 0.
     pub const fn with_reading_window(mut self, window: f32) -> Self {
-        self.window = if window > 0.0 && window < 1.0 {
-            window
-        } else {
-            0.0
-        };
+        self.window = reading_window(window);
         self
     }
 
