@@ -4,6 +4,9 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod ulog_writer;
+use ulog_writer::{add_logged, header, msg};
+
 fn exe() -> &'static str {
     env!("CARGO_BIN_EXE_inertia")
 }
@@ -789,29 +792,16 @@ fn write_far_imu(p: &Path, r: [f64; 3]) {
     std::fs::write(p, s).unwrap();
 }
 
-/// One ULog message: size, kind, payload.
-fn ulog_msg(out: &mut Vec<u8>, kind: u8, payload: &[u8]) {
-    out.extend_from_slice(&(payload.len() as u16).to_le_bytes());
-    out.push(kind);
-    out.extend_from_slice(payload);
-}
-
 /// A PX4 ULog holding `sensor_combined` with only `timestamp`, `gyro_rad` and
 /// `gyro_integral_dt` (each row's interval, `1 / rate`), from `t,wx,wy,wz` rows.
 fn write_px4_ulog(path: &Path, rows: &[[f64; 4]], rate: f64) {
-    let mut f = b"ULog\x01\x12\x35".to_vec();
-    f.push(1);
-    f.extend_from_slice(&0u64.to_le_bytes());
-    ulog_msg(&mut f, b'B', &[0u8; 40]);
-    ulog_msg(
+    let mut f = header(0);
+    msg(
         &mut f,
         b'F',
         b"sensor_combined:uint64_t timestamp;float[3] gyro_rad;uint32_t gyro_integral_dt;",
     );
-    let mut a = vec![0u8];
-    a.extend_from_slice(&0u16.to_le_bytes());
-    a.extend_from_slice(b"sensor_combined");
-    ulog_msg(&mut f, b'A', &a);
+    add_logged(&mut f, 0, "sensor_combined");
     let interval = (1e6 / rate).round() as u32;
     for r in rows {
         let mut d = 0u16.to_le_bytes().to_vec();
@@ -820,7 +810,7 @@ fn write_px4_ulog(path: &Path, rows: &[[f64; 4]], rate: f64) {
             d.extend_from_slice(&(*w as f32).to_le_bytes());
         }
         d.extend_from_slice(&interval.to_le_bytes());
-        ulog_msg(&mut f, b'D', &d);
+        msg(&mut f, b'D', &d);
     }
     std::fs::write(path, f).unwrap();
 }

@@ -8,6 +8,9 @@ use inertia::readers::phyphox::{read_segments, segments_file};
 use inertia::readers::{detect, read, Format, GyroUnit, ReadOptions, TimeUnit};
 use inertia::{Recording, RotorSpeed};
 
+mod ulog_writer;
+use ulog_writer::{add_logged, header, msg};
+
 fn shared(sub: &str) -> Option<PathBuf> {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../../shared/data")
@@ -452,13 +455,6 @@ fn csv_truncated_and_garbage() {
 
 // ---- ULog: a tiny file written by hand in the ULog binary format ----
 
-/// One ULog message: size (u16, little endian), type, payload.
-fn msg(out: &mut Vec<u8>, kind: u8, payload: &[u8]) {
-    out.extend_from_slice(&(payload.len() as u16).to_le_bytes());
-    out.push(kind);
-    out.extend_from_slice(payload);
-}
-
 /// A ULog with `n` sensor_combined samples at 1 kHz (gyro `(0.1 i, -0.2, 3)`, accel
 /// `(0, 0, -9.8)`) and esc_status at 100 Hz (rpm `1000 + 10 j`), starting 2 ms after the
 /// gyro.
@@ -468,11 +464,7 @@ fn ulog(n: usize, nan_at: Option<usize>) -> Vec<u8> {
 
 /// [`ulog`] with `gyro_clipping` logged: bit 2 (z) set at sample `clip_at`.
 fn ulog_clipped(n: usize, nan_at: Option<usize>, clip_at: Option<usize>) -> Vec<u8> {
-    let mut f = b"ULog\x01\x12\x35".to_vec();
-    f.push(1); // version
-    f.extend_from_slice(&1_000u64.to_le_bytes()); // start timestamp, us
-                                                  // Flag bits: compat[8], incompat[8] (all clear), appended offsets[3] (none).
-    msg(&mut f, b'B', &[0u8; 40]);
+    let mut f = header(1_000);
     msg(
         &mut f,
         b'F',
@@ -488,15 +480,8 @@ fn ulog_clipped(n: usize, nan_at: Option<usize>, clip_at: Option<usize>) -> Vec<
         b'F',
         b"esc_status:uint64_t timestamp;uint8_t esc_count;esc_report[2] esc;",
     );
-    // add_logged: multi_id, msg_id, name.
-    let mut a = vec![0u8];
-    a.extend_from_slice(&0u16.to_le_bytes());
-    a.extend_from_slice(b"sensor_combined");
-    msg(&mut f, b'A', &a);
-    let mut a = vec![0u8];
-    a.extend_from_slice(&1u16.to_le_bytes());
-    a.extend_from_slice(b"esc_status");
-    msg(&mut f, b'A', &a);
+    add_logged(&mut f, 0, "sensor_combined");
+    add_logged(&mut f, 1, "esc_status");
     for i in 0..n {
         let t = 10_000u64 + 1_000 * i as u64;
         if i % 10 == 2 {
