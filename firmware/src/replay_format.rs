@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! offset 0  magic  b"IRPL"
-//!        4  u32    version (3)
+//!        4  u32    version (4)
 //!        8  f32    sample rate, Hz (1 / median dt of the log)
 //!       12  f32    gyro noise, rad/s
 //!       16  f32    gyro full scale, rad/s (the estimator's saturation level)
@@ -14,8 +14,10 @@
 //!       40  f32    rotor speed resolution, rad/s (the telemetry's step; 0: exact)
 //!       44  f32    gyro averaging: the share of each sample interval a reading is the mean
 //!                  over (0: readings at instants; 1: PX4's sensor_combined)
-//!       48  u32    number of samples n
-//!       52  n x { f32x3 rate rad/s, f32x3 specific force m/s^2, f32 rotor speed rad/s,
+//!       48  f32    gyro smoothing: the time variance of the gyro's own low-pass filter, s^2
+//!                  (0: an unfiltered gyro; Betaflight's filtered gyro)
+//!       52  u32    number of samples n
+//!       56  n x { f32x3 rate rad/s, f32x3 specific force m/s^2, f32 rotor speed rad/s,
 //!                 f32 dt s }   (32 bytes each)
 //! ```
 //!
@@ -24,14 +26,15 @@
 //! uses. Version 3 (2026-11-27) added the gyro averaging: the output-error fits count a
 //! reading's window in their block means
 //! (`identifier_core::PipelineSettings::with_averaging_gyro`), so the firmware must be given
-//! it to match `inertia identify` on a PX4 log.
+//! it to match `inertia identify` on a PX4 log. Version 4 (2026-11-27) added the gyro
+//! smoothing (`identifier_core::PipelineSettings::with_filtered_gyro`), for Betaflight logs.
 
 /// First four bytes.
 pub const MAGIC: [u8; 4] = *b"IRPL";
 /// Format version.
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 /// Header length, bytes.
-pub const HEADER_LEN: usize = 52;
+pub const HEADER_LEN: usize = 56;
 /// One sample, bytes.
 pub const SAMPLE_LEN: usize = 32;
 
@@ -53,6 +56,8 @@ pub struct ReplayHeader {
     pub rotor_resolution: f32,
     /// The share of each sample interval a gyro reading is the mean over (0: instants).
     pub gyro_averaging: f32,
+    /// The time variance of the gyro's own low-pass filter, s^2 (0: unfiltered).
+    pub gyro_smoothing: f32,
     /// Samples that follow.
     pub samples: u32,
 }
@@ -112,7 +117,8 @@ impl ReplayHeader {
                 .then(|| (f32_at(b, 24), [f32_at(b, 28), f32_at(b, 32), f32_at(b, 36)])),
             rotor_resolution: f32_at(b, 40),
             gyro_averaging: f32_at(b, 44),
-            samples: u32_at(b, 48),
+            gyro_smoothing: f32_at(b, 48),
+            samples: u32_at(b, 52),
         })
     }
 }

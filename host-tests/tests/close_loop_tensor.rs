@@ -29,6 +29,7 @@ fn recording(sim: &SimThrow, lag: usize) -> Recording {
         gyro_full_scale: f32::INFINITY,
         gyro_averaging: 0.0,
         gyro_unit_stated: true,
+        gyro_filters: None,
         warnings: Vec::new(),
     }
 }

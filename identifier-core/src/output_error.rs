@@ -23,7 +23,16 @@
 //! ```
 //!
 //! `window` the time variance of one reading's window over its interval squared (0 for a
-//! reading at an instant, `1/12` for the mean over the whole interval).
+//! reading at an instant, `1/12` for the mean over the whole interval). A reading that has
+//! passed through a low-pass filter (a flight controller's gyro filters: Betaflight logs its
+//! filtered gyro) is the filter's impulse response `g` averaged over the rate, a window too:
+//! by the same expansion, with the filter's delay taken out of the times, it adds the second
+//! cumulant of `g` (`tau^2` for a first-order stage of time constant `tau`), in seconds
+//! squared:
+//!
+//! ```text
+//! v_sample = ((m^2 - 1) / 12 + window) (dt / m)^2 + s_filter                  (B0')
+//! ```
 //!
 //! When the `N` blocks are full, neighbours are merged (sums referred to the earlier block's
 //! `t0`) and the block length doubles, so any flight fits and blocks stay as short as the
@@ -66,6 +75,10 @@ pub(crate) struct Block<const K: usize> {
     pub(crate) t0: f32,
     pub(crate) st: f32,
     pub(crate) stt: f32,
+    /// Sum of the samples' own time variance that only the gyro's channels carry: a reading's
+    /// averaging window and the gyro's filters ((B0), (B0')). The rotor's channels are read
+    /// at the sample times.
+    sg: f32,
     y0: [f32; K],
     dy: [f32; K],
 }
@@ -76,6 +89,7 @@ impl<const K: usize> Block<K> {
         t0: 0.0,
         st: 0.0,
         stt: 0.0,
+        sg: 0.0,
         y0: [0.0; K],
         dy: [0.0; K],
     };
@@ -94,8 +108,21 @@ impl<const K: usize> Block<K> {
         (self.t0 - earlier.t0) + (self.st / self.n - earlier.st / earlier.n)
     }
 
-    /// Variance of the block's sample times, `v` of (B1).
+    /// Variance of the times behind the block's gyro readings, `v` of (B1): the sample
+    /// times' and the readings' own ((B0), (B0')).
     pub(crate) fn time_var(&self) -> f32 {
+        let m = self.st / self.n;
+        let v = self.stt / self.n - m * m + self.sg / self.n;
+        if v > 0.0 {
+            v
+        } else {
+            0.0
+        }
+    }
+
+    /// Variance of the block's sample times alone (a decimated sample's spread of the inputs
+    /// included): `v` of (B1) for a channel read at the sample times, the rotor's.
+    pub(crate) fn sample_time_var(&self) -> f32 {
         let m = self.st / self.n;
         let v = self.stt / self.n - m * m;
         if v > 0.0 {
@@ -160,6 +187,7 @@ impl<const K: usize> Block<K> {
             t0: self.t0,
             st: self.st + o.st + o.n * d,
             stt: self.stt + o.stt + 2.0 * d * o.st + o.n * d * d,
+            sg: self.sg + o.sg,
             y0: self.y0,
             dy,
         }
@@ -216,11 +244,19 @@ impl<const N: usize, const K: usize> BlockBuffer<N, K> {
     };
 
     /// Adds one sample: channels `y` (used only when `usable`), the time since the previous
-    /// sample (ignored for the stretch's first) and `spread`, the variance of the times of the
-    /// readings averaged into it (0 for a single reading; it adds to the block's `v` of (B1)).
+    /// sample (ignored for the stretch's first) and `spread` ([`mean_spread`]): the variance
+    /// of the times of the readings averaged into it (0 for a single reading), and the
+    /// readings' own, of the gyro's channels only; both add to the block's `v` of (B1).
     /// A time step that is not finite, not positive or above `max_dt` freezes the stretch: the
     /// time of what follows is not known well enough for a trajectory.
-    pub(crate) fn add(&mut self, y: &[f32; K], usable: bool, dt: f32, max_dt: f32, spread: f32) {
+    pub(crate) fn add(
+        &mut self,
+        y: &[f32; K],
+        usable: bool,
+        dt: f32,
+        max_dt: f32,
+        spread: [f32; 2],
+    ) {
         if self.frozen {
             return;
         }
@@ -245,7 +281,8 @@ impl<const N: usize, const K: usize> BlockBuffer<N, K> {
         let tb = (self.t - c.t0) - self.t_lo;
         c.n += 1.0;
         c.st += tb;
-        c.stt += tb * tb + spread;
+        c.stt += tb * tb + spread[0];
+        c.sg += spread[1];
         for k in 0..K {
             c.dy[k] += y[k] - c.y0[k];
         }
@@ -343,33 +380,48 @@ pub(crate) const fn reading_window(window: f32) -> f32 {
     }
 }
 
+/// A filter's time variance for (B0') as the fits keep it: `smoothing` (s^2) when finite
+/// and in `[0, 1e-4]` (a first-order stage at 16 Hz; beyond, the expansion's next terms
+/// would matter on a thrown body's motion), else 0.
+pub(crate) const fn reading_smoothing(smoothing: f32) -> f32 {
+    if smoothing > 0.0 && smoothing <= 1e-4 {
+        smoothing
+    } else {
+        0.0
+    }
+}
+
 /// The variance of the times behind one sample that is the mean of `inputs` equally spaced
 /// readings spanning a step `dt`, each reading itself the mean of the rate over a window whose
 /// time variance is `window` times its own interval squared (0 for a reading at an instant,
-/// `1/12` for the mean over the whole interval, as a PX4 `sensor_combined` gyro reports):
+/// `1/12` for the mean over the whole interval, as a PX4 `sensor_combined` gyro reports), and
+/// each passed through a filter of time variance `smoothing` (s^2; 0 for none):
 ///
 /// ```text
-/// v = ((m^2 - 1) / 12 + window) (dt / m)^2                                   (B0)
+/// v = (m^2 - 1) / 12 (dt / m)^2  +  window (dt / m)^2 + smoothing            (B0, B0')
 /// ```
 ///
-/// (the spread of the readings' centres plus the mean of their own spreads). With `m = 1`
-/// and `window = 1/12` it is `dt^2 / 12`, the uniform window's.
-pub(crate) fn mean_spread(dt: f32, inputs: u8, window: f32) -> f32 {
-    // `window` is kept in [0, 1) by the fits' builders ([`reading_window`]). One reading at an instant (every
-    // sample of a gyro below 1.5 kHz) returns at once: this runs on every sample.
+/// (the spread of the readings' centres plus the mean of their own spreads), returned as its
+/// two parts: the centres' (every channel's) and the readings' own (the gyro's alone: the
+/// rotor's speed is neither averaged over a gyro's window nor filtered by its filters). With
+/// `m = 1` and `window = 1/12` the sum is `dt^2 / 12`, the uniform window's.
+pub(crate) fn mean_spread(dt: f32, inputs: u8, window: f32, smoothing: f32) -> [f32; 2] {
+    // `window` is kept in [0, 1) by the fits' builders ([`reading_window`]), `smoothing` in
+    // [0, 1e-4] ([`reading_smoothing`]). One reading at an instant (every sample of a gyro
+    // below 1.5 kHz) returns at once: this runs on every sample.
     if inputs <= 1 {
         return if window > 0.0 && dt.is_finite() {
-            window * dt * dt
+            [0.0, window * dt * dt + smoothing]
         } else {
-            0.0
+            [0.0, smoothing]
         };
     }
     let m = f32::from(inputs);
     if dt.is_finite() {
         let d = dt / m;
-        ((m * m - 1.0) / 12.0 + window) * d * d
+        [(m * m - 1.0) / 12.0 * d * d, window * d * d + smoothing]
     } else {
-        0.0
+        [0.0, smoothing]
     }
 }
 

@@ -55,6 +55,11 @@ pub struct PipelineSettings {
     /// 24 rad/s logged that way at 250 Hz, taking the means for instants put `a` 11-14 standard
     /// deviations off (RMS over 16 seeds) while `Converged`.
     pub reading_window: f32,
+    /// Time variance of the gyro's own low-pass filter, s^2 (the second cumulant of its
+    /// impulse response: `tau^2` per first-order stage of time constant `tau`), 0 for an
+    /// unfiltered gyro; the fits count it in their block means ((B0') of the fits' block
+    /// buffer). The filter's delay is taken out of the sample times before the pipeline.
+    pub reading_smoothing: f32,
 }
 
 impl PipelineSettings {
@@ -90,6 +95,7 @@ impl PipelineSettings {
             rate_hz,
             decimation,
             reading_window: 0.0,
+            reading_smoothing: 0.0,
         }
     }
 
@@ -100,6 +106,18 @@ impl PipelineSettings {
     pub fn with_averaging_gyro(mut self, span: f32) -> Self {
         self.reading_window = if span > 0.0 && span <= 1.0 {
             span * span / 12.0
+        } else {
+            0.0
+        };
+        self
+    }
+
+    /// The same settings for a gyro whose readings have passed through a low-pass filter of
+    /// time variance `smoothing` s^2 ([`PipelineSettings::reading_smoothing`]; Betaflight logs
+    /// its filtered gyro). Not finite or negative: no filter.
+    pub fn with_filtered_gyro(mut self, smoothing: f32) -> Self {
+        self.reading_smoothing = if smoothing > 0.0 && smoothing.is_finite() {
+            smoothing
         } else {
             0.0
         };
@@ -294,13 +312,15 @@ impl<const N: usize> Pipeline<N> {
         let refined = Refined::new(settings.refined)?;
         let rs = &settings.refined;
         let refined_bias = RefinedBias::new(rs.block, rs.max_dt, rs.full_scale, rs.noise_std)?;
-        let window = settings.reading_window;
-        let trajectory =
-            RatioFit::new(rs.full_scale, rs.max_dt, rs.noise_std).with_reading_window(window);
+        let (window, smoothing) = (settings.reading_window, settings.reading_smoothing);
+        let trajectory = RatioFit::new(rs.full_scale, rs.max_dt, rs.noise_std)
+            .with_reading_window(window)
+            .with_reading_smoothing(smoothing);
         let ts = &settings.tensor;
         let tensor_fit = TensorFit::new(ts.full_scale, ts.max_dt, ts.noise_std)
             .with_momentum_resolution(ts.momentum_resolution)
-            .with_reading_window(window);
+            .with_reading_window(window)
+            .with_reading_smoothing(smoothing);
         let rate = settings.rate_hz / settings.decimation as f32;
         let usable = rate.is_finite()
             && rate > 0.0

@@ -66,6 +66,7 @@ use std::ops::Range;
 use identifier_core::{PipelineSettings, Ratios, TensorEstimate, TensorStatus};
 use serde::Serialize;
 
+use crate::readers::gyro_filters::GyroFilters;
 use crate::readers::ReadError;
 use crate::recording::Recording;
 use crate::source::{RecordingSource, Source};
@@ -315,6 +316,16 @@ pub fn estimate_noise(gyro: &[[f32; 3]]) -> f32 {
     }))
 }
 
+/// The white noise the fits assume, from the noise `measured` by [`estimate_noise`] on a log
+/// of step `log_dt` whose gyro has passed through `filters` ((G2) of
+/// [`GyroFilters::white_noise`]); `measured` itself without filters.
+pub fn white_noise(measured: f32, filters: Option<&GyroFilters>, log_dt: f64) -> f32 {
+    match filters {
+        Some(f) => f.white_noise(f64::from(measured), log_dt) as f32,
+        None => measured,
+    }
+}
+
 /// The noise from each axis's median absolute third difference (`None` for an axis without
 /// one): the median turned into a standard deviation (third differences of white noise have
 /// variance `20 sigma^2`), smallest over the axes, floored at `1e-4 rad/s`; `2e-3` when no axis
@@ -426,7 +437,11 @@ pub fn identify_source(
             "the time steps are not positive".into(),
         ));
     }
-    let noise = opts.noise_std.or(sv.noise).unwrap_or(2e-3);
+    let filters = src.gyro_filters();
+    let noise = opts
+        .noise_std
+        .or(sv.noise.map(|m| white_noise(m, filters.as_ref(), dt_med)))
+        .unwrap_or(2e-3);
     let rotor = match &opts.rotor {
         None => None,
         Some(r) => {
@@ -458,7 +473,8 @@ pub fn identify_source(
     let settings = PipelineSettings::for_rate(rate, noise)
         .with_full_scale(src.full_scale())
         .with_momentum_resolution(quantum)
-        .with_averaging_gyro(src.gyro_averaging());
+        .with_averaging_gyro(src.gyro_averaging())
+        .with_filtered_gyro(filters.as_ref().map_or(0.0, |f| f.smoothing(dt_med) as f32));
     let inputs = Inputs {
         src,
         samples: n,

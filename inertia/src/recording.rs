@@ -2,6 +2,8 @@
 //! rotor-speed channels, in SI units and in the log's own sensor axes (as logged, never
 //! re-oriented: the tensor is reported in that frame).
 
+use crate::readers::gyro_filters::GyroFilters;
+
 /// Rotor speed as a log gives it.
 #[derive(Clone, Debug, PartialEq)]
 pub enum RotorSpeed {
@@ -67,6 +69,12 @@ pub struct Recording {
     /// other format). The fits count the window's time spread
     /// (`identifier_core::PipelineSettings::with_averaging_gyro`).
     pub gyro_averaging: f32,
+    /// The low-pass filters the logged gyro has passed through (`None` for an unfiltered
+    /// gyro: every format but Betaflight's blackbox). The reader has already taken their delay
+    /// out of the rates; the fits count their time variance in their block means
+    /// ([`Recording::gyro_smoothing`]) and the noise the fits assume is their white
+    /// equivalent ([`crate::identify::white_noise`]).
+    pub gyro_filters: Option<GyroFilters>,
     /// The gyro's unit is known: fixed by the format (blackbox by its firmware, ULog, phyphox)
     /// or declared (`--gyro-unit`), not assumed (a CSV without it is taken as rad/s). Only an
     /// assumed unit is questioned by the ratios' unit check
@@ -77,6 +85,16 @@ pub struct Recording {
 }
 
 impl Recording {
+    /// The time variance of the gyro's filters and of the reader's interpolation, s^2 (0
+    /// without filters), as the fits take it
+    /// (`identifier_core::PipelineSettings::with_filtered_gyro`; [`GyroFilters::smoothing`]
+    /// at the median time step).
+    pub fn gyro_smoothing(&self) -> f32 {
+        self.gyro_filters.as_ref().map_or(0.0, |f| {
+            f.smoothing(crate::identify::median_dt(&self.t)) as f32
+        })
+    }
+
     /// Number of samples.
     pub fn len(&self) -> usize {
         self.t.len()

@@ -15,7 +15,9 @@
 use std::io::Write;
 use std::path::Path;
 
-use inertia::identify::{estimate_noise, median_dt, slow_telemetry, unhold, Rotor, RotorHold};
+use inertia::identify::{
+    estimate_noise, median_dt, slow_telemetry, unhold, white_noise, Rotor, RotorHold,
+};
 use inertia::Recording;
 
 /// What was written.
@@ -47,7 +49,9 @@ pub fn export(
     if !(rate.is_finite() && rate > 0.0) {
         return Err("the time steps are not positive".into());
     }
-    let noise = noise_std.unwrap_or_else(|| estimate_noise(&rec.gyro));
+    let noise = noise_std.unwrap_or_else(|| {
+        white_noise(estimate_noise(&rec.gyro), rec.gyro_filters.as_ref(), dt_med)
+    });
     let mut step = None;
     let speed: Option<Vec<f32>> = match &rotor {
         None => None,
@@ -77,9 +81,9 @@ pub fn export(
         }
     };
     let with_accel = rec.accel.is_some();
-    let mut b: Vec<u8> = Vec::with_capacity(52 + 32 * n);
+    let mut b: Vec<u8> = Vec::with_capacity(56 + 32 * n);
     b.extend_from_slice(b"IRPL");
-    b.extend_from_slice(&3u32.to_le_bytes());
+    b.extend_from_slice(&4u32.to_le_bytes());
     b.extend_from_slice(&rate.to_le_bytes());
     b.extend_from_slice(&noise.to_le_bytes());
     b.extend_from_slice(&rec.gyro_full_scale.to_le_bytes());
@@ -93,6 +97,7 @@ pub fn export(
     let resolution = step.unwrap_or(0.0);
     b.extend_from_slice(&resolution.to_le_bytes());
     b.extend_from_slice(&rec.gyro_averaging.to_le_bytes());
+    b.extend_from_slice(&rec.gyro_smoothing().to_le_bytes());
     b.extend_from_slice(&(n as u32).to_le_bytes());
     for i in 0..n {
         let f = rec.accel.as_ref().map(|a| a[i]).unwrap_or([0.0; 3]);

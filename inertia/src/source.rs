@@ -13,6 +13,7 @@
 
 use std::path::Path;
 
+use crate::readers::gyro_filters::GyroFilters;
 use crate::readers::{self, Format, ReadError, ReadOptions};
 use crate::recording::{Recording, RotorSpeed};
 
@@ -111,6 +112,11 @@ pub trait Source: Sync {
     fn gyro_averaging(&self) -> f32 {
         0.0
     }
+    /// [`Recording::gyro_filters`]: the filters the logged gyro has passed through (`None`,
+    /// the default: an unfiltered gyro).
+    fn gyro_filters(&self) -> Option<GyroFilters> {
+        None
+    }
     /// [`Recording::gyro_unit_stated`]: whether the gyro's unit is known (fixed by the format
     /// or declared by the user) rather than assumed (a CSV without `--gyro-unit`). True by
     /// default.
@@ -182,6 +188,10 @@ impl Source for RecordingSource<'_> {
 
     fn gyro_averaging(&self) -> f32 {
         self.rec.gyro_averaging
+    }
+
+    fn gyro_filters(&self) -> Option<GyroFilters> {
+        self.rec.gyro_filters.clone()
     }
 
     fn gyro_unit_stated(&self) -> bool {
@@ -267,6 +277,10 @@ impl Source for ScaledSource<'_> {
 
     fn gyro_averaging(&self) -> f32 {
         self.inner.gyro_averaging()
+    }
+
+    fn gyro_filters(&self) -> Option<GyroFilters> {
+        self.inner.gyro_filters()
     }
 
     fn gyro_unit_stated(&self) -> bool {

@@ -417,7 +417,8 @@ fn replay(path: &str, uart: &mut Usart1) -> ! {
     let settings = identifier_core::PipelineSettings::for_rate(header.rate_hz, header.noise_std)
         .with_full_scale(header.full_scale)
         .with_momentum_resolution(quantum)
-        .with_averaging_gyro(header.gyro_averaging);
+        .with_averaging_gyro(header.gyro_averaging)
+        .with_filtered_gyro(header.gyro_smoothing);
     let rotor = header
         .rotor
         .map(|(inertia, axis)| RotorConfig { inertia, axis });

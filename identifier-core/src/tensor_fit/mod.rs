@@ -164,10 +164,10 @@
 use crate::exact::{compensated_add, quadratic_form, weighted_squares};
 use crate::linalg::{det, dot, solve, Gram2};
 use crate::output_error::{
-    bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, reading_window,
-    refit_cost, scaled_inverse, score, score_beyond, score_rejects, staged_fit, substeps,
-    torque_confirmed, without, Block, FitState, Normal, NormalSums, Pooled, Start, StretchResult,
-    TOLERANCE,
+    bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, reading_smoothing,
+    reading_window, refit_cost, scaled_inverse, score, score_beyond, score_rejects, staged_fit,
+    substeps, torque_confirmed, without, Block, FitState, Normal, NormalSums, Pooled, Start,
+    StretchResult, TOLERANCE,
 };
 use crate::symmetric::{eigen_symmetric3, sqrt, Sym};
 use crate::trajectory::StretchOutcome;
@@ -278,6 +278,9 @@ pub struct TensorFit<const N: usize> {
     /// Time variance of each gyro reading's own averaging window over its interval squared
     /// ([`TensorFit::with_reading_window`]).
     window: f32,
+    /// Time variance of the gyro's own low-pass filter, s^2
+    /// ([`TensorFit::with_reading_smoothing`]).
+    smoothing: f32,
 }
 
 /// The block buffer used by the pipeline: 256 blocks of rate and rotor momentum (16.7 KB in
@@ -769,6 +772,7 @@ impl<const N: usize> TensorFit<N> {
             momentum_resolution: 0.0,
             inputs: 1,
             window: 0.0,
+            smoothing: 0.0,
         }
     }
 
@@ -779,6 +783,15 @@ impl<const N: usize> TensorFit<N> {
     /// `[0, 1)` count as 0.
     pub const fn with_reading_window(mut self, window: f32) -> Self {
         self.window = reading_window(window);
+        self
+    }
+
+    /// The same fit for a gyro whose readings have passed through a low-pass filter,
+    /// `smoothing` the filter's time variance in s^2; see
+    /// [`crate::RatioFit::with_reading_smoothing`] and (B0'). Values outside `[0, 1e-4]` count
+    /// as 0.
+    pub const fn with_reading_smoothing(mut self, smoothing: f32) -> Self {
+        self.smoothing = reading_smoothing(smoothing);
         self
     }
 
@@ -819,7 +832,7 @@ impl<const N: usize> TensorFit<N> {
             && h.iter().all(|x| x.is_finite());
         let y = [omega[0], omega[1], omega[2], h[0], h[1], h[2]];
         self.inputs = self.inputs.max(inputs);
-        let spread = mean_spread(dt, inputs, self.window);
+        let spread = mean_spread(dt, inputs, self.window, self.smoothing);
         self.state.buf.add(&y, usable, dt, self.max_dt, spread);
     }
 
@@ -979,6 +992,7 @@ impl<const N: usize> TensorFit<N> {
     pub fn reset(&mut self) {
         *self = TensorFit::new(self.full_scale, self.max_dt, self.noise_std)
             .with_momentum_resolution(self.momentum_resolution)
-            .with_reading_window(self.window);
+            .with_reading_window(self.window)
+            .with_reading_smoothing(self.smoothing);
     }
 }

@@ -511,13 +511,15 @@ pub(super) fn rotor_curvature(blocks: &[Block<6>], b: usize) -> [f32; 3] {
     out
 }
 
-/// The rotor momentum at block `b`'s mean time: its block mean less `v/2 h''` by (B1).
+/// The rotor momentum at block `b`'s mean time: its block mean less `v/2 h''` by (B1), `v`
+/// the variance of the sample times (not the gyro readings' own spread: the rotor's speed is
+/// read at the sample times).
 pub(super) fn rotor_node(blocks: &[Block<6>], b: usize) -> ([f32; 3], [f32; 3]) {
     let c = rotor_curvature(blocks, b);
     let Some(blk) = blocks.get(b) else {
         return ([0.0; 3], c);
     };
-    let hv = 0.5 * blk.time_var();
+    let hv = 0.5 * blk.sample_time_var();
     let m = rotor_of(blk);
     ([m[0] - hv * c[0], m[1] - hv * c[1], m[2] - hv * c[2]], c)
 }

@@ -6,7 +6,7 @@ use std::ops::Range;
 use identifier_core::{FlightPipeline, PipelineSettings, TensorStatus};
 
 use super::{
-    estimate_noise, median_dt, slow_telemetry, unhold, EstimateJson, IdentifyError,
+    estimate_noise, median_dt, slow_telemetry, unhold, white_noise, EstimateJson, IdentifyError,
     IdentifyOptions, Report,
 };
 use crate::recording::Recording;
@@ -38,7 +38,9 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
             "the time steps are not positive".into(),
         ));
     }
-    let noise = opts.noise_std.unwrap_or_else(|| estimate_noise(&rec.gyro));
+    let noise = opts.noise_std.unwrap_or_else(|| {
+        white_noise(estimate_noise(&rec.gyro), rec.gyro_filters.as_ref(), dt_med)
+    });
     // Rotor momentum per sample, and the speed channel's resolution.
     let mut step = None;
     let h: Vec<[f32; 3]> = match &opts.rotor {
@@ -77,7 +79,8 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
     let settings = PipelineSettings::for_rate(rate, noise)
         .with_full_scale(rec.gyro_full_scale)
         .with_momentum_resolution(quantum)
-        .with_averaging_gyro(rec.gyro_averaging);
+        .with_averaging_gyro(rec.gyro_averaging)
+        .with_filtered_gyro(rec.gyro_smoothing());
     let dt_of = |i: usize| -> f32 {
         if i == 0 {
             dt_med as f32

@@ -10,6 +10,14 @@
 //! | `accSmooth[0..2]` | counts, `acc_1G` per g (2048 when the header lacks it) | `accel`, m/s^2 |
 //! | `erpm[0]` or `eRPM[0]` | eRPM / 100 | `rotor`, [`RotorSpeed::Erpm`] (true eRPM) |
 //!
+//! Betaflight logs its *filtered* gyro. The filters the header lists
+//! ([`super::gyro_filters`]) delay the rate and spread it in time: each frame's rate is read
+//! their delay later, interpolated between the logged readings around that time (the other
+//! channels stay with their frames; the last frames, with no reading that late, are dropped),
+//! and their time variance goes to the fits ([`Recording::gyro_smoothing`]). INDIflight's `gyroADC` is
+//! the unfiltered gyro (on the shared thrown-FC logs it matches the RPM-filtered
+//! `gyroADCafterRpm` unfiltered, not through the header's 100 Hz low-pass), so its times stay.
+//!
 //! The unit trap: the header's `gyro_scale` says 1.0 in both firmwares, yet Betaflight logs
 //! `gyroADC` in deg/s (`lrintf(gyro.gyroADCf)`, tenths of deg/s with
 //! `blackbox_high_resolution`) and INDIflight in raw counts of the +-2000 deg/s range (16.384
@@ -23,11 +31,12 @@ use blackbox_log::frame::{Frame, FrameDef};
 use blackbox_log::{File, Headers, ParserEvent};
 
 use super::check::Checker;
+use super::gyro_filters::{self, GyroFilters};
 use super::{collect, guard, Location, ReadError, BLACKBOX_MARKER};
 use crate::recording::Recording;
 #[cfg(doc)]
 use crate::recording::RotorSpeed;
-use crate::source::{Channels, Flow, Reading, RotorUnit, Source, Visit};
+use crate::source::{Channels, Flow, Reading, RotorUnit, Sample, Source, Visit};
 
 /// Raw gyro counts per deg/s (16-bit over +-2000 deg/s).
 pub const GYRO_LSB_PER_DEG_S: f64 = 16.384;
@@ -381,6 +390,8 @@ pub struct BlackboxSource {
     block: Vec<(String, String)>,
     /// What its `gyroADC` counts.
     gyro_unit: GyroAdcUnit,
+    /// The filters its `gyroADC` has passed through (Betaflight's family), if known.
+    filters: Option<GyroFilters>,
     name: String,
     channels: Channels,
     /// Warnings about the file as a whole (firmware, units, several logs).
@@ -454,12 +465,42 @@ impl BlackboxSource {
                 "the file holds {count} logs; the one with the most main frames was read"
             ));
         }
+        // Betaflight's family logs the filtered gyro; INDIflight (raw counts) the unfiltered.
+        let filters = if gyro_unit == GyroAdcUnit::RawCounts {
+            None
+        } else {
+            let found = gyro_filters::betaflight(
+                &|k: &str| header_value(&block, k).map(|v| v.trim().to_string()),
+                gyro_unit.rad_s_per_unit(),
+            );
+            notes.push(match &found {
+                Some(f) => format!(
+                    "gyroADC is {firmware}'s filtered gyro ({}): times moved back by its delay,                      {:.2} ms, and its time spread, {:.2e} s^2, counted in the fits{}",
+                    f.described,
+                    f.delay_s * 1e3,
+                    f.variance_s2,
+                    if f.uncertain > 0.0 {
+                        format!(
+                            " (+-{:.1e} s^2 from where the dynamic notches sat, not logged)",
+                            f.uncertain
+                        )
+                    } else {
+                        String::new()
+                    }
+                ),
+                None => format!(
+                    "gyroADC is {firmware}'s filtered gyro, but the header names no gyro                      filter this reader knows: taken as unfiltered (a fast tumble's estimate                      may then be off by more than its standard deviation)"
+                ),
+            });
+            found
+        };
         Ok(BlackboxSource {
             path: path.to_path_buf(),
             data,
             index,
             block,
             gyro_unit,
+            filters,
             name,
             channels,
             notes,
@@ -547,6 +588,10 @@ impl Source for BlackboxSource {
         GYRO_FULL_SCALE_RAD_S
     }
 
+    fn gyro_filters(&self) -> Option<GyroFilters> {
+        self.filters.clone()
+    }
+
     fn read_all(
         &self,
         visit: &mut Visit<'_>,
@@ -559,7 +604,15 @@ impl Source for BlackboxSource {
                 Some(Ok(h)) => h,
                 _ => return Err(ReadError::new(path, "the log's headers no longer parse")),
             };
-            read_log(path, &headers, &self.block, self.gyro_unit, visit, progress)
+            let delay = self.filters.as_ref().map_or(0.0, |f| f.delay_s);
+            read_log(
+                path,
+                &headers,
+                &self.block,
+                (self.gyro_unit, delay),
+                visit,
+                progress,
+            )
         })?
     }
 
@@ -570,12 +623,72 @@ impl Source for BlackboxSource {
     }
 }
 
-/// Decodes one log, giving each checked sample to `visit`.
+/// The rate each frame's gyro reading stands for: a filter `delay` late, the rate at a frame's
+/// time is read `delay` after it, interpolated between the two logged readings around that
+/// time ((G3) of [`super::gyro_filters`]). Every other channel stays with its frame: the
+/// rotor's speed keeps its telemetry steps, which the fits' resolution model reads. Frames
+/// wait here until a reading `delay` later has been read; the last ones of the log, which
+/// have none, are dropped.
+struct GyroAdvance {
+    delay: f64,
+    /// Frames read, not yet given out, oldest first.
+    pending: std::collections::VecDeque<Sample>,
+}
+
+impl GyroAdvance {
+    fn new(delay: f64) -> Self {
+        GyroAdvance {
+            delay,
+            pending: std::collections::VecDeque::new(),
+        }
+    }
+
+    /// Takes the next frame; gives out, oldest first, every frame whose rate can now be read.
+    fn push(
+        &mut self,
+        s: Sample,
+        out: &mut dyn FnMut(Sample) -> Result<Flow, ReadError>,
+    ) -> Result<Flow, ReadError> {
+        if self.delay.is_nan() || self.delay <= 0.0 {
+            return out(s);
+        }
+        self.pending.push_back(s);
+        loop {
+            let (Some(front), Some(last)) = (self.pending.front(), self.pending.back()) else {
+                return Ok(Flow::Continue);
+            };
+            let when = front.t + self.delay;
+            if last.t < when {
+                return Ok(Flow::Continue);
+            }
+            // The two readings around `when` (the times increase; `last` is at or after it).
+            let mut gyro = last.gyro;
+            for (a, b) in self.pending.iter().zip(self.pending.iter().skip(1)) {
+                if a.t <= when && when <= b.t {
+                    let f = ((when - a.t) / (b.t - a.t)) as f32;
+                    gyro = [0, 1, 2].map(|k| a.gyro[k] + f * (b.gyro[k] - a.gyro[k]));
+                    break;
+                }
+            }
+            let Some(mut s) = self.pending.pop_front() else {
+                return Ok(Flow::Continue);
+            };
+            s.gyro = gyro;
+            if out(s)? == Flow::Stop {
+                return Ok(Flow::Stop);
+            }
+        }
+    }
+}
+
+/// Decodes one log, giving each checked sample to `visit`; `(gyro_unit, delay)`: what
+/// `gyroADC` counts and how late its filters made it (s; each frame's rate is read that much
+/// later, [`GyroAdvance`]).
 fn read_log(
     path: &Path,
     headers: &Headers,
     block: &[(String, String)],
-    gyro_unit: GyroAdcUnit,
+    (gyro_unit, delay): (GyroAdcUnit, f64),
     visit: &mut Visit<'_>,
     progress: &mut dyn FnMut(f32),
 ) -> Result<Reading, ReadError> {
@@ -623,6 +736,8 @@ fn read_log(
     let kw = gyro_unit.rad_s_per_unit();
     let ka = G / acc_1g;
     let mut check = Checker::new(path);
+    let mut advance = GyroAdvance::new(delay);
+    let mut given = 0usize;
     let mut parser = headers.data_parser();
     let mut n = 0usize;
     loop {
@@ -671,12 +786,23 @@ fn read_log(
         });
         let t = frame.time_raw() as f64 * 1e-6;
         if let Some(s) = check.check(at, t, w, a, r)? {
-            if visit(&s)? == Flow::Stop {
-                return check.reading(true);
+            let flow = advance.push(s, &mut |s| {
+                given += 1;
+                visit(&s)
+            })?;
+            if flow == Flow::Stop {
+                return check.reading(true).map(|r| Reading {
+                    samples: given,
+                    ..r
+                });
             }
         }
     }
-    check.reading(false)
+    // The frames still waiting for a later reading (the last ones) are not given.
+    check.reading(false).map(|r| Reading {
+        samples: given,
+        ..r
+    })
 }
 
 #[cfg(test)]

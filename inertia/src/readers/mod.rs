@@ -21,6 +21,7 @@
 pub mod blackbox;
 mod check;
 pub mod csv;
+pub mod gyro_filters;
 pub mod phyphox;
 mod text;
 pub mod ulog;
@@ -429,6 +430,7 @@ impl Samples {
             rotor,
             gyro_full_scale,
             gyro_averaging: 0.0,
+            gyro_filters: None,
             gyro_unit_stated: true,
             warnings,
         };
@@ -468,6 +470,7 @@ pub(crate) fn collect(src: &dyn Source) -> Result<Recording, ReadError> {
         rotor: ch.rotor.map(|u| u.wrap(rotor)),
         gyro_full_scale: src.full_scale(),
         gyro_averaging: src.gyro_averaging(),
+        gyro_filters: src.gyro_filters(),
         gyro_unit_stated: src.gyro_unit_stated(),
         warnings: src.warnings(found),
     })
