@@ -148,6 +148,10 @@ fn blackbox_gyro_unit_follows_the_firmware() {
     ] {
         let edited = set_header(&data, "Firmware revision", revision);
         let edited = set_header(&edited, "blackbox_high_resolution", high_resolution);
+        // Under Betaflight's name the header's 100 Hz low-pass would be read as the logged
+        // gyro's filter (`a_betaflight_gyro_is_read_through_its_filters` in the identify
+        // tests); switched off here, the rates must differ by the unit alone.
+        let edited = set_header(&edited, "gyro_lpf1_static_hz", "0");
         let file = tmp("revision.BFL", &edited);
         let r = read(&file, &ReadOptions::default()).unwrap_or_else(|e| panic!("{revision}: {e}"));
         assert_eq!(r.len(), indi.len(), "{revision}");
@@ -172,6 +176,51 @@ fn blackbox_gyro_unit_follows_the_firmware() {
             "{:?}",
             r.warnings
         );
+    }
+    // With the header's 100 Hz first-order low-pass read as Betaflight's filter: each frame's
+    // rate is the rate read the filter's delay later (its time constant: Betaflight's discrete
+    // stage, gain `x / (1 + x)` with `x = 2 pi fc dt`, has a mean delay of `1/x` loops),
+    // interpolated between the frames around it; the last frames, with no rate that late,
+    // are dropped; the other channels stay with their frames.
+    let edited = set_header(
+        &data,
+        "Firmware revision",
+        "Betaflight 4.4.2 (abc) STM32F405",
+    );
+    let edited = set_header(&edited, "blackbox_high_resolution", "0");
+    let file = tmp("filtered.BFL", &edited);
+    let r = read(&file, &ReadOptions::default()).unwrap();
+    let note = r
+        .warnings
+        .iter()
+        .find(|w| w.contains("filtered gyro"))
+        .expect("filter note");
+    assert!(note.contains("PT1 100 Hz"), "{note}");
+    let tau = 1.0 / (2.0 * std::f64::consts::PI * 100.0);
+    let delay = tau;
+    let dropped = indi
+        .t
+        .iter()
+        .filter(|&&t| t + delay > indi.t[indi.len() - 1])
+        .count();
+    assert_eq!(r.len(), indi.len() - dropped, "{note}");
+    assert_eq!(r.t[..], indi.t[..r.len()]);
+    assert_eq!(
+        r.accel.as_ref().unwrap()[..],
+        indi.accel.as_ref().unwrap()[..r.len()]
+    );
+    for i in (0..r.len()).step_by(101) {
+        let when = indi.t[i] + delay;
+        let j = indi.t.partition_point(|&t| t <= when) - 1;
+        let f = ((when - indi.t[j]) / (indi.t[j + 1] - indi.t[j])) as f32;
+        for k in 0..3 {
+            let want = 16.384 * (indi.gyro[j][k] + f * (indi.gyro[j + 1][k] - indi.gyro[j][k]));
+            assert!(
+                (r.gyro[i][k] - want).abs() <= 2e-3 * want.abs().max(1.0),
+                "{i}: {:?} {want}",
+                r.gyro[i]
+            );
+        }
     }
     // An unknown fork: raw counts, as INDIflight, with a warning that says what if not.
     let edited = set_header(&data, "Firmware revision", "Someflight 1.0.0 (x) F4");
