@@ -75,10 +75,6 @@ pub(crate) struct Block<const K: usize> {
     pub(crate) t0: f32,
     pub(crate) st: f32,
     pub(crate) stt: f32,
-    /// Sum of the samples' own time variance that only the gyro's channels carry: a reading's
-    /// averaging window and the gyro's filters ((B0), (B0')). The rotor's channels are read
-    /// at the sample times.
-    sg: f32,
     y0: [f32; K],
     dy: [f32; K],
 }
@@ -89,7 +85,6 @@ impl<const K: usize> Block<K> {
         t0: 0.0,
         st: 0.0,
         stt: 0.0,
-        sg: 0.0,
         y0: [0.0; K],
         dy: [0.0; K],
     };
@@ -109,20 +104,9 @@ impl<const K: usize> Block<K> {
     }
 
     /// Variance of the times behind the block's gyro readings, `v` of (B1): the sample
-    /// times' and the readings' own ((B0), (B0')).
+    /// times' and the readings' own ((B0), (B0')). A channel read at the sample times (the
+    /// rotor's) has this less the readings' own.
     pub(crate) fn time_var(&self) -> f32 {
-        let m = self.st / self.n;
-        let v = self.stt / self.n - m * m + self.sg / self.n;
-        if v > 0.0 {
-            v
-        } else {
-            0.0
-        }
-    }
-
-    /// Variance of the block's sample times alone (a decimated sample's spread of the inputs
-    /// included): `v` of (B1) for a channel read at the sample times, the rotor's.
-    pub(crate) fn sample_time_var(&self) -> f32 {
         let m = self.st / self.n;
         let v = self.stt / self.n - m * m;
         if v > 0.0 {
@@ -187,7 +171,6 @@ impl<const K: usize> Block<K> {
             t0: self.t0,
             st: self.st + o.st + o.n * d,
             stt: self.stt + o.stt + 2.0 * d * o.st + o.n * d * d,
-            sg: self.sg + o.sg,
             y0: self.y0,
             dy,
         }
@@ -244,19 +227,11 @@ impl<const N: usize, const K: usize> BlockBuffer<N, K> {
     };
 
     /// Adds one sample: channels `y` (used only when `usable`), the time since the previous
-    /// sample (ignored for the stretch's first) and `spread` ([`mean_spread`]): the variance
-    /// of the times of the readings averaged into it (0 for a single reading), and the
-    /// readings' own, of the gyro's channels only; both add to the block's `v` of (B1).
-    /// A time step that is not finite, not positive or above `max_dt` freezes the stretch: the
-    /// time of what follows is not known well enough for a trajectory.
-    pub(crate) fn add(
-        &mut self,
-        y: &[f32; K],
-        usable: bool,
-        dt: f32,
-        max_dt: f32,
-        spread: [f32; 2],
-    ) {
+    /// sample (ignored for the stretch's first) and `spread`, the variance of the times behind
+    /// it ([`mean_spread`]: 0 for a single reading at an instant; it adds to the block's `v`
+    /// of (B1)). A time step that is not finite, not positive or above `max_dt` freezes the
+    /// stretch: the time of what follows is not known well enough for a trajectory.
+    pub(crate) fn add(&mut self, y: &[f32; K], usable: bool, dt: f32, max_dt: f32, spread: f32) {
         if self.frozen {
             return;
         }
@@ -281,8 +256,7 @@ impl<const N: usize, const K: usize> BlockBuffer<N, K> {
         let tb = (self.t - c.t0) - self.t_lo;
         c.n += 1.0;
         c.st += tb;
-        c.stt += tb * tb + spread[0];
-        c.sg += spread[1];
+        c.stt += tb * tb + spread;
         for k in 0..K {
             c.dy[k] += y[k] - c.y0[k];
         }

@@ -1025,7 +1025,8 @@ impl<const N: usize> RatioFit<N> {
         let usable = omega
             .iter()
             .all(|w| w.is_finite() && w.abs() < self.full_scale);
-        let spread = mean_spread(dt, inputs, self.window, self.smoothing);
+        let [centres, own] = mean_spread(dt, inputs, self.window, self.smoothing);
+        let spread = centres + own;
         self.state.buf.add(&omega, usable, dt, self.max_dt, spread);
     }
 

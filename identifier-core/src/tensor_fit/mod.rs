@@ -281,6 +281,9 @@ pub struct TensorFit<const N: usize> {
     /// Time variance of the gyro's own low-pass filter, s^2
     /// ([`TensorFit::with_reading_smoothing`]).
     smoothing: f32,
+    /// The gyro readings' own time variance of the latest sample ((B0), (B0'): the window's
+    /// and the filters'), which the blocks' `v` holds and the rotor's readings lack.
+    own_spread: f32,
 }
 
 /// The block buffer used by the pipeline: 256 blocks of rate and rotor momentum (16.7 KB in
@@ -325,7 +328,7 @@ fn fit_model<
     res: Resolution,
 ) -> Option<StretchResult<M>> {
     let total = blocks.len();
-    let rule = StepRule::new(&tensor_of(&six(&th, trace, M)));
+    let rule = StepRule::new(&tensor_of(&six(&th, trace, M))).with_gyro_spread(res.gyro_spread);
     let dof0 = (3 * total) as f32 - P as f32;
     let direct = levenberg(
         |p| normal(blocks, &rule, total, p, trace, cells),
@@ -773,6 +776,7 @@ impl<const N: usize> TensorFit<N> {
             inputs: 1,
             window: 0.0,
             smoothing: 0.0,
+            own_spread: 0.0,
         }
     }
 
@@ -800,6 +804,7 @@ impl<const N: usize> TensorFit<N> {
         Resolution {
             quantum: self.momentum_resolution,
             readings: f32::from(self.inputs.max(1)),
+            gyro_spread: self.own_spread,
         }
     }
 
@@ -832,7 +837,9 @@ impl<const N: usize> TensorFit<N> {
             && h.iter().all(|x| x.is_finite());
         let y = [omega[0], omega[1], omega[2], h[0], h[1], h[2]];
         self.inputs = self.inputs.max(inputs);
-        let spread = mean_spread(dt, inputs, self.window, self.smoothing);
+        let [centres, own] = mean_spread(dt, inputs, self.window, self.smoothing);
+        self.own_spread = own;
+        let spread = centres + own;
         self.state.buf.add(&y, usable, dt, self.max_dt, spread);
     }
 

@@ -512,14 +512,15 @@ pub(super) fn rotor_curvature(blocks: &[Block<6>], b: usize) -> [f32; 3] {
 }
 
 /// The rotor momentum at block `b`'s mean time: its block mean less `v/2 h''` by (B1), `v`
-/// the variance of the sample times (not the gyro readings' own spread: the rotor's speed is
-/// read at the sample times).
-pub(super) fn rotor_node(blocks: &[Block<6>], b: usize) -> ([f32; 3], [f32; 3]) {
+/// the variance of the sample times: the block's less `gyro_spread`, the gyro readings' own
+/// ((B0), (B0')), since the rotor's speed is read at the sample times.
+pub(super) fn rotor_node(blocks: &[Block<6>], b: usize, gyro_spread: f32) -> ([f32; 3], [f32; 3]) {
     let c = rotor_curvature(blocks, b);
     let Some(blk) = blocks.get(b) else {
         return ([0.0; 3], c);
     };
-    let hv = 0.5 * blk.sample_time_var();
+    let v = blk.time_var() - gyro_spread;
+    let hv = if v > 0.0 { 0.5 * v } else { 0.0 };
     let m = rotor_of(blk);
     ([m[0] - hv * c[0], m[1] - hv * c[1], m[2] - hv * c[2]], c)
 }
@@ -552,6 +553,8 @@ pub(super) struct StepRule {
     pub(super) turn: f32,
     pub(super) j: Mat3,
     pub(super) det: f32,
+    /// The gyro readings' own time variance, which the rotor's readings lack ([`rotor_node`]).
+    pub(super) gyro_spread: f32,
 }
 
 impl StepRule {
@@ -568,7 +571,14 @@ impl StepRule {
             turn,
             j: *j,
             det: det(j),
+            gyro_spread: 0.0,
         }
+    }
+
+    /// The same rule for gyro readings of own time variance `gyro_spread` ([`rotor_node`]).
+    pub(super) fn with_gyro_spread(mut self, gyro_spread: f32) -> Self {
+        self.gyro_spread = gyro_spread;
+        self
     }
 
     /// The rate between two block means whose larger `|w|` is `w_max` and rotor momenta

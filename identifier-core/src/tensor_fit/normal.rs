@@ -196,7 +196,7 @@ pub(super) fn normal_visit<const P: usize, const C: usize>(
     };
     // The model's momentum where the runs `on` are on: the logged one and their offsets.
     let shifted = |h: [f32; 3], on: [bool; CELLS]| if oc > 0 { add3(h, shift(on)) } else { h };
-    let (h_first, _) = rotor_node(blocks, 0);
+    let (h_first, _) = rotor_node(blocks, 0, rule.gyro_spread);
     let h_first = shifted(h_first, offset.at(0));
     let jw = mul(&j, w0);
     let mut x = Aug::<C> {
@@ -265,7 +265,7 @@ pub(super) fn normal_visit<const P: usize, const C: usize>(
     let mut prev: Option<(&Block<6>, [f32; 3], [f32; 3], f32)> = None;
     let mut hd = [0.0f32; 3];
     for (idx, b) in blocks.iter().enumerate().take(limit) {
-        let (h, c) = rotor_node(blocks, idx);
+        let (h, c) = rotor_node(blocks, idx, rule.gyro_spread);
         // A rotor that turns (a motor started after the release) does work on the body: the
         // energy is no longer the start's, even once it stops again.
         if h != [0.0; 3] || c != [0.0; 3] {

@@ -188,17 +188,20 @@ pub(super) fn ramp_share(d: f32, n: f32) -> f32 {
 }
 
 /// How the rotor momentum is read: its quantum (kg m^2/s; 0: exact) and the readings each
-/// sample of the fit stands for (the inputs averaged into it; one reading per input assumed).
+/// sample of the fit stands for (the inputs averaged into it; one reading per input assumed);
+/// and the gyro readings' own time variance ((B0), (B0')), which the rotor's readings lack.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Resolution {
     pub(super) quantum: f32,
     pub(super) readings: f32,
+    pub(super) gyro_spread: f32,
 }
 
 impl Resolution {
     pub(super) const EXACT: Resolution = Resolution {
         quantum: 0.0,
         readings: 1.0,
+        gyro_spread: 0.0,
     };
 }
 
