@@ -149,9 +149,10 @@ fn blackbox_gyro_unit_follows_the_firmware() {
         let edited = set_header(&data, "Firmware revision", revision);
         let edited = set_header(&edited, "blackbox_high_resolution", high_resolution);
         // Under Betaflight's name the header's 100 Hz low-pass would be read as the logged
-        // gyro's filter (`a_betaflight_gyro_is_read_through_its_filters` in the identify
-        // tests); switched off here, the rates must differ by the unit alone.
+        // gyro's filter and its `acc_lpf_hz` as the accelerometer's (below); switched off
+        // here, the rates must differ by the unit alone.
         let edited = set_header(&edited, "gyro_lpf1_static_hz", "0");
+        let edited = set_header(&edited, "acc_lpf_hz", "0");
         let file = tmp("revision.BFL", &edited);
         let r = read(&file, &ReadOptions::default()).unwrap_or_else(|e| panic!("{revision}: {e}"));
         assert_eq!(r.len(), indi.len(), "{revision}");
@@ -177,11 +178,13 @@ fn blackbox_gyro_unit_follows_the_firmware() {
             r.warnings
         );
     }
-    // With the header's 100 Hz first-order low-pass read as Betaflight's filter: each frame's
-    // rate is the rate read the filter's delay later (its time constant: Betaflight's discrete
-    // stage, gain `x / (1 + x)` with `x = 2 pi fc dt`, has a mean delay of `1/x` loops),
-    // interpolated between the frames around it; the last frames, with no rate that late,
-    // are dropped; the other channels stay with their frames.
+    // With the header's 100 Hz first-order low-pass read as Betaflight's gyro filter and its
+    // `acc_lpf_hz` (5000: 50 Hz) as Betaflight 4.4's accelerometer PT2: each frame's rate is
+    // the rate read the gyro filter's delay later (its time constant: Betaflight's discrete
+    // stage, gain `x / (1 + x)` with `x = 2 pi fc dt`, has a mean delay of `1/x` loops), its
+    // specific force the PT2's delay later (two stages at 50 Hz times 1.5538), both
+    // interpolated between the frames around them; the last frames, with nothing that late,
+    // are dropped; the times and the rotor stay.
     let edited = set_header(
         &data,
         "Firmware revision",
@@ -196,29 +199,39 @@ fn blackbox_gyro_unit_follows_the_firmware() {
         .find(|w| w.contains("filtered gyro"))
         .expect("filter note");
     assert!(note.contains("PT1 100 Hz"), "{note}");
+    assert!(
+        r.warnings
+            .iter()
+            .any(|w| w.contains("low-passed accelerometer")),
+        "{:?}",
+        r.warnings
+    );
     let tau = 1.0 / (2.0 * std::f64::consts::PI * 100.0);
-    let delay = tau;
-    let dropped = indi
-        .t
-        .iter()
-        .filter(|&&t| t + delay > indi.t[indi.len() - 1])
-        .count();
+    let tau_acc = 1.0 / (2.0 * std::f64::consts::PI * 50.0 / (2f64.sqrt() - 1.0).sqrt());
+    let (dg, da) = (tau, 2.0 * tau_acc);
+    let last = indi.t[indi.len() - 1];
+    let dropped = indi.t.iter().filter(|&&t| t + dg.max(da) > last).count();
     assert_eq!(r.len(), indi.len() - dropped, "{note}");
     assert_eq!(r.t[..], indi.t[..r.len()]);
-    assert_eq!(
-        r.accel.as_ref().unwrap()[..],
-        indi.accel.as_ref().unwrap()[..r.len()]
-    );
-    for i in (0..r.len()).step_by(101) {
-        let when = indi.t[i] + delay;
+    let interp = |x: &[[f32; 3]], when: f64| -> [f32; 3] {
         let j = indi.t.partition_point(|&t| t <= when) - 1;
         let f = ((when - indi.t[j]) / (indi.t[j + 1] - indi.t[j])) as f32;
+        [0, 1, 2].map(|k| x[j][k] + f * (x[j + 1][k] - x[j][k]))
+    };
+    let (acc, acc_indi) = (r.accel.as_ref().unwrap(), indi.accel.as_ref().unwrap());
+    for i in (0..r.len()).step_by(101) {
+        let g = interp(&indi.gyro, indi.t[i] + dg).map(|v| 16.384 * v);
+        let a = interp(acc_indi, indi.t[i] + da);
         for k in 0..3 {
-            let want = 16.384 * (indi.gyro[j][k] + f * (indi.gyro[j + 1][k] - indi.gyro[j][k]));
             assert!(
-                (r.gyro[i][k] - want).abs() <= 2e-3 * want.abs().max(1.0),
-                "{i}: {:?} {want}",
+                (r.gyro[i][k] - g[k]).abs() <= 2e-3 * g[k].abs().max(1.0),
+                "{i}: {:?} {g:?}",
                 r.gyro[i]
+            );
+            assert!(
+                (acc[i][k] - a[k]).abs() <= 2e-3 * a[k].abs().max(1.0),
+                "{i}: {:?} {a:?}",
+                acc[i]
             );
         }
     }

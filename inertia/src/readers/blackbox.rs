@@ -392,6 +392,8 @@ pub struct BlackboxSource {
     gyro_unit: GyroAdcUnit,
     /// The filters its `gyroADC` has passed through (Betaflight's family), if known.
     filters: Option<GyroFilters>,
+    /// How late its accelerometer's low-pass makes `accSmooth`, s (0: unfiltered).
+    accel_delay: f64,
     name: String,
     channels: Channels,
     /// Warnings about the file as a whole (firmware, units, several logs).
@@ -494,6 +496,24 @@ impl BlackboxSource {
             });
             found
         };
+        // Betaflight's accelerometer low-pass (`acc_lpf_hz`, logged times 100): a PT2 since 4.3,
+        // a biquad before; its delay is the time the free-flight gate's model and the
+        // accelerometer are apart. INDIflight's `accSmooth` is unfiltered (its centre-of-mass
+        // fit on the shared logs is worst with the header's 50 Hz put on the model's side).
+        let accel_delay = match (&filters, channels.accel) {
+            (Some(_), true) => gyro_filters::betaflight_accel_delay(
+                &|k: &str| header_value(&block, k).map(|v| v.trim().to_string()),
+                revision,
+            ),
+            _ => 0.0,
+        };
+        if accel_delay > 0.0 {
+            notes.push(format!(
+                "accSmooth is {firmware}'s low-passed accelerometer: each reading read {:.1} ms \
+                 after its frame (the filter's delay) for the free-flight gate",
+                accel_delay * 1e3
+            ));
+        }
         Ok(BlackboxSource {
             path: path.to_path_buf(),
             data,
@@ -501,6 +521,7 @@ impl BlackboxSource {
             block,
             gyro_unit,
             filters,
+            accel_delay,
             name,
             channels,
             notes,
@@ -604,7 +625,10 @@ impl Source for BlackboxSource {
                 Some(Ok(h)) => h,
                 _ => return Err(ReadError::new(path, "the log's headers no longer parse")),
             };
-            let delay = self.filters.as_ref().map_or(0.0, |f| f.delay_s);
+            let delay = [
+                self.filters.as_ref().map_or(0.0, |f| f.delay_s),
+                self.accel_delay,
+            ];
             read_log(
                 path,
                 &headers,
@@ -623,33 +647,51 @@ impl Source for BlackboxSource {
     }
 }
 
-/// The rate each frame's gyro reading stands for: a filter `delay` late, the rate at a frame's
-/// time is read `delay` after it, interpolated between the two logged readings around that
-/// time ((G3) of [`super::gyro_filters`]). Every other channel stays with its frame: the
-/// rotor's speed keeps its telemetry steps, which the fits' resolution model reads. Frames
-/// wait here until a reading `delay` later has been read; the last ones of the log, which
-/// have none, are dropped.
-struct GyroAdvance {
-    delay: f64,
+/// What each frame's gyro and accelerometer readings stand for: a channel whose filters make
+/// it `delay` late is read `delay` after the frame, interpolated between the two logged
+/// readings around that time ((G3) of [`super::gyro_filters`]). The rotor's speed stays with
+/// its frame (it keeps its telemetry steps, which the fits' resolution model reads). Frames
+/// wait here until readings that late have been read; the last ones of the log, which have
+/// none, are dropped.
+struct Advance {
+    /// The gyro's and the accelerometer's delays, s.
+    delay: [f64; 2],
     /// Frames read, not yet given out, oldest first.
     pending: std::collections::VecDeque<Sample>,
 }
 
-impl GyroAdvance {
-    fn new(delay: f64) -> Self {
-        GyroAdvance {
-            delay,
+impl Advance {
+    fn new(delay: [f64; 2]) -> Self {
+        Advance {
+            delay: delay.map(|d| if d > 0.0 && d.is_finite() { d } else { 0.0 }),
             pending: std::collections::VecDeque::new(),
         }
     }
 
-    /// Takes the next frame; gives out, oldest first, every frame whose rate can now be read.
+    /// The channel (`gyro` or `accel`, by `pick`) read at `when`, interpolated between the
+    /// pending frames around it.
+    fn at(&self, when: f64, pick: fn(&Sample) -> [f32; 3]) -> [f32; 3] {
+        let mut out = self.pending.back().map_or([0.0; 3], pick);
+        for (a, b) in self.pending.iter().zip(self.pending.iter().skip(1)) {
+            if a.t <= when && when <= b.t {
+                let f = ((when - a.t) / (b.t - a.t)) as f32;
+                let (x, y) = (pick(a), pick(b));
+                out = [0, 1, 2].map(|k| x[k] + f * (y[k] - x[k]));
+                break;
+            }
+        }
+        out
+    }
+
+    /// Takes the next frame; gives out, oldest first, every frame whose readings can now be
+    /// read.
     fn push(
         &mut self,
         s: Sample,
         out: &mut dyn FnMut(Sample) -> Result<Flow, ReadError>,
     ) -> Result<Flow, ReadError> {
-        if self.delay.is_nan() || self.delay <= 0.0 {
+        let [dg, da] = self.delay;
+        if dg == 0.0 && da == 0.0 {
             return out(s);
         }
         self.pending.push_back(s);
@@ -657,23 +699,16 @@ impl GyroAdvance {
             let (Some(front), Some(last)) = (self.pending.front(), self.pending.back()) else {
                 return Ok(Flow::Continue);
             };
-            let when = front.t + self.delay;
-            if last.t < when {
+            if last.t < front.t + dg.max(da) {
                 return Ok(Flow::Continue);
             }
-            // The two readings around `when` (the times increase; `last` is at or after it).
-            let mut gyro = last.gyro;
-            for (a, b) in self.pending.iter().zip(self.pending.iter().skip(1)) {
-                if a.t <= when && when <= b.t {
-                    let f = ((when - a.t) / (b.t - a.t)) as f32;
-                    gyro = [0, 1, 2].map(|k| a.gyro[k] + f * (b.gyro[k] - a.gyro[k]));
-                    break;
-                }
-            }
+            let t = front.t;
+            let gyro = self.at(t + dg, |s| s.gyro);
+            let accel = self.at(t + da, |s| s.accel);
             let Some(mut s) = self.pending.pop_front() else {
                 return Ok(Flow::Continue);
             };
-            s.gyro = gyro;
+            (s.gyro, s.accel) = (gyro, accel);
             if out(s)? == Flow::Stop {
                 return Ok(Flow::Stop);
             }
@@ -682,13 +717,13 @@ impl GyroAdvance {
 }
 
 /// Decodes one log, giving each checked sample to `visit`; `(gyro_unit, delay)`: what
-/// `gyroADC` counts and how late its filters made it (s; each frame's rate is read that much
-/// later, [`GyroAdvance`]).
+/// `gyroADC` counts and how late the gyro's and the accelerometer's filters made them (s;
+/// each frame's readings are read that much later, [`Advance`]).
 fn read_log(
     path: &Path,
     headers: &Headers,
     block: &[(String, String)],
-    (gyro_unit, delay): (GyroAdcUnit, f64),
+    (gyro_unit, delay): (GyroAdcUnit, [f64; 2]),
     visit: &mut Visit<'_>,
     progress: &mut dyn FnMut(f32),
 ) -> Result<Reading, ReadError> {
@@ -736,7 +771,7 @@ fn read_log(
     let kw = gyro_unit.rad_s_per_unit();
     let ka = G / acc_1g;
     let mut check = Checker::new(path);
-    let mut advance = GyroAdvance::new(delay);
+    let mut advance = Advance::new(delay);
     let mut given = 0usize;
     let mut parser = headers.data_parser();
     let mut n = 0usize;

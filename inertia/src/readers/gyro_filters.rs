@@ -266,6 +266,39 @@ pub fn betaflight(value: &dyn Fn(&str) -> Option<String>, quantum: f64) -> Optio
     })
 }
 
+/// The delay of Betaflight's accelerometer low-pass (`acc_lpf_hz`, logged as the cutoff times
+/// 100; a PT2 since Betaflight 4.3, a biquad before, `revision` tells), s; 0 when the header
+/// has none or it is off. Taken at a 1 kHz accelerometer rate (the delay of a low-pass well
+/// below the rate hardly depends on it).
+pub fn betaflight_accel_delay(value: &dyn Fn(&str) -> Option<String>, revision: &str) -> f64 {
+    let Some(hz) = numbers(value("acc_lpf_hz").as_deref())
+        .first()
+        .map(|v| v / 100.0)
+        .filter(|&hz| hz > 0.0 && hz < 1000.0)
+    else {
+        return 0.0;
+    };
+    // "Betaflight 4.2.11 (...)": major.minor; 2025.12 and later are newer than 4.3.
+    let version: Vec<u32> = revision
+        .split(' ')
+        .nth(1)
+        .unwrap_or_default()
+        .split('.')
+        .take(2)
+        .filter_map(|x| x.parse().ok())
+        .collect();
+    let pt2 = match version[..] {
+        [major, minor] => major > 4 || (major == 4 && minor >= 3),
+        _ => true,
+    };
+    let kind = if pt2 {
+        Kind::Pt(2, hz)
+    } else {
+        Kind::Biquad(hz)
+    };
+    cumulants(&[kind], 1e-3).0
+}
+
 impl GyroFilters {
     /// Where the reader's interpolation falls between two logged samples `log_dt` apart: the
     /// fraction `f` of (G3).
