@@ -24,7 +24,7 @@
 //!
 //! | header | filter |
 //! |---|---|
-//! | `gyro_lpf1_type`, `gyro_lpf1_static_hz`, `gyro_lpf1_dyn_hz` (`gyro_lowpass_*` before 4.3) | first low-pass: PT1, biquad, PT2 or PT3; when dynamic, its lowest cutoff (the throttle is at zero in a throw) |
+//! | `gyro_lpf1_type`, `gyro_lpf1_static_hz`, `gyro_lpf1_dyn_hz` (`gyro_lowpass_type`, `gyro_lowpass_hz`, `dyn_lpf_gyro_min_hz` before 4.3) | first low-pass: PT1, biquad, PT2 or PT3; when dynamic, its lowest cutoff (the throttle is at zero in a throw) |
 //! | `gyro_lpf2_type`, `gyro_lpf2_static_hz` (`gyro_lowpass2_*`) | second low-pass |
 //! | `gyro_notch_hz`, `gyro_notch_cutoff` | two static notches |
 //! | `dyn_notch_count`, `dyn_notch_q`, `dyn_notch_min_hz`, `dyn_notch_max_hz` | dynamic notches, taken at `sqrt(min max)` (where they sit is not logged: see [`GyroFilters::uncertain`]) |
@@ -200,10 +200,18 @@ pub fn betaflight(value: &dyn Fn(&str) -> Option<String>, quantum: f64) -> Optio
     let mut kinds: Vec<Kind> = Vec::new();
     let ty = |v: &Option<String>| numbers(v.as_deref()).first().map_or(0, |&t| t as u32);
     // A dynamic first stage (`min,max` with min > 0) runs at its minimum at zero throttle.
-    let dyn_min = numbers(first(&["gyro_lpf1_dyn_hz", "dyn_lpf_gyro_hz"]).as_deref())
-        .first()
-        .copied()
-        .filter(|&m| m > 0.0);
+    let dyn_min = numbers(
+        first(&[
+            "gyro_lpf1_dyn_hz",
+            "gyro_lpf1_dyn_min_hz",
+            "dyn_lpf_gyro_min_hz",
+            "gyro_lowpass_dyn_min_hz",
+        ])
+        .as_deref(),
+    )
+    .first()
+    .copied()
+    .filter(|&m| m > 0.0);
     let lpf1 = dyn_min.or_else(|| numbers(lpf1_hz.as_deref()).first().copied());
     kinds.extend(lpf1.and_then(|hz| lowpass(ty(&lpf1_type), hz)));
     kinds.extend(
@@ -470,5 +478,18 @@ mod tests {
         let f = betaflight(&header(&off), 0.0).expect("filters");
         assert_eq!((f.delay_s, f.variance_s2), (0.0, 0.0));
         assert!(betaflight(&header(&[("looptime", "125")]), 0.0).is_none());
+        // Betaflight 4.2's names: a dynamic first stage (its minimum) and a biquad second.
+        let old = [
+            ("looptime", "125"),
+            ("gyro_lowpass_type", "0"),
+            ("gyro_lowpass_hz", "200"),
+            ("dyn_lpf_gyro_min_hz", "250"),
+            ("gyro_lowpass2_type", "1"),
+            ("gyro_lowpass2_hz", "500"),
+        ];
+        let f = betaflight(&header(&old), 0.0).expect("filters");
+        assert_eq!(f.described, "PT1 250 Hz, biquad 500 Hz");
+        let want = t1 + 2f64.sqrt() / (2.0 * PI * 500.0);
+        assert!((f.delay_s - want).abs() < 0.05 * want, "{f:?}");
     }
 }
