@@ -8,8 +8,10 @@
 # IEEE-754 bits).
 #
 # Logs: the 10 thrown-FC blackbox logs in ../shared/data/thrown-fc (skipped when absent;
-# flywheel 1.689e-6 kg m^2 about -z, 12 poles), and a simulated board throw CSV
-# (host-tests gen-throw --scenario board_throw --seed 1, same flywheel, speed in rad/s).
+# flywheel 1.689e-6 kg m^2 about -z, 12 poles), a simulated board throw CSV
+# (host-tests gen-throw --scenario board_throw --seed 1, same flywheel, speed in rad/s) and
+# the same throw as a Betaflight blackbox log (--format betaflight: filtered gyro and
+# accelerometer, eRPM).
 # THROWN_FC_DIR overrides where the thrown-FC logs are looked for.
 # Exit 1 when any log differs.
 set -euo pipefail
@@ -35,6 +37,12 @@ else
     echo "replay-check: $DATA absent: the thrown-FC logs are skipped"
 fi
 logs+=("$OUT/board_throw.csv")
+# The same kind of throw as a Betaflight flight controller logs it: gyro and accelerometer
+# through the firmware's filters (the reader reads each their delay later, the fits count the
+# gyro filters' time spread), rotor as eRPM.
+cargo run -q --release -p host-tests --bin gen-throw -- --scenario board_throw --seed 1 \
+    --rate 8000 --format betaflight --out "$OUT/board_throw_betaflight.bbl" >/dev/null
+logs+=("$OUT/board_throw_betaflight.bbl")
 # No rotor, principal axes (the paper's setting): the ratios come from the refined identifier
 # fed by the same pipeline.
 cargo run -q --release -p host-tests --bin gen-throw -- --scenario no_rotor_toss --seed 2 \
@@ -56,7 +64,7 @@ for f in "${logs[@]}"; do
     d="$OUT/runs/$name"
     mkdir -p "$d"
     rotor=(--rotor-inertia 1.689e-6 --rotor-axis=-z)
-    case "$f" in *.BFL) rotor+=(--rotor-poles 12) ;; *no_rotor*) rotor=() ;; esac
+    case "$f" in *.BFL | *.bbl) rotor+=(--rotor-poles 12) ;; *no_rotor*) rotor=() ;; esac
     set +e
     "$INERTIA" identify --input "$f" "${rotor[@]}" --json "$d/identify.json" 2>"$d/identify.err"
     id_rc=$?

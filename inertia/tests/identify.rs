@@ -4,9 +4,8 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-mod blackbox_writer;
-mod ulog_writer;
-use ulog_writer::{add_logged, header, msg};
+use log_writers::blackbox as blackbox_writer;
+use log_writers::ulog::{add_logged, header, msg};
 
 fn exe() -> &'static str {
     env!("CARGO_BIN_EXE_inertia")
@@ -996,6 +995,7 @@ fn betaflight_throw(
             frames.push(blackbox_writer::Frame {
                 time_us: 1_000_000 + (s * 1e6).round() as u64,
                 gyro: p2.map(|v| (v.to_degrees() * 10.0).round() as i64),
+                accel: None,
                 erpm: (rotor > 0.0).then(|| {
                     (speed(s).0 * 6.0 * 60.0 / (2.0 * std::f64::consts::PI) / 100.0).round() as u64
                 }),

@@ -8,8 +8,7 @@ use inertia::readers::phyphox::{read_segments, segments_file};
 use inertia::readers::{detect, read, Format, GyroUnit, ReadOptions, TimeUnit};
 use inertia::{Recording, RotorSpeed};
 
-mod ulog_writer;
-use ulog_writer::{add_logged, header, msg};
+use log_writers::ulog::{add_logged, header, msg};
 
 fn shared(sub: &str) -> Option<PathBuf> {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))

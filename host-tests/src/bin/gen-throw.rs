@@ -4,12 +4,26 @@
 //! `--deg-per-s` and `--time-unit ms` write the gyro in deg/s or the time in ms under the same
 //! header: the unit mistakes users make, for the readers' tests.
 //!
-//! Usage: `gen-throw --scenario board_throw --seed 1 --out throw.csv [--rate 4000]`.
+//! `--format betaflight` writes a Betaflight 4.4 blackbox log instead, as a flight controller
+//! would log the same throw: the simulated rate is its gyro loop, the gyro passes through
+//! Betaflight's default filters (first-order stages at 250 and 500 Hz; the dynamic notches
+//! off) and the accelerometer through its 10 Hz PT2, every `--log-every`-th loop is logged
+//! (the gyro in tenths of deg/s, the accelerometer in counts of 2048 per g, the flywheel as
+//! `eRPM[0]` of a 12-pole motor), with the filters in the header.
+//!
+//! Usage: `gen-throw --scenario board_throw --seed 1 --out throw.csv [--rate 4000]
+//! [--format csv|betaflight] [--log-every 4]`.
 
 use anyhow::{bail, Result};
 use clap::{Parser, ValueEnum};
 use host_tests::throw_sim::{scenario_config, simulate, CsvOptions, SCENARIOS};
 use std::path::PathBuf;
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum Format {
+    Csv,
+    Betaflight,
+}
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
 enum TimeUnit {
@@ -26,9 +40,15 @@ struct Args {
     /// Seed of the scenario and of the noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// CSV file to write.
+    /// File to write.
     #[arg(long)]
     out: PathBuf,
+    /// `csv`, or `betaflight`: a Betaflight blackbox log of the throw (see the module docs).
+    #[arg(long, value_enum, default_value = "csv")]
+    format: Format,
+    /// With `--format betaflight`: loops per logged frame.
+    #[arg(long, default_value_t = 4)]
+    log_every: usize,
     /// Write the gyro columns in deg/s (header unchanged).
     #[arg(long)]
     deg_per_s: bool,
@@ -68,13 +88,24 @@ fn main() -> Result<()> {
         cfg.com_from_imu = [c[0], c[1], c[2]];
     }
     let sim = simulate(&cfg);
-    sim.write_csv(
-        &args.out,
-        CsvOptions {
-            deg_per_s: args.deg_per_s,
-            time_ms: matches!(args.time_unit, TimeUnit::Ms),
-        },
-    )?;
+    match args.format {
+        Format::Csv => sim.write_csv(
+            &args.out,
+            CsvOptions {
+                deg_per_s: args.deg_per_s,
+                time_ms: matches!(args.time_unit, TimeUnit::Ms),
+            },
+        )?,
+        Format::Betaflight => {
+            if args.deg_per_s || matches!(args.time_unit, TimeUnit::Ms) {
+                bail!("--deg-per-s and --time-unit are for --format csv");
+            }
+            if args.log_every == 0 {
+                bail!("--log-every must be at least 1");
+            }
+            std::fs::write(&args.out, betaflight_log(&sim, cfg.rate_hz, args.log_every))?;
+        }
+    }
     let fmt = |v: Option<f64>| v.map_or("none".to_string(), |x| format!("{x:.6}"));
     println!(
         "{}: {} samples at {} Hz, release_s={} catch_s={} -> {}",
@@ -86,4 +117,60 @@ fn main() -> Result<()> {
         args.out.display()
     );
     Ok(())
+}
+
+/// The throw as a Betaflight 4.4 flight controller would log it (see the module docs): the
+/// firmware's filters run at the simulated rate (its gyro loop), every `every`-th loop logged.
+fn betaflight_log(sim: &host_tests::throw_sim::SimThrow, rate: f64, every: usize) -> Vec<u8> {
+    use log_writers::blackbox::{blackbox, Frame};
+    let dt = 1.0 / rate;
+    // Betaflight's first-order gain at `hz` (pt1FilterGain), and its PT2's per-stage cutoff
+    // correction 1/sqrt(2^(1/2) - 1).
+    let gain = |hz: f64| {
+        let x = 2.0 * std::f64::consts::PI * hz * dt;
+        x / (1.0 + x)
+    };
+    let (g1, g2) = (gain(250.0), gain(500.0));
+    let ga = gain(10.0 / (2f64.sqrt() - 1.0).sqrt());
+    let first = |v: Option<&[f32; 3]>| v.map_or([0.0; 3], |x| x.map(f64::from));
+    let (mut p1, mut p2) = (first(sim.gyro.first()), first(sim.gyro.first()));
+    let (mut a1, mut a2) = (first(sim.accel.first()), first(sim.accel.first()));
+    let mut frames = Vec::new();
+    for (i, ((w, a), (&t, &r))) in sim
+        .gyro
+        .iter()
+        .zip(&sim.accel)
+        .zip(sim.t.iter().zip(&sim.rotor_rad_s))
+        .enumerate()
+    {
+        for k in 0..3 {
+            p1[k] += g1 * (f64::from(w[k]) - p1[k]);
+            p2[k] += g2 * (p1[k] - p2[k]);
+            a1[k] += ga * (f64::from(a[k]) - a1[k]);
+            a2[k] += ga * (a1[k] - a2[k]);
+        }
+        if i % every == 0 {
+            let erpm = f64::from(r) * 6.0 * 60.0 / (2.0 * std::f64::consts::PI) / 100.0;
+            frames.push(Frame {
+                time_us: 1_000_000 + (t * 1e6).round() as u64,
+                gyro: p2.map(|v| (v.to_degrees() * 10.0).round() as i64),
+                accel: Some(a2.map(|v| (v / 9.80665 * 2048.0).round() as i64)),
+                erpm: Some(erpm.abs().round() as u64),
+            });
+        }
+    }
+    let header: Vec<(&str, String)> = [
+        ("blackbox_high_resolution", "1".to_string()),
+        ("looptime", format!("{}", (dt * 1e6).round())),
+        ("gyro_lpf1_type", "0".into()),
+        ("gyro_lpf1_static_hz", "250".into()),
+        ("gyro_lpf1_dyn_hz", "0,0".into()),
+        ("gyro_lpf2_type", "0".into()),
+        ("gyro_lpf2_static_hz", "500".into()),
+        ("dyn_notch_count", "0".into()),
+        ("acc_lpf_hz", "1000".into()),
+    ]
+    .into_iter()
+    .collect();
+    blackbox("Betaflight 4.4.2 (sim) STM32F405", &header, &frames)
 }

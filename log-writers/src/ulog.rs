@@ -1,5 +1,5 @@
-//! Tiny ULog files written by hand in the ULog binary format, for the reader and identify
-//! tests (one writer, so both test what the same bytes mean).
+//! Tiny ULog files written by hand in the ULog binary format: the file header and the message
+//! framing (definitions, subscriptions and data are the caller's payloads).
 
 /// The file header: magic, version 1, start timestamp (us), then the flag bits message
 /// (compat, incompat and appended offsets all clear).
