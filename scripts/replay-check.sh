@@ -11,7 +11,8 @@
 # flywheel 1.689e-6 kg m^2 about -z, 12 poles), a simulated board throw CSV
 # (host-tests gen-throw --scenario board_throw --seed 1, same flywheel, speed in rad/s) and
 # the same throw as a Betaflight blackbox log (--format betaflight: filtered gyro and
-# accelerometer, eRPM).
+# accelerometer, eRPM) and as a PX4 ULog (--format px4: interval means, esc_status), and a
+# toss without a rotor as a CSV and a ULog.
 # THROWN_FC_DIR overrides where the thrown-FC logs are looked for.
 # Exit 1 when any log differs.
 set -euo pipefail
@@ -43,11 +44,19 @@ logs+=("$OUT/board_throw.csv")
 cargo run -q --release -p host-tests --bin gen-throw -- --scenario board_throw --seed 1 \
     --rate 8000 --format betaflight --out "$OUT/board_throw_betaflight.bbl" >/dev/null
 logs+=("$OUT/board_throw_betaflight.bbl")
+# And as PX4 logs it at 1 kHz (gyro and accelerometer the means over each interval, the
+# flywheel's rpm in esc_status at 100 Hz); without a rotor below.
+cargo run -q --release -p host-tests --bin gen-throw -- --scenario board_throw --seed 1 \
+    --rate 4000 --format px4 --out "$OUT/board_throw_px4.ulg" >/dev/null
+logs+=("$OUT/board_throw_px4.ulg")
 # No rotor, principal axes (the paper's setting): the ratios come from the refined identifier
 # fed by the same pipeline.
 cargo run -q --release -p host-tests --bin gen-throw -- --scenario no_rotor_toss --seed 2 \
     --out "$OUT/no_rotor_toss.csv" >/dev/null
 logs+=("$OUT/no_rotor_toss.csv")
+cargo run -q --release -p host-tests --bin gen-throw -- --scenario no_rotor_toss --seed 2 \
+    --rate 4000 --format px4 --out "$OUT/no_rotor_toss_px4.ulg" >/dev/null
+logs+=("$OUT/no_rotor_toss_px4.ulg")
 # User mistakes and bad data (issue 10): must never come out Converged, on board or on the host.
 gen() { cargo run -q --release -p host-tests --bin gen-throw -- "$@" >/dev/null; }
 gen --scenario still --seed 3 --out "$OUT/bad_still.csv"

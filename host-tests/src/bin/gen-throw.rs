@@ -11,8 +11,13 @@
 //! (the gyro in tenths of deg/s, the accelerometer in counts of 2048 per g, the flywheel as
 //! `eRPM[0]` of a 12-pole motor), with the filters in the header.
 //!
+//! `--format px4` writes a PX4 ULog: `sensor_combined` every `--log-every` samples, its gyro
+//! and accelerometer the means over that interval (`gyro_integral_dt`), stamped at its end,
+//! as PX4's IMU integrator reports them, and `esc_status` at 100 Hz with the flywheel's
+//! mechanical rpm.
+//!
 //! Usage: `gen-throw --scenario board_throw --seed 1 --out throw.csv [--rate 4000]
-//! [--format csv|betaflight] [--log-every 4]`.
+//! [--format csv|betaflight|px4] [--log-every 4]`.
 
 use anyhow::{bail, Result};
 use clap::{Parser, ValueEnum};
@@ -23,6 +28,7 @@ use std::path::PathBuf;
 enum Format {
     Csv,
     Betaflight,
+    Px4,
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -43,10 +49,11 @@ struct Args {
     /// File to write.
     #[arg(long)]
     out: PathBuf,
-    /// `csv`, or `betaflight`: a Betaflight blackbox log of the throw (see the module docs).
+    /// `csv`, `betaflight` (a Betaflight blackbox log of the throw) or `px4` (a ULog); see the
+    /// module docs.
     #[arg(long, value_enum, default_value = "csv")]
     format: Format,
-    /// With `--format betaflight`: loops per logged frame.
+    /// With `--format betaflight` or `px4`: simulated samples per logged one.
     #[arg(long, default_value_t = 4)]
     log_every: usize,
     /// Write the gyro columns in deg/s (header unchanged).
@@ -96,14 +103,19 @@ fn main() -> Result<()> {
                 time_ms: matches!(args.time_unit, TimeUnit::Ms),
             },
         )?,
-        Format::Betaflight => {
+        Format::Betaflight | Format::Px4 => {
             if args.deg_per_s || matches!(args.time_unit, TimeUnit::Ms) {
                 bail!("--deg-per-s and --time-unit are for --format csv");
             }
             if args.log_every == 0 {
                 bail!("--log-every must be at least 1");
             }
-            std::fs::write(&args.out, betaflight_log(&sim, cfg.rate_hz, args.log_every))?;
+            let bytes = if matches!(args.format, Format::Px4) {
+                px4_log(&sim, cfg.rate_hz, args.log_every)
+            } else {
+                betaflight_log(&sim, cfg.rate_hz, args.log_every)
+            };
+            std::fs::write(&args.out, bytes)?;
         }
     }
     let fmt = |v: Option<f64>| v.map_or("none".to_string(), |x| format!("{x:.6}"));
@@ -173,4 +185,64 @@ fn betaflight_log(sim: &host_tests::throw_sim::SimThrow, rate: f64, every: usize
     .into_iter()
     .collect();
     blackbox("Betaflight 4.4.2 (sim) STM32F405", &header, &frames)
+}
+
+/// The throw as PX4 logs it (see the module docs): `sensor_combined` every `every` simulated
+/// samples, gyro and accelerometer the means over that interval, stamped at its last sample,
+/// and `esc_status` (the flywheel's mechanical rpm) every 10 ms.
+fn px4_log(sim: &host_tests::throw_sim::SimThrow, rate: f64, every: usize) -> Vec<u8> {
+    use log_writers::ulog::{add_logged, header, msg};
+    let mut f = header(0);
+    msg(
+        &mut f,
+        b'F',
+        b"sensor_combined:uint64_t timestamp;float[3] gyro_rad;uint32_t gyro_integral_dt;float[3] accelerometer_m_s2;",
+    );
+    msg(&mut f, b'F', b"esc_report:int32_t esc_rpm;");
+    msg(
+        &mut f,
+        b'F',
+        b"esc_status:uint64_t timestamp;uint8_t esc_count;esc_report[1] esc;",
+    );
+    add_logged(&mut f, 0, "sensor_combined");
+    add_logged(&mut f, 1, "esc_status");
+    let stamp = |t: f64| 1_000_000 + (t * 1e6).round() as u64;
+    let interval = (every as f64 / rate * 1e6).round() as u32;
+    let esc_every = ((0.01 * rate).round() as usize).max(1);
+    let (mut gsum, mut asum) = ([0.0f64; 3], [0.0f64; 3]);
+    for (i, ((w, a), (&t, &r))) in sim
+        .gyro
+        .iter()
+        .zip(&sim.accel)
+        .zip(sim.t.iter().zip(&sim.rotor_rad_s))
+        .enumerate()
+    {
+        for k in 0..3 {
+            gsum[k] += f64::from(w[k]);
+            asum[k] += f64::from(a[k]);
+        }
+        if i % esc_every == 0 {
+            let rpm = (f64::from(r) * 60.0 / (2.0 * std::f64::consts::PI)).round() as i32;
+            let mut d = 1u16.to_le_bytes().to_vec();
+            d.extend_from_slice(&stamp(t).to_le_bytes());
+            d.push(1);
+            d.extend_from_slice(&rpm.to_le_bytes());
+            msg(&mut f, b'D', &d);
+        }
+        if (i + 1) % every == 0 {
+            let n = every as f64;
+            let mut d = 0u16.to_le_bytes().to_vec();
+            d.extend_from_slice(&stamp(t).to_le_bytes());
+            for g in gsum {
+                d.extend_from_slice(&((g / n) as f32).to_le_bytes());
+            }
+            d.extend_from_slice(&interval.to_le_bytes());
+            for a in asum {
+                d.extend_from_slice(&((a / n) as f32).to_le_bytes());
+            }
+            msg(&mut f, b'D', &d);
+            (gsum, asum) = ([0.0; 3], [0.0; 3]);
+        }
+    }
+    f
 }
