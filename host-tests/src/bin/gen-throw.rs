@@ -14,7 +14,8 @@
 //! `--format px4` writes a PX4 ULog: `sensor_combined` every `--log-every` samples, its gyro
 //! and accelerometer the means over that interval (`gyro_integral_dt`), stamped at its end,
 //! as PX4's IMU integrator reports them, and `esc_status` at 100 Hz with the flywheel's
-//! mechanical rpm.
+//! mechanical rpm (the mean since the previous report, as an ESC that counts commutations
+//! measures it).
 //!
 //! Usage: `gen-throw --scenario board_throw --seed 1 --out throw.csv [--rate 4000]
 //! [--format csv|betaflight|px4] [--log-every 4]`.
@@ -189,7 +190,7 @@ fn betaflight_log(sim: &host_tests::throw_sim::SimThrow, rate: f64, every: usize
 
 /// The throw as PX4 logs it (see the module docs): `sensor_combined` every `every` simulated
 /// samples, gyro and accelerometer the means over that interval, stamped at its last sample,
-/// and `esc_status` (the flywheel's mechanical rpm) every 10 ms.
+/// and `esc_status` every 10 ms (the flywheel's mean mechanical rpm since the last one).
 fn px4_log(sim: &host_tests::throw_sim::SimThrow, rate: f64, every: usize) -> Vec<u8> {
     use log_writers::ulog::{add_logged, header, msg};
     let mut f = header(0);
@@ -210,6 +211,7 @@ fn px4_log(sim: &host_tests::throw_sim::SimThrow, rate: f64, every: usize) -> Ve
     let interval = (every as f64 / rate * 1e6).round() as u32;
     let esc_every = ((0.01 * rate).round() as usize).max(1);
     let (mut gsum, mut asum) = ([0.0f64; 3], [0.0f64; 3]);
+    let (mut rsum, mut rn) = (0.0f64, 0usize);
     for (i, ((w, a), (&t, &r))) in sim
         .gyro
         .iter()
@@ -221,8 +223,13 @@ fn px4_log(sim: &host_tests::throw_sim::SimThrow, rate: f64, every: usize) -> Ve
             gsum[k] += f64::from(w[k]);
             asum[k] += f64::from(a[k]);
         }
+        rsum += f64::from(r);
+        rn += 1;
         if i % esc_every == 0 {
-            let rpm = (f64::from(r) * 60.0 / (2.0 * std::f64::consts::PI)).round() as i32;
+            // An ESC counts commutations: its rpm is the mean speed since its last report.
+            let mean = rsum / rn as f64;
+            (rsum, rn) = (0.0, 0);
+            let rpm = (mean * 60.0 / (2.0 * std::f64::consts::PI)).round() as i32;
             let mut d = 1u16.to_le_bytes().to_vec();
             d.extend_from_slice(&stamp(t).to_le_bytes());
             d.push(1);
