@@ -149,13 +149,7 @@ fn betaflight_log(sim: &host_tests::throw_sim::SimThrow, rate: f64, every: usize
     let (mut p1, mut p2) = (first(sim.gyro.first()), first(sim.gyro.first()));
     let (mut a1, mut a2) = (first(sim.accel.first()), first(sim.accel.first()));
     let mut frames = Vec::new();
-    for (i, ((w, a), (&t, &r))) in sim
-        .gyro
-        .iter()
-        .zip(&sim.accel)
-        .zip(sim.t.iter().zip(&sim.rotor_rad_s))
-        .enumerate()
-    {
+    for (i, (t, w, a, r)) in samples(sim).enumerate() {
         for k in 0..3 {
             p1[k] += g1 * (f64::from(w[k]) - p1[k]);
             p2[k] += g2 * (p1[k] - p2[k]);
@@ -212,13 +206,7 @@ fn px4_log(sim: &host_tests::throw_sim::SimThrow, rate: f64, every: usize) -> Ve
     let esc_every = ((0.01 * rate).round() as usize).max(1);
     let (mut gsum, mut asum) = ([0.0f64; 3], [0.0f64; 3]);
     let (mut rsum, mut rn) = (0.0f64, 0usize);
-    for (i, ((w, a), (&t, &r))) in sim
-        .gyro
-        .iter()
-        .zip(&sim.accel)
-        .zip(sim.t.iter().zip(&sim.rotor_rad_s))
-        .enumerate()
-    {
+    for (i, (t, w, a, r)) in samples(sim).enumerate() {
         for k in 0..3 {
             gsum[k] += f64::from(w[k]);
             asum[k] += f64::from(a[k]);
@@ -252,4 +240,17 @@ fn px4_log(sim: &host_tests::throw_sim::SimThrow, rate: f64, every: usize) -> Ve
         }
     }
     f
+}
+
+/// The simulated samples in order: time (s), gyro (rad/s), accelerometer (m/s^2) and the
+/// reported flywheel speed (rad/s).
+fn samples(
+    sim: &host_tests::throw_sim::SimThrow,
+) -> impl Iterator<Item = (f64, &[f32; 3], &[f32; 3], f32)> {
+    sim.t
+        .iter()
+        .zip(&sim.gyro)
+        .zip(&sim.accel)
+        .zip(&sim.rotor_rad_s)
+        .map(|(((&t, w), a), &r)| (t, w, a, r))
 }
