@@ -1233,5 +1233,29 @@ fn a_betaflight_log_in_whole_deg_s_after_a_still_bench_is_not_overconfident() {
             "Converged {z:?} std off"
         );
         assert!(trusted, "{v}");
+        // A header that names no gyro filter: none assumed, the unit's rounding still counted.
+        let bare: Vec<(&str, String)> = header
+            .iter()
+            .filter(|(k, _)| !k.starts_with("gyro_lpf"))
+            .cloned()
+            .collect();
+        let log = d.join(format!("bf_deg_bare_{seed}.bbl"));
+        std::fs::write(
+            &log,
+            blackbox_writer::blackbox("Betaflight 4.4.2 (abc) STM32F405", &bare, &frames),
+        )
+        .unwrap();
+        let (code, v, err) = run(
+            &[
+                "--input",
+                log.to_str().unwrap(),
+                "--segments",
+                segments.to_str().unwrap(),
+            ],
+            &d.join(format!("bf_deg_bare_{seed}.json")),
+        );
+        assert_eq!(code, 0, "{err}");
+        let noise = v["noise_std"].as_f64().unwrap();
+        assert!(noise > 0.9 * rounding, "no filter named: noise {noise}");
     }
 }

@@ -471,13 +471,23 @@ impl BlackboxSource {
         let filters = if gyro_unit == GyroAdcUnit::RawCounts {
             None
         } else {
-            let found = gyro_filters::betaflight(
+            // No filter named: none assumed, the log's unit still counted in its noise.
+            let f = gyro_filters::betaflight(
                 &|k: &str| header_value(&block, k).map(|v| v.trim().to_string()),
                 gyro_unit.rad_s_per_unit(),
-            );
-            notes.push(match &found {
-                Some(f) => format!(
-                    "gyroADC is {firmware}'s filtered gyro ({}): times moved back by its delay,                      {:.2} ms, and its time spread, {:.2e} s^2, counted in the fits{}",
+            )
+            .unwrap_or_else(|| GyroFilters::none(gyro_unit.rad_s_per_unit()));
+            notes.push(if f.is_none() {
+                format!(
+                    "gyroADC is {firmware}'s filtered gyro, but the header names no gyro \
+                     filter this reader knows: taken as unfiltered (a fast tumble's estimate \
+                     may then be off by more than its standard deviation)"
+                )
+            } else {
+                format!(
+                    "gyroADC is {firmware}'s filtered gyro ({}): each rate read {:.2} ms after \
+                     its frame (the filters' delay) and their time spread, {:.2e} s^2, counted \
+                     in the fits{}",
                     f.described,
                     f.delay_s * 1e3,
                     f.variance_s2,
@@ -489,12 +499,9 @@ impl BlackboxSource {
                     } else {
                         String::new()
                     }
-                ),
-                None => format!(
-                    "gyroADC is {firmware}'s filtered gyro, but the header names no gyro                      filter this reader knows: taken as unfiltered (a fast tumble's estimate                      may then be off by more than its standard deviation)"
-                ),
+                )
             });
-            found
+            Some(f)
         };
         // Betaflight's accelerometer low-pass (`acc_lpf_hz`, logged times 100): a PT2 since 4.3,
         // a biquad before; its delay is the time the free-flight gate's model and the

@@ -54,6 +54,8 @@ pub struct GyroFilters {
     loop_dt: f64,
     /// The log's resolution, rad/s (its unit: 1 or 0.1 deg/s).
     quantum: f64,
+    /// The header named the filters (false: [`GyroFilters::none`]).
+    known: bool,
 }
 
 /// One of Betaflight's filter kinds, at its gyro loop step.
@@ -271,6 +273,7 @@ pub fn betaflight(value: &dyn Fn(&str) -> Option<String>, quantum: f64) -> Optio
         kinds,
         loop_dt: dt,
         quantum,
+        known: true,
     })
 }
 
@@ -308,6 +311,26 @@ pub fn betaflight_accel_delay(value: &dyn Fn(&str) -> Option<String>, revision: 
 }
 
 impl GyroFilters {
+    /// No filter known (a header that names none): no delay, no time spread; the log's
+    /// resolution `quantum` (rad/s) is still counted in its noise ([`GyroFilters::white_noise`]).
+    pub fn none(quantum: f64) -> Self {
+        GyroFilters {
+            delay_s: 0.0,
+            variance_s2: 0.0,
+            uncertain: 0.0,
+            described: "none known".to_string(),
+            kinds: Vec::new(),
+            loop_dt: 125e-6,
+            quantum,
+            known: false,
+        }
+    }
+
+    /// Whether the header named no filter ([`GyroFilters::none`]).
+    pub fn is_none(&self) -> bool {
+        !self.known
+    }
+
     /// Where the reader's interpolation falls between two logged samples `log_dt` apart: the
     /// fraction `f` of (G3).
     fn fraction(&self, log_dt: f64) -> f64 {
