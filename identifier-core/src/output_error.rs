@@ -228,7 +228,7 @@ impl<const N: usize, const K: usize> BlockBuffer<N, K> {
 
     /// Adds one sample: channels `y` (used only when `usable`), the time since the previous
     /// sample (ignored for the stretch's first) and `spread`, the variance of the times behind
-    /// it ([`mean_spread`]: 0 for a single reading at an instant; it adds to the block's `v`
+    /// it ([`Readings::spread`]: 0 for a single reading at an instant; it adds to the block's `v`
     /// of (B1)). A time step that is not finite, not positive or above `max_dt` freezes the
     /// stretch: the time of what follows is not known well enough for a trajectory.
     pub(crate) fn add(&mut self, y: &[f32; K], usable: bool, dt: f32, max_dt: f32, spread: f32) {
@@ -343,59 +343,77 @@ pub(crate) fn scaled_inverse<const P: usize>(f: &Sym<P>) -> Option<Sym<P>> {
     Some(inv)
 }
 
-/// A reading's window for (B0) as the fits keep it: `window` when in `(0, 1)` (a window's
-/// time variance over its interval squared is at most `1/4`), else 0 (a reading at an
-/// instant).
-pub(crate) const fn reading_window(window: f32) -> f32 {
-    if window > 0.0 && window < 1.0 {
-        window
-    } else {
-        0.0
-    }
+/// What the fits know of how each gyro reading spreads over time ((B0), (B0')): the time
+/// variance of its averaging window over its interval squared (`window`: 0 for a reading at
+/// an instant, `1/12` for the mean over the whole interval, as a PX4 `sensor_combined` gyro
+/// reports) and of the low-pass filters it has passed through (`smoothing`, s^2). Both fits
+/// keep one, set by their `with_reading_window` and `with_reading_smoothing`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Readings {
+    window: f32,
+    smoothing: f32,
 }
 
-/// A filter's time variance for (B0') as the fits keep it: `smoothing` (s^2) when finite
-/// and in `[0, 1e-4]` (a first-order stage at 16 Hz; beyond, the expansion's next terms
-/// would matter on a thrown body's motion), else 0.
-pub(crate) const fn reading_smoothing(smoothing: f32) -> f32 {
-    if smoothing > 0.0 && smoothing <= 1e-4 {
-        smoothing
-    } else {
-        0.0
-    }
-}
+impl Readings {
+    /// Readings at instants, unfiltered.
+    pub(crate) const INSTANTS: Readings = Readings {
+        window: 0.0,
+        smoothing: 0.0,
+    };
 
-/// The variance of the times behind one sample that is the mean of `inputs` equally spaced
-/// readings spanning a step `dt`, each reading itself the mean of the rate over a window whose
-/// time variance is `window` times its own interval squared (0 for a reading at an instant,
-/// `1/12` for the mean over the whole interval, as a PX4 `sensor_combined` gyro reports), and
-/// each passed through a filter of time variance `smoothing` (s^2; 0 for none):
-///
-/// ```text
-/// v = (m^2 - 1) / 12 (dt / m)^2  +  window (dt / m)^2 + smoothing            (B0, B0')
-/// ```
-///
-/// (the spread of the readings' centres plus the mean of their own spreads), returned as its
-/// two parts: the centres' (every channel's) and the readings' own (the gyro's alone: the
-/// rotor's speed is neither averaged over a gyro's window nor filtered by its filters). With
-/// `m = 1` and `window = 1/12` the sum is `dt^2 / 12`, the uniform window's.
-pub(crate) fn mean_spread(dt: f32, inputs: u8, window: f32, smoothing: f32) -> [f32; 2] {
-    // `window` is kept in [0, 1) by the fits' builders ([`reading_window`]), `smoothing` in
-    // [0, 1e-4] ([`reading_smoothing`]). One reading at an instant (every sample of a gyro
-    // below 1.5 kHz) returns at once: this runs on every sample.
-    if inputs <= 1 {
-        return if window > 0.0 && dt.is_finite() {
-            [0.0, window * dt * dt + smoothing]
+    /// The same with the window `window` when in `(0, 1)` (a window's time variance over its
+    /// interval squared is at most `1/4`), else 0 (a reading at an instant).
+    pub(crate) const fn with_window(mut self, window: f32) -> Self {
+        self.window = if window > 0.0 && window < 1.0 {
+            window
+        } else {
+            0.0
+        };
+        self
+    }
+
+    /// The same with the filters' time variance `smoothing` (s^2) when in `(0, 1e-4]` (a
+    /// first-order stage at 16 Hz; beyond, the expansion's next terms would matter on a
+    /// thrown body's motion), else 0.
+    pub(crate) const fn with_smoothing(mut self, smoothing: f32) -> Self {
+        self.smoothing = if smoothing > 0.0 && smoothing <= 1e-4 {
+            smoothing
+        } else {
+            0.0
+        };
+        self
+    }
+
+    /// The variance of the times behind one sample that is the mean of `inputs` equally
+    /// spaced readings spanning a step `dt`:
+    ///
+    /// ```text
+    /// v = (m^2 - 1) / 12 (dt / m)^2  +  window (dt / m)^2 + smoothing            (B0, B0')
+    /// ```
+    ///
+    /// (the spread of the readings' centres plus the mean of their own spreads), returned as
+    /// its two parts: the centres' (every channel's) and the readings' own (the gyro's alone:
+    /// the rotor's speed is neither averaged over a gyro's window nor filtered by its
+    /// filters). With `m = 1` and `window = 1/12` the sum is `dt^2 / 12`, the uniform
+    /// window's.
+    pub(crate) fn spread(&self, dt: f32, inputs: u8) -> [f32; 2] {
+        let Readings { window, smoothing } = *self;
+        // One reading at an instant (every sample of a gyro below 1.5 kHz) returns at once:
+        // this runs on every sample.
+        if inputs <= 1 {
+            return if window > 0.0 && dt.is_finite() {
+                [0.0, window * dt * dt + smoothing]
+            } else {
+                [0.0, smoothing]
+            };
+        }
+        let m = f32::from(inputs);
+        if dt.is_finite() {
+            let d = dt / m;
+            [(m * m - 1.0) / 12.0 * d * d, window * d * d + smoothing]
         } else {
             [0.0, smoothing]
-        };
-    }
-    let m = f32::from(inputs);
-    if dt.is_finite() {
-        let d = dt / m;
-        [(m * m - 1.0) / 12.0 * d * d, window * d * d + smoothing]
-    } else {
-        [0.0, smoothing]
+        }
     }
 }
 

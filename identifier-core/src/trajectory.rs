@@ -162,10 +162,9 @@
 use crate::exact::{compensated_add, two_sum, weighted_squares};
 use crate::linalg::Gram2;
 use crate::output_error::{
-    bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, reading_smoothing,
-    reading_window, refit_cost, scaled_inverse, score, score_beyond, score_rejects,
-    score_rejects_at, staged_fit, substeps, torque_confirmed, without, Block, FitState, Normal,
-    NormalSums, Start, StretchResult, TOLERANCE,
+    bias_found, bias_worth_fitting, higher_orders, levenberg, refit_cost, scaled_inverse, score,
+    score_beyond, score_rejects, score_rejects_at, staged_fit, substeps, torque_confirmed, without,
+    Block, FitState, Normal, NormalSums, Readings, Start, StretchResult, TOLERANCE,
 };
 use crate::symmetric::{sqrt, Sym};
 
@@ -271,12 +270,9 @@ pub struct RatioFit<const N: usize> {
     /// The pooled stretches' costs, each with the scale factors fitted ((T6)) where the
     /// rigid-body test rejected.
     scale_cost: f32,
-    /// Time variance of each reading's own averaging window over its interval squared
-    /// ([`RatioFit::with_reading_window`]).
-    window: f32,
-    /// Time variance of the gyro's own low-pass filter, s^2
-    /// ([`RatioFit::with_reading_smoothing`]).
-    smoothing: f32,
+    /// How each gyro reading spreads over time ([`RatioFit::with_reading_window`],
+    /// [`RatioFit::with_reading_smoothing`]).
+    readings: Readings,
 }
 
 /// The block buffer used by the pipeline: 256 blocks (10 KB in all). With 128 blocks (156 ms
@@ -981,8 +977,7 @@ impl<const N: usize> RatioFit<N> {
             noise_std,
             constraint_rejected: false,
             scale_cost: 0.0,
-            window: 0.0,
-            smoothing: 0.0,
+            readings: Readings::INSTANTS,
         }
     }
 
@@ -994,7 +989,7 @@ impl<const N: usize> RatioFit<N> {
     /// miss `v/2 w''` in every block mean, on a fast tumble many times the noise. Values
     /// outside `[0, 1)` count as 0.
     pub const fn with_reading_window(mut self, window: f32) -> Self {
-        self.window = reading_window(window);
+        self.readings = self.readings.with_window(window);
         self
     }
 
@@ -1008,7 +1003,13 @@ impl<const N: usize> RatioFit<N> {
     /// instants, came out `Converged` up to 6.8 standard deviations off (3 of 6 beyond 4).
     /// Values outside `[0, 1e-4]` count as 0.
     pub const fn with_reading_smoothing(mut self, smoothing: f32) -> Self {
-        self.smoothing = reading_smoothing(smoothing);
+        self.readings = self.readings.with_smoothing(smoothing);
+        self
+    }
+
+    /// The same fit with the readings' spread of another fit.
+    const fn with_readings(mut self, readings: Readings) -> Self {
+        self.readings = readings;
         self
     }
 
@@ -1025,7 +1026,7 @@ impl<const N: usize> RatioFit<N> {
         let usable = omega
             .iter()
             .all(|w| w.is_finite() && w.abs() < self.full_scale);
-        let [centres, own] = mean_spread(dt, inputs, self.window, self.smoothing);
+        let [centres, own] = self.readings.spread(dt, inputs);
         let spread = centres + own;
         self.state.buf.add(&omega, usable, dt, self.max_dt, spread);
     }
@@ -1126,8 +1127,7 @@ impl<const N: usize> RatioFit<N> {
     /// Forgets everything: the open stretch and the pooled estimate.
     pub fn reset(&mut self) {
         *self = RatioFit::new(self.full_scale, self.max_dt, self.noise_std)
-            .with_reading_window(self.window)
-            .with_reading_smoothing(self.smoothing);
+            .with_readings(self.readings);
     }
 }
 

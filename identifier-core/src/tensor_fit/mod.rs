@@ -164,10 +164,9 @@
 use crate::exact::{compensated_add, quadratic_form, weighted_squares};
 use crate::linalg::{det, dot, solve, Gram2};
 use crate::output_error::{
-    bias_found, bias_worth_fitting, higher_orders, levenberg, mean_spread, reading_smoothing,
-    reading_window, refit_cost, scaled_inverse, score, score_beyond, score_rejects, staged_fit,
-    substeps, torque_confirmed, without, Block, FitState, Normal, NormalSums, Pooled, Start,
-    StretchResult, TOLERANCE,
+    bias_found, bias_worth_fitting, higher_orders, levenberg, refit_cost, scaled_inverse, score,
+    score_beyond, score_rejects, staged_fit, substeps, torque_confirmed, without, Block, FitState,
+    Normal, NormalSums, Pooled, Readings, Start, StretchResult, TOLERANCE,
 };
 use crate::symmetric::{eigen_symmetric3, sqrt, Sym};
 use crate::trajectory::StretchOutcome;
@@ -275,12 +274,9 @@ pub struct TensorFit<const N: usize> {
     /// The most inputs averaged into one sample ([`TensorFit::step_mean`]): the readings a
     /// block's sample stands for in (F8).
     inputs: u8,
-    /// Time variance of each gyro reading's own averaging window over its interval squared
-    /// ([`TensorFit::with_reading_window`]).
-    window: f32,
-    /// Time variance of the gyro's own low-pass filter, s^2
-    /// ([`TensorFit::with_reading_smoothing`]).
-    smoothing: f32,
+    /// How each gyro reading spreads over time ([`TensorFit::with_reading_window`],
+    /// [`TensorFit::with_reading_smoothing`]).
+    readings: Readings,
     /// The gyro readings' own time variance of the latest sample ((B0), (B0'): the window's
     /// and the filters'), which the blocks' `v` holds and the rotor's readings lack.
     own_spread: f32,
@@ -774,8 +770,7 @@ impl<const N: usize> TensorFit<N> {
             noise_std,
             momentum_resolution: 0.0,
             inputs: 1,
-            window: 0.0,
-            smoothing: 0.0,
+            readings: Readings::INSTANTS,
             own_spread: 0.0,
         }
     }
@@ -786,7 +781,7 @@ impl<const N: usize> TensorFit<N> {
     /// default); see [`crate::RatioFit::with_reading_window`] and (B0). Values outside
     /// `[0, 1)` count as 0.
     pub const fn with_reading_window(mut self, window: f32) -> Self {
-        self.window = reading_window(window);
+        self.readings = self.readings.with_window(window);
         self
     }
 
@@ -795,7 +790,13 @@ impl<const N: usize> TensorFit<N> {
     /// [`crate::RatioFit::with_reading_smoothing`] and (B0'). Values outside `[0, 1e-4]` count
     /// as 0.
     pub const fn with_reading_smoothing(mut self, smoothing: f32) -> Self {
-        self.smoothing = reading_smoothing(smoothing);
+        self.readings = self.readings.with_smoothing(smoothing);
+        self
+    }
+
+    /// The same fit with the readings' spread of another fit.
+    const fn with_readings(mut self, readings: Readings) -> Self {
+        self.readings = readings;
         self
     }
 
@@ -837,7 +838,7 @@ impl<const N: usize> TensorFit<N> {
             && h.iter().all(|x| x.is_finite());
         let y = [omega[0], omega[1], omega[2], h[0], h[1], h[2]];
         self.inputs = self.inputs.max(inputs);
-        let [centres, own] = mean_spread(dt, inputs, self.window, self.smoothing);
+        let [centres, own] = self.readings.spread(dt, inputs);
         self.own_spread = own;
         let spread = centres + own;
         self.state.buf.add(&y, usable, dt, self.max_dt, spread);
@@ -999,7 +1000,6 @@ impl<const N: usize> TensorFit<N> {
     pub fn reset(&mut self) {
         *self = TensorFit::new(self.full_scale, self.max_dt, self.noise_std)
             .with_momentum_resolution(self.momentum_resolution)
-            .with_reading_window(self.window)
-            .with_reading_smoothing(self.smoothing);
+            .with_readings(self.readings);
     }
 }
