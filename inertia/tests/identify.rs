@@ -45,6 +45,21 @@ fn toss(
     toss_read(a_mom, w0, rate, secs, noise, seed, false)
 }
 
+/// Unit normal deviates from `seed`: xorshift64, the sum of twelve uniforms less 6.
+fn gaussian(seed: u64) -> impl FnMut() -> f64 {
+    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    move || {
+        let mut acc = 0.0;
+        for _ in 0..12 {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            acc += (s >> 11) as f64 / (1u64 << 53) as f64;
+        }
+        acc - 6.0
+    }
+}
+
 /// [`toss`], each row's rate either at its instant or (`means`) the mean over the interval
 /// that ends there (a gyro that integrates, as PX4's `sensor_combined` reports it): (1) and
 /// its integral by RK4 together, the mean the integral's increment over the interval.
@@ -73,17 +88,7 @@ fn toss_read(
             x[2],
         ]
     };
-    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    let mut gauss = || {
-        let mut acc = 0.0;
-        for _ in 0..12 {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            acc += (s >> 11) as f64 / (1u64 << 53) as f64;
-        }
-        acc - 6.0
-    };
+    let mut gauss = gaussian(seed);
     let h = 1.0 / rate / 4.0;
     let mut x = [w0[0], w0[1], w0[2], 0.0, 0.0, 0.0];
     let mut out = Vec::new();
@@ -824,11 +829,7 @@ fn write_px4_ulog(path: &Path, rows: &[[f64; 4]], rate: f64) {
 fn a_px4_gyro_that_averages_over_its_interval_is_read_as_means() {
     let d = out_dir();
     let mom = [12.3, 1.0, 13.3];
-    let truth = [
-        (mom[1] - mom[2]) / mom[0],
-        (mom[2] - mom[0]) / mom[1],
-        (mom[0] - mom[1]) / mom[2],
-    ];
+    let truth = ratios_of(mom);
     let (mut z_ulog, mut z_csv) = (Vec::new(), Vec::new());
     for seed in 0..4u64 {
         let rows = toss_read(mom, [23.7, -5.4, 1.5], 250.0, 1.0, 3e-3, seed, true);
@@ -913,6 +914,63 @@ fn a_slow_tumble_logged_in_deg_s_is_not_trusted() {
     assert_ne!(v["pooled"]["status"], "UnitsLookWrong");
 }
 
+/// The paper's ratios `a` of principal moments `mom`: `a_i = (J_j - J_k) / J_i`.
+fn ratios_of(mom: [f64; 3]) -> [f64; 3] {
+    [
+        (mom[1] - mom[2]) / mom[0],
+        (mom[2] - mom[0]) / mom[1],
+        (mom[0] - mom[1]) / mom[2],
+    ]
+}
+
+/// Betaflight's default gyro filters at an 8 kHz loop as its header lists them (first-order
+/// stages at 250 and 500 Hz, no notches), the gyro logged in tenths of deg/s when
+/// `high_resolution`, else in whole deg/s.
+fn betaflight_header(high_resolution: bool) -> Vec<(&'static str, String)> {
+    [
+        (
+            "blackbox_high_resolution",
+            if high_resolution { "1" } else { "0" },
+        ),
+        ("looptime", "125"),
+        ("gyro_lpf1_type", "0"),
+        ("gyro_lpf1_static_hz", "250"),
+        ("gyro_lpf1_dyn_hz", "0,0"),
+        ("gyro_lpf2_type", "0"),
+        ("gyro_lpf2_static_hz", "500"),
+        ("dyn_notch_count", "0"),
+    ]
+    .iter()
+    .map(|(k, v)| (*k, v.to_string()))
+    .collect()
+}
+
+/// `header` without its gyro low-pass lines: a log that names no gyro filter.
+fn without_gyro_filters(header: &[(&'static str, String)]) -> Vec<(&'static str, String)> {
+    header
+        .iter()
+        .filter(|(k, _)| !k.starts_with("gyro_lpf"))
+        .cloned()
+        .collect()
+}
+
+/// Writes `frames` under `header` as a Betaflight 4.4 blackbox log `NAME.bbl` and runs
+/// `inertia identify` on it with `args`, the JSON to `NAME.json`.
+fn identify_betaflight(
+    name: &str,
+    header: &[(&str, String)],
+    frames: &[blackbox_writer::Frame],
+    args: &[&str],
+) -> (i32, serde_json::Value, String) {
+    let d = out_dir();
+    let log = d.join(format!("{name}.bbl"));
+    let bytes = blackbox_writer::blackbox("Betaflight 4.4.2 (abc) STM32F405", header, frames);
+    std::fs::write(&log, bytes).unwrap();
+    let mut all = vec!["--input", log.to_str().unwrap()];
+    all.extend_from_slice(args);
+    run(&all, &d.join(format!("{name}.json")))
+}
+
 /// A body with a flywheel spinning up (as the thrown-FC board's, 175 to 1250 rad/s), simulated
 /// at an 8 kHz gyro loop, its gyro through Betaflight's default filters (first-order stages
 /// at 250 and 500 Hz: 0.95 ms late, 6e-7 s^2 of time spread), logged every fourth loop in
@@ -979,17 +1037,7 @@ fn betaflight_log_of(
             (-c[2] - rotor * om_d) / moments[2],
         ]
     };
-    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    let mut gauss = || {
-        let mut acc = 0.0;
-        for _ in 0..12 {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            acc += (state >> 11) as f64 / (1u64 << 53) as f64;
-        }
-        acc - 6.0
-    };
+    let mut gauss = gaussian(seed);
     let gain = |hz: f64| {
         let x = 2.0 * std::f64::consts::PI * hz * dt;
         x / (1.0 + x)
@@ -1057,26 +1105,8 @@ fn betaflight_log_of(
 /// deviations.
 #[test]
 fn a_betaflight_gyro_is_read_through_its_filters() {
-    let d = out_dir();
-    let filters: Vec<(&str, String)> = [
-        ("blackbox_high_resolution", "1"),
-        ("looptime", "125"),
-        ("gyro_lpf1_type", "0"),
-        ("gyro_lpf1_static_hz", "250"),
-        ("gyro_lpf1_dyn_hz", "0,0"),
-        ("gyro_lpf2_type", "0"),
-        ("gyro_lpf2_static_hz", "500"),
-        ("dyn_notch_count", "0"),
-    ]
-    .iter()
-    .map(|(k, v)| (*k, v.to_string()))
-    .collect();
-    let unknown: Vec<(&str, String)> = filters
-        .iter()
-        .filter(|(k, _)| !k.starts_with("gyro_lpf"))
-        .cloned()
-        .collect();
-    let revision = "Betaflight 4.4.2 (abc) STM32F405";
+    let filters = betaflight_header(true);
+    let unknown = without_gyro_filters(&filters);
     let moments = [2.4e-4, 1.5e-4, 3.1e-4];
     let rotor_flags = [
         "--rotor-inertia",
@@ -1095,21 +1125,13 @@ fn a_betaflight_gyro_is_read_through_its_filters() {
     };
     // Without a rotor, a body tumbling fast.
     let mom = [1.2e-4, 2.0e-4, 2.6e-4];
-    let truth = [
-        (mom[1] - mom[2]) / mom[0],
-        (mom[2] - mom[0]) / mom[1],
-        (mom[0] - mom[1]) / mom[2],
-    ];
+    let truth = ratios_of(mom);
     let (mut z_declared, mut z_unknown) = (Vec::new(), Vec::new());
     for seed in 0..4u64 {
         let frames = betaflight_throw(mom, [6.0, 24.0, 8.0], 0.0, seed);
         for (name, extra) in [("declared", &filters), ("unknown", &unknown)] {
-            let log = d.join(format!("bf_toss_{name}_{seed}.bbl"));
-            std::fs::write(&log, blackbox_writer::blackbox(revision, extra, &frames)).unwrap();
-            let (code, v, err) = run(
-                &["--input", log.to_str().unwrap()],
-                &d.join(format!("bf_toss_{name}_{seed}.json")),
-            );
+            let (code, v, err) =
+                identify_betaflight(&format!("bf_toss_{name}_{seed}"), extra, &frames, &[]);
             assert_eq!(code, 0, "{err}");
             let (a, s) = a_of(&v).unwrap();
             let z = [0, 1, 2].map(|i| (a[i] - truth[i]) / s[i]);
@@ -1138,11 +1160,12 @@ fn a_betaflight_gyro_is_read_through_its_filters() {
     for seed in 0..2u64 {
         let frames = betaflight_throw(moments, [12.0, -9.0, 14.0], 1.69e-6, seed);
         for (name, extra) in [("declared", &filters), ("unknown", &unknown)] {
-            let log = d.join(format!("bf_rotor_{name}_{seed}.bbl"));
-            std::fs::write(&log, blackbox_writer::blackbox(revision, extra, &frames)).unwrap();
-            let mut args = vec!["--input", log.to_str().unwrap()];
-            args.extend(rotor_flags);
-            let (code, v, err) = run(&args, &d.join(format!("bf_rotor_{name}_{seed}.json")));
+            let (code, v, err) = identify_betaflight(
+                &format!("bf_rotor_{name}_{seed}"),
+                extra,
+                &frames,
+                &rotor_flags,
+            );
             let z = z_of(&v);
             println!(
                 "rotor, filters {name}, seed {seed}: exit {code}, {} z {z:.2?}",
@@ -1175,46 +1198,18 @@ fn a_betaflight_gyro_is_read_through_its_filters() {
 #[test]
 fn a_betaflight_log_in_whole_deg_s_after_a_still_bench_is_not_overconfident() {
     let d = out_dir();
-    let header: Vec<(&str, String)> = [
-        ("blackbox_high_resolution", "0"),
-        ("looptime", "125"),
-        ("gyro_lpf1_type", "0"),
-        ("gyro_lpf1_static_hz", "250"),
-        ("gyro_lpf1_dyn_hz", "0,0"),
-        ("gyro_lpf2_type", "0"),
-        ("gyro_lpf2_static_hz", "500"),
-        ("dyn_notch_count", "0"),
-    ]
-    .iter()
-    .map(|(k, v)| (*k, v.to_string()))
-    .collect();
+    let header = betaflight_header(false);
+    let bare = without_gyro_filters(&header);
     let mom = [1.2e-4, 2.0e-4, 2.6e-4];
-    let truth = [
-        (mom[1] - mom[2]) / mom[0],
-        (mom[2] - mom[0]) / mom[1],
-        (mom[0] - mom[1]) / mom[2],
-    ];
+    let truth = ratios_of(mom);
     let segments = d.join("bf_deg_segments.csv");
     // 1.5 s on the bench, then 0.7 s of tumble (times from 1 s): the tumble, less its edges.
     std::fs::write(&segments, "2.52,3.19\n").unwrap();
     let rounding = 1f64.to_radians() / 12f64.sqrt();
     for seed in 0..3u64 {
         let frames = betaflight_log_of(mom, [6.0, 24.0, 8.0], 0.0, seed, 1.5, true);
-        let log = d.join(format!("bf_deg_{seed}.bbl"));
-        std::fs::write(
-            &log,
-            blackbox_writer::blackbox("Betaflight 4.4.2 (abc) STM32F405", &header, &frames),
-        )
-        .unwrap();
-        let (code, v, err) = run(
-            &[
-                "--input",
-                log.to_str().unwrap(),
-                "--segments",
-                segments.to_str().unwrap(),
-            ],
-            &d.join(format!("bf_deg_{seed}.json")),
-        );
+        let cut = ["--segments", segments.to_str().unwrap()];
+        let (code, v, err) = identify_betaflight(&format!("bf_deg_{seed}"), &header, &frames, &cut);
         assert_eq!(code, 0, "{err}");
         let noise = v["noise_std"].as_f64().unwrap();
         let (a, s) = a_of(&v).unwrap();
@@ -1234,26 +1229,8 @@ fn a_betaflight_log_in_whole_deg_s_after_a_still_bench_is_not_overconfident() {
         );
         assert!(trusted, "{v}");
         // A header that names no gyro filter: none assumed, the unit's rounding still counted.
-        let bare: Vec<(&str, String)> = header
-            .iter()
-            .filter(|(k, _)| !k.starts_with("gyro_lpf"))
-            .cloned()
-            .collect();
-        let log = d.join(format!("bf_deg_bare_{seed}.bbl"));
-        std::fs::write(
-            &log,
-            blackbox_writer::blackbox("Betaflight 4.4.2 (abc) STM32F405", &bare, &frames),
-        )
-        .unwrap();
-        let (code, v, err) = run(
-            &[
-                "--input",
-                log.to_str().unwrap(),
-                "--segments",
-                segments.to_str().unwrap(),
-            ],
-            &d.join(format!("bf_deg_bare_{seed}.json")),
-        );
+        let (code, v, err) =
+            identify_betaflight(&format!("bf_deg_bare_{seed}"), &bare, &frames, &cut);
         assert_eq!(code, 0, "{err}");
         let noise = v["noise_std"].as_f64().unwrap();
         assert!(noise > 0.9 * rounding, "no filter named: noise {noise}");
