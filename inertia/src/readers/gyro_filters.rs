@@ -413,8 +413,13 @@ impl GyroFilters {
                 }
             }
         }
-        let lags = h.len() / d;
-        let zero = rho(0) + 2.0 * (1..lags).map(|m| rho(m * d)).sum::<f64>();
+        // sum_m rho(|m| D) over every lag is the sum over the residues r mod D of the square
+        // of the sum of the h_k with k = r mod D: one pass, not one product per lag.
+        let mut residues = vec![0.0f64; d];
+        for (k, v) in h.iter().enumerate() {
+            residues[k % d] += v;
+        }
+        let zero: f64 = residues.iter().map(|s| s * s).sum();
         let q2 = if self.quantum > 0.0 {
             self.quantum * self.quantum / 12.0
         } else {
