@@ -665,6 +665,10 @@ struct Advance {
     delay: [f64; 2],
     /// Frames read, not yet given out, oldest first.
     pending: std::collections::VecDeque<Sample>,
+    /// Per channel, the pending frame where the last search ended: the times searched for
+    /// only grow, so each search goes on from there (the accelerometer's delay is tens of
+    /// frames: searching from the front every time cost as many steps per frame).
+    cursor: [usize; 2],
 }
 
 impl Advance {
@@ -672,22 +676,27 @@ impl Advance {
         Advance {
             delay: delay.map(|d| if d > 0.0 && d.is_finite() { d } else { 0.0 }),
             pending: std::collections::VecDeque::new(),
+            cursor: [0; 2],
         }
     }
 
-    /// The channel (`gyro` or `accel`, by `pick`) read at `when`, interpolated between the
-    /// pending frames around it.
-    fn at(&self, when: f64, pick: fn(&Sample) -> [f32; 3]) -> [f32; 3] {
-        let mut out = self.pending.back().map_or([0.0; 3], pick);
-        for (a, b) in self.pending.iter().zip(self.pending.iter().skip(1)) {
-            if a.t <= when && when <= b.t {
+    /// Channel `ch` (0 the gyro, 1 the accelerometer, `pick` reads it) at `when`, interpolated
+    /// between the first two pending frames around it (the newest frame's when none are).
+    fn at(&mut self, ch: usize, when: f64, pick: fn(&Sample) -> [f32; 3]) -> [f32; 3] {
+        let p = &self.pending;
+        let mut c = self.cursor[ch];
+        while p.get(c + 1).is_some_and(|b| b.t < when) {
+            c += 1;
+        }
+        self.cursor[ch] = c;
+        match (p.get(c), p.get(c + 1)) {
+            (Some(a), Some(b)) if a.t <= when && when <= b.t => {
                 let f = ((when - a.t) / (b.t - a.t)) as f32;
                 let (x, y) = (pick(a), pick(b));
-                out = [0, 1, 2].map(|k| x[k] + f * (y[k] - x[k]));
-                break;
+                [0, 1, 2].map(|k| x[k] + f * (y[k] - x[k]))
             }
+            _ => p.back().map_or([0.0; 3], pick),
         }
-        out
     }
 
     /// Takes the next frame; gives out, oldest first, every frame whose readings can now be
@@ -710,11 +719,12 @@ impl Advance {
                 return Ok(Flow::Continue);
             }
             let t = front.t;
-            let gyro = self.at(t + dg, |s| s.gyro);
-            let accel = self.at(t + da, |s| s.accel);
+            let gyro = self.at(0, t + dg, |s| s.gyro);
+            let accel = self.at(1, t + da, |s| s.accel);
             let Some(mut s) = self.pending.pop_front() else {
                 return Ok(Flow::Continue);
             };
+            self.cursor = self.cursor.map(|c| c.saturating_sub(1));
             (s.gyro, s.accel) = (gyro, accel);
             if out(s)? == Flow::Stop {
                 return Ok(Flow::Stop);
