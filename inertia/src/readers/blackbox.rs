@@ -468,15 +468,13 @@ impl BlackboxSource {
             ));
         }
         // Betaflight's family logs the filtered gyro; INDIflight (raw counts) the unfiltered.
+        let lookup = |k: &str| header_value(&block, k).map(|v| v.trim().to_string());
         let filters = if gyro_unit == GyroAdcUnit::RawCounts {
             None
         } else {
             // No filter named: none assumed, the log's unit still counted in its noise.
-            let f = gyro_filters::betaflight(
-                &|k: &str| header_value(&block, k).map(|v| v.trim().to_string()),
-                gyro_unit.rad_s_per_unit(),
-            )
-            .unwrap_or_else(|| GyroFilters::none(gyro_unit.rad_s_per_unit()));
+            let f = gyro_filters::betaflight(&lookup, gyro_unit.rad_s_per_unit())
+                .unwrap_or_else(|| GyroFilters::none(gyro_unit.rad_s_per_unit()));
             notes.push(if f.is_none() {
                 format!(
                     "gyroADC is {firmware}'s filtered gyro, but the header names no gyro \
@@ -508,10 +506,7 @@ impl BlackboxSource {
         // accelerometer are apart. INDIflight's `accSmooth` is unfiltered (its centre-of-mass
         // fit on the shared logs is worst with the header's 50 Hz put on the model's side).
         let accel_delay = match (&filters, channels.accel) {
-            (Some(_), true) => gyro_filters::betaflight_accel_delay(
-                &|k: &str| header_value(&block, k).map(|v| v.trim().to_string()),
-                revision,
-            ),
+            (Some(_), true) => gyro_filters::betaflight_accel_delay(&lookup, revision),
             _ => 0.0,
         };
         if accel_delay > 0.0 {
