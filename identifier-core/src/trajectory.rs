@@ -71,7 +71,8 @@
 //! cost is a smooth function of them). What is left, the `f32` resolution of the ratios
 //! themselves, is put into the reported uncertainty ((T7), `resolution_factor`). A long record is fitted on growing prefixes (16
 //! blocks, then doubling) so that the phase of the trajectory is never far from the data; the
-//! start is the per-axis least-squares fit of the integrated (1) on the block means.
+//! start is the per-axis least-squares fit of the integrated (1) on the block means, turned
+//! into the moments that come closest to all three of its ratios ((T8), `moments_of`).
 //!
 //! # Uncertainty, bias, pooling
 //!
@@ -166,7 +167,7 @@ use crate::output_error::{
     score_beyond, score_rejects, score_rejects_at, staged_fit, substeps, torque_confirmed, without,
     Block, FitState, Normal, NormalSums, Readings, Start, StretchResult, TOLERANCE,
 };
-use crate::symmetric::{sqrt, Sym};
+use crate::symmetric::{eigen_symmetric3, sqrt, Sym};
 
 /// The pooled estimate of [`RatioFit`]: ratios, moments and their uncertainty.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -776,17 +777,40 @@ fn initial_a(blocks: &[Block<3>]) -> Option<[f32; 3]> {
     a.iter().all(|x| x.is_finite()).then_some(a)
 }
 
-/// Trace-1 moments `(p1, p2)` from `a`: with `A1 = 1`, `A2 = (1 + a1)/(1 - a2)` and
-/// `A3 = (1 + a1 a2)/(1 - a2)`; the sphere when that is not a body.
+/// Trace-1 moments `(p1, p2)` from `a` (the per-axis start, which need not be a rigid body's),
+/// the three ratios weighed alike: by the definition of `a` the moments solve
+///
+/// ```text
+/// M A = 0,   M = [[a1, -1, 1], [1, a2, -1], [-1, 1, a3]]                           (T8)
+/// ```
+///
+/// (`a1 A1 - A2 + A3 = 0` and cyclic), so `A` is taken as the eigenvector of `M^T M` with the
+/// smallest eigenvalue, scaled to trace 1; the sphere when that is not a body.
+///
+/// Why all three: `A2/A1 = (1 + a1)/(1 - a2)` from two of them, which this start had been, is
+/// a small difference of noisy numbers on a flat body (`A3` close to `A1 + A2`, `a1` close to
+/// -1: a racquet, a plate, a flight controller's board): on the benchmark's 85-sample toss
+/// it gave no body at all or one far off often enough that the fit took 20.7 evaluations of
+/// its trajectory per seed on average (400 seeds; 10.1 from (T8), the same estimates).
 fn moments_of(a: [f32; 3]) -> [f32; 2] {
-    let den = 1.0 - a[1];
-    let (m2, m3) = ((1.0 + a[0]) / den, (1.0 + a[0] * a[1]) / den);
-    let s = 1.0 + m2 + m3;
-    let (p1, p2) = (1.0 / s, m2 / s);
+    let m = [[a[0], -1.0, 1.0], [1.0, a[1], -1.0], [-1.0, 1.0, a[2]]];
+    let mut n = [[0.0f32; 3]; 3];
+    for (i, row) in n.iter_mut().enumerate() {
+        for (j, x) in row.iter_mut().enumerate() {
+            *x = m[0][i] * m[0][j] + m[1][i] * m[1][j] + m[2][i] * m[2][j];
+        }
+    }
+    let sphere = [1.0 / 3.0, 1.0 / 3.0];
+    let Some(e) = eigen_symmetric3(&n) else {
+        return sphere;
+    };
+    let v = e.vectors[0];
+    let trace = v[0] + v[1] + v[2];
+    let (p1, p2) = (v[0] / trace, v[1] / trace);
     if ratios_of(p1, p2).is_some() {
         [p1, p2]
     } else {
-        [1.0 / 3.0, 1.0 / 3.0]
+        sphere
     }
 }
 
