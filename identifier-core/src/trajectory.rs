@@ -827,21 +827,23 @@ fn constraint_normal(a: &[f32; 3]) -> [f32; 3] {
     }
 }
 
-/// The score tests after a fit, from one evaluation at the fitted model's optimum `theta`
-/// (`P` = 9: the plain model's five, a zero torque and a zero step off the constraint; 12: and
-/// the bias last), `cost` and `dof` that model's: whether a constant torque ((T4): `g^T F^-1 g`
-/// of the model with the torque, against 21.11) and whether a step off the rigid-body
-/// constraint ((T5): scored beyond the model's own columns, against 15.14) reject it.
-fn tests_reject<const P: usize>(
-    blocks: &[Block<3>],
-    theta: [f32; P],
+/// The score tests after a fit, from one evaluation `normal` at the fitted model's optimum
+/// in the layout of [`P_TESTS_BIAS`] (the plain model's five, a zero torque, a zero step off
+/// the constraint, the bias last), with the columns `drop` taken out (the bias's, when the
+/// plain model is tested), `cost` and `dof` the model's: whether a constant torque ((T4):
+/// `g^T F^-1 g` of the model with the torque, against 21.11) and whether a step off the
+/// rigid-body constraint ((T5): scored beyond the model's own columns, against 15.14) reject it.
+fn tests_reject(
+    normal: Option<&Normal<P_TESTS_BIAS>>,
+    drop: &[usize],
     cost: f32,
     dof: f32,
     noise_floor: f32,
 ) -> (bool, bool) {
-    let Some((_, f, g)) = normal::<P, C_TESTS>(blocks, blocks.len(), &theta) else {
+    let Some((_, f, g)) = normal else {
         return (false, false);
     };
+    let (f, g) = without(f, g, drop);
     let (ft, gt) = without(&f, &g, &[8]);
     let torque = score_beyond(&ft, &gt, &[5, 6, 7])
         .is_some_and(|sc| score_rejects(sc, cost, dof, noise_floor));
@@ -850,6 +852,9 @@ fn tests_reject<const P: usize>(
         .is_some_and(|sc| score_rejects_at(sc, RIGID_CHI2, cost, dof, noise_floor));
     (torque, rigid)
 }
+
+/// The columns of the bias in the layout of [`P_TESTS_BIAS`].
+const BIAS_COLUMNS: [usize; 3] = [9, 10, 11];
 
 /// What [`fit_stretch`] found in one stretch.
 struct StretchFit {
@@ -884,9 +889,20 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
     theta8[..5].copy_from_slice(&theta5);
     let dof8 = (3 * total) as f32 - 8.0;
     let dof5 = (3 * total) as f32 - 5.0;
-    // One evaluation decides whether the bias model is worth its fit.
-    let worth = normal::<P_MAX, 5>(blocks, total, &theta8)
-        .and_then(|(_, f, g)| score(&f, &g))
+    // One evaluation at the plain optimum, with the columns of the bias, a constant torque and
+    // a step off the constraint, decides whether the bias model is worth its fit (its score
+    // without the torque's and the step's columns) and gives the plain model's tests (without
+    // the bias's). Each of those columns is integrated on its own, so the two are what
+    // separate evaluations gave, for one.
+    let mut th12 = [0.0f32; P_TESTS_BIAS];
+    th12[..5].copy_from_slice(&theta5);
+    let at_plain = normal::<P_TESTS_BIAS, C_TESTS>(blocks, total, &th12);
+    let worth = at_plain
+        .as_ref()
+        .and_then(|(_, f, g)| {
+            let (f, g) = without(f, g, &[5, 6, 7, 8]);
+            score(&f, &g)
+        })
         .is_none_or(|sc| bias_worth_fitting(sc, cost5, dof5, noise_floor));
     let with_bias = if worth {
         levenberg(
@@ -910,7 +926,8 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
             let mut th12 = [0.0f32; P_TESTS_BIAS];
             th12[..5].copy_from_slice(&th8[..5]);
             th12[9..].copy_from_slice(&th8[5..]);
-            let (torque, rigid) = tests_reject(blocks, th12, cost8, dof8, noise_floor);
+            let at_bias = normal::<P_TESTS_BIAS, C_TESTS>(blocks, total, &th12);
+            let (torque, rigid) = tests_reject(at_bias.as_ref(), &[], cost8, dof8, noise_floor);
             let torque = torque
                 .then(|| {
                     // The torque's layout: bias at theta[8..11].
@@ -955,9 +972,7 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
     // The tests at the plain optimum (zero torque in theta[5..8], zero step in theta[8]).
     let mut theta = [0.0f32; P_MAX];
     theta[..5].copy_from_slice(&theta5);
-    let mut th9 = [0.0f32; C_TESTS];
-    th9[..5].copy_from_slice(&theta5);
-    let (torque, rigid) = tests_reject(blocks, th9, cost5, dof5, noise_floor);
+    let (torque, rigid) = tests_reject(at_plain.as_ref(), &BIAS_COLUMNS, cost5, dof5, noise_floor);
     let torque = torque
         .then(|| {
             let normal_torque = |th: &[f32; P_MAX]| normal::<P_MAX, C_TORQUE>(blocks, total, th);
