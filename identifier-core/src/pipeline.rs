@@ -817,7 +817,26 @@ impl<const N: usize> Pipeline<N> {
         let Some(tf) = tf else {
             return true;
         };
-        let s2 = self.fit_variance(&fe);
+        // The two explanations are weighed against the residual variance of the one that fits
+        // better (never below the configured noise's). The ratio fit's own residual, which
+        // this had been, is that of the model without either: on a body with products of
+        // inertia it is the products' misfit, and a torque that took up part of it was judged
+        // against 21 times that misfit. A simulated toss without a rotor (`gen-throw
+        // --scenario no_rotor_toss --seed 1`) turned from `Converged` to `ModelMismatch` so
+        // once the ratio fit found its (wrong-model) optimum: the torque's cost 20, the
+        // tensor's 4e-4, the ratio fit's residual variance 3.7 (rad/s)^2.
+        let cfg = self.settings.tensor.noise_std;
+        let torque_var = fe.noise * fe.noise * (fe.cost_with_torque / fe.cost);
+        let tensor_var = tf.noise * tf.noise;
+        let best = if tensor_var < torque_var {
+            tensor_var
+        } else {
+            torque_var
+        };
+        if !best.is_finite() {
+            return true;
+        }
+        let s2 = best.max(cfg * cfg);
         // NaN anywhere leaves the torque suspected.
         let products_explain =
             tf.cost + self.settings.tensor.products_chi2 * s2 < fe.cost_with_torque;

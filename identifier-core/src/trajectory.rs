@@ -69,9 +69,10 @@
 //! (`Block::since`), the residuals are taken from the block sums unrounded
 //! (`Block::deviation`), and the step count comes from the data, not the parameters (so the
 //! cost is a smooth function of them). What is left, the `f32` resolution of the ratios
-//! themselves, is put into the reported uncertainty ((T7), `resolution_factor`). A long record is fitted on growing prefixes (16
-//! blocks, then doubling) so that the phase of the trajectory is never far from the data; the
-//! start is the per-axis least-squares fit of the integrated (1) on the block means, turned
+//! themselves, is put into the reported uncertainty ((T7), `resolution_factor`). The whole
+//! record is fitted at once, and on growing prefixes (16 blocks, then doubling, so that the
+//! phase of the trajectory is never far from the data) only when that does not fit to twice
+//! the noise (`output_error::whole_or_staged`, as the tensor fit); the start is the per-axis least-squares fit of the integrated (1) on the block means, turned
 //! into the moments that come closest to all three of its ratios ((T8), `moments_of`).
 //!
 //! # Uncertainty, bias, pooling
@@ -164,8 +165,8 @@ use crate::exact::{compensated_add, two_sum, weighted_squares};
 use crate::linalg::Gram2;
 use crate::output_error::{
     bias_found, bias_worth_fitting, higher_orders, levenberg, refit_cost, scaled_inverse, score,
-    score_beyond, score_rejects, score_rejects_at, staged_fit, substeps, torque_confirmed, without,
-    Block, FitState, Normal, NormalSums, Readings, Start, StretchResult, TOLERANCE,
+    score_beyond, score_rejects, score_rejects_at, substeps, torque_confirmed, whole_or_staged,
+    without, Block, FitState, Normal, NormalSums, Readings, Start, StretchResult, TOLERANCE,
 };
 use crate::symmetric::{eigen_symmetric3, sqrt, Sym};
 
@@ -882,8 +883,12 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
     let p0 = initial_a(blocks).map_or([1.0 / 3.0, 1.0 / 3.0], moments_of);
     // Initial rates as offsets from the first block's mean (see `normal_with`).
     let theta5 = [p0[0], p0[1], 0.0, 0.0, 0.0];
-    let (theta5, cost5, f5) =
-        staged_fit(|th, limit| normal::<5, 5>(blocks, limit, th), theta5, total)?;
+    let (theta5, cost5, f5) = whole_or_staged(
+        |th, limit| normal::<5, 5>(blocks, limit, th),
+        theta5,
+        total,
+        noise_floor,
+    )?;
     let cov5 = scaled_inverse(&f5)?;
     let mut theta8 = [0.0f32; P_MAX];
     theta8[..5].copy_from_slice(&theta5);

@@ -165,8 +165,8 @@ use crate::exact::{compensated_add, quadratic_form, weighted_squares};
 use crate::linalg::{det, dot, solve, Gram2};
 use crate::output_error::{
     bias_found, bias_worth_fitting, higher_orders, levenberg, refit_cost, scaled_inverse, score,
-    score_beyond, score_rejects, staged_fit, substeps, torque_confirmed, without, Block, FitState,
-    Normal, NormalSums, Pooled, Readings, Start, StretchResult, TOLERANCE,
+    score_beyond, score_rejects, substeps, torque_confirmed, whole_or_staged, without, Block,
+    FitState, Normal, NormalSums, Pooled, Readings, Start, StretchResult, TOLERANCE,
 };
 use crate::symmetric::{eigen_symmetric3, sqrt, Sym};
 use crate::trajectory::StretchOutcome;
@@ -287,18 +287,11 @@ pub struct TensorFit<const N: usize> {
 pub type FlightTensorFit = TensorFit<256>;
 
 /// Fits one stretch from `th` (`P` parameters without the bias, `PB` with it, the first `M`
-/// of interest; see [`normal`]): the plain model by [`levenberg`] on all the blocks at once,
-/// and by [`staged_fit`] (growing prefixes) only if that does not fit to twice `noise_floor`,
-/// the lower cost taken; then, when `test_bias`, the bias model if the likelihood-ratio test
-/// asks for it.
-///
-/// Why all the blocks first: growing prefixes keep a start whose trajectory drifts away from
-/// the data from being pulled into a wrong basin by the far blocks, but from a good start
-/// (with only the first block's noisy rate as the initial rate) they throw information away:
-/// on a short noisy toss the first 16 blocks alone determined the eight parameters of the fit
-/// up to scale so poorly that the staged fit left the right basin on about 1 flight in 25.
-/// On the simulated flywheel throw the absolute fit is as accurate as staged alone, at two
-/// thirds of the cost.
+/// of interest; see [`normal`]): the plain model on all the blocks at once, and on growing
+/// prefixes only if that does not fit to twice `noise_floor` ([`whole_or_staged`]); then,
+/// when `test_bias`, the bias model if the likelihood-ratio test asks for it. On the
+/// simulated flywheel throw the absolute fit of all the blocks is as accurate as the staged
+/// one alone, at two thirds of the cost.
 ///
 /// With `cells` (the absolute fit of a flight whose rotor speed is read in steps: its steady
 /// runs, [`steady_cells`]) the last [`CELLS`] of `th` are the rotor momentum's offsets of
@@ -326,30 +319,13 @@ fn fit_model<
     let total = blocks.len();
     let rule = StepRule::new(&tensor_of(&six(&th, trace, M))).with_gyro_spread(res.gyro_spread);
     let dof0 = (3 * total) as f32 - P as f32;
-    let direct = levenberg(
-        |p| normal(blocks, &rule, total, p, trace, cells),
-        th,
-        30,
-        dof0,
-        TOLERANCE,
-        Start::Cold,
-    );
     let fits = 4.0 * noise_floor * noise_floor * dof0;
-    let plain = match direct {
-        Some(d) if d.1 <= fits => Some(d),
-        d => {
-            let staged = staged_fit(
-                |p, limit| normal(blocks, &rule, limit, p, trace, cells),
-                th,
-                total,
-            );
-            match (d, staged) {
-                (Some(d), Some(st)) => Some(if st.1 < d.1 { st } else { d }),
-                (d, st) => d.or(st),
-            }
-        }
-    };
-    let (th, cost0, f0) = plain?;
+    let (th, cost0, f0) = whole_or_staged(
+        |p, limit| normal(blocks, &rule, limit, p, trace, cells),
+        th,
+        total,
+        noise_floor,
+    )?;
     let cov0 = scaled_inverse(&f0)?;
     // The bias goes after the initial rate (before the offsets of (F7), when there are any).
     let th1: [f32; PB] = core::array::from_fn(|i| {
