@@ -147,11 +147,12 @@
 //! and its cost ([`RatioFitEstimate::cost_with_scale`]) is what the products of inertia of the
 //! tensor must beat to be believed: they absorb part of a scale error too.
 //!
-//! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 138 / 183
+//! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 146 / 209
 //! instructions per sample (a block sum; a merge of the 256 blocks once in a while costs up to
-//! 14 k); one fit 5.97 / 6.56 M instructions after 20 s at 1 kHz, 1.53 / 1.66 M after an
-//! 85-sample toss (the tests (T4), (T5) are one evaluation with 9 sensitivity columns; (T6)
-//! and the torque's refit run only where their score test rejected).
+//! 14 k); one fit 4.36 / 4.51 M instructions after 20 s at 1 kHz, 1.19 / 1.24 M after an
+//! 85-sample toss (the bias's score and the tests (T4), (T5) are one evaluation with 12
+//! columns at the plain optimum; (T6), the bias model and the torque's refit run only where
+//! their score test rejected).
 #![allow(
     // Fixed-size loops over the 3 axes and the P <= 8 parameters read as the equations; the
     // crate's link-time no-panic check proves no bounds check survives.
@@ -875,8 +876,9 @@ struct StretchFit {
     resolution: f32,
 }
 
-/// Fits the stretch in `blocks`: the plain model on growing prefixes, then the bias model from
-/// its result, then the tests of what the model lacks.
+/// Fits the stretch in `blocks`: the plain model on all the blocks (on growing prefixes too
+/// when that does not fit, [`whole_or_staged`]), then the bias model from its result, then the
+/// tests of what the model lacks.
 fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
     let total = blocks.len();
     blocks.first()?;
