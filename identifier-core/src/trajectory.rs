@@ -72,8 +72,9 @@
 //! themselves, is put into the reported uncertainty ((T7), `resolution_factor`). The whole
 //! record is fitted at once, and on growing prefixes (16 blocks, then doubling, so that the
 //! phase of the trajectory is never far from the data) only when that does not fit to twice
-//! the noise (`output_error::whole_or_staged`, as the tensor fit); the start is the per-axis least-squares fit of the integrated (1) on the block means, turned
-//! into the moments that come closest to all three of its ratios ((T8), `moments_of`).
+//! the noise (`output_error::whole_or_staged`, as the tensor fit); the start is the per-axis
+//! least-squares fit of the integrated (1) on the block means, turned into the moments that
+//! come closest to all three of its ratios ((T8), `moments_of`).
 //!
 //! # Uncertainty, bias, pooling
 //!
@@ -846,16 +847,22 @@ fn tests_reject(
         return (false, false);
     };
     let (f, g) = without(f, g, drop);
-    let (ft, gt) = without(&f, &g, &[8]);
-    let torque = score_beyond(&ft, &gt, &[5, 6, 7])
+    let (ft, gt) = without(&f, &g, &[STEP_COLUMN]);
+    let torque = score_beyond(&ft, &gt, &TORQUE_COLUMNS)
         .is_some_and(|sc| score_rejects(sc, cost, dof, noise_floor));
-    let (fr, gr) = without(&f, &g, &[5, 6, 7]);
-    let rigid = score_beyond(&fr, &gr, &[8])
+    let (fr, gr) = without(&f, &g, &TORQUE_COLUMNS);
+    let rigid = score_beyond(&fr, &gr, &[STEP_COLUMN])
         .is_some_and(|sc| score_rejects_at(sc, RIGID_CHI2, cost, dof, noise_floor));
     (torque, rigid)
 }
 
-/// The columns of the bias in the layout of [`P_TESTS_BIAS`].
+/// The columns of a constant torque ((T4)) in the layout of [`P_TESTS_BIAS`].
+const TORQUE_COLUMNS: [usize; 3] = [5, 6, 7];
+
+/// The column of the step off the rigid-body constraint ((T5)) in that layout.
+const STEP_COLUMN: usize = 8;
+
+/// The columns of the bias in that layout.
 const BIAS_COLUMNS: [usize; 3] = [9, 10, 11];
 
 /// What [`fit_stretch`] found in one stretch.
@@ -901,13 +908,14 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
     // without the torque's and the step's columns) and gives the plain model's tests (without
     // the bias's). Each of those columns is integrated on its own, so the two are what
     // separate evaluations gave, for one.
-    let mut th12 = [0.0f32; P_TESTS_BIAS];
-    th12[..5].copy_from_slice(&theta5);
-    let at_plain = normal::<P_TESTS_BIAS, C_TESTS>(blocks, total, &th12);
+    let mut plain12 = [0.0f32; P_TESTS_BIAS];
+    plain12[..5].copy_from_slice(&theta5);
+    let at_plain = normal::<P_TESTS_BIAS, C_TESTS>(blocks, total, &plain12);
     let worth = at_plain
         .as_ref()
         .and_then(|(_, f, g)| {
-            let (f, g) = without(f, g, &[5, 6, 7, 8]);
+            let (f, g) = without(f, g, &TORQUE_COLUMNS);
+            let (f, g) = without(&f, &g, &[STEP_COLUMN]);
             score(&f, &g)
         })
         .is_none_or(|sc| bias_worth_fitting(sc, cost5, dof5, noise_floor));
@@ -976,9 +984,9 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
             });
         }
     }
-    // The tests at the plain optimum (zero torque in theta[5..8], zero step in theta[8]).
-    let mut theta = [0.0f32; P_MAX];
-    theta[..5].copy_from_slice(&theta5);
+    // The plain model's tests, from the evaluation at its optimum above; `theta` is that
+    // optimum in the bias model's layout (a zero bias), where the refits below start.
+    let theta = theta8;
     let (torque, rigid) = tests_reject(at_plain.as_ref(), &BIAS_COLUMNS, cost5, dof5, noise_floor);
     let torque = torque
         .then(|| {
