@@ -7,7 +7,8 @@
 #      -icount -> docs/bench/instructions.csv
 #   2. all methods on the same Monte Carlo seeds, Cramer-Rao bounds, host ns/sample, racquet
 #      spread -> stdout, BENCHMARKS.md, docs/bench/*.svg
-# Options are passed to bench-estimators: --quick (8 seeds, writes nothing), --seeds N,
+# Options are passed to bench-estimators: --quick (8 seeds, writes nothing, prints no goal
+# verdicts: those belong to the full run), --seeds N,
 # --scenario NAME, --no-write, --no-racquet. With --quick the QEMU step is skipped.
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/setup.sh"
