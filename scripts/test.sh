@@ -9,6 +9,9 @@ ensure_thumb_target
 log "cargo fmt --check"
 cargo fmt --all -- --check
 
+log "relative links and anchors in README.md, CHANGELOG.md, docs/*.md"
+scripts/check-links.sh
+
 log "cargo clippy -D warnings (host crates)"
 cargo clippy --all-targets -- -D warnings
 scripts/check-msrv.sh
