@@ -9,7 +9,7 @@ cargo flash-board: probe-rs is not installed.
   Install it (about 15 minutes to build):   cargo install probe-rs-tools --locked
   or use the installer from the probe-rs project's documentation.
   Then connect a debug probe (ST-LINK, J-Link, CMSIS-DAP) to the flight controller's SWD pads.
-  Without a probe, read the board over its UART instead (see README, firmware section), or run
+  Without a probe, read the board over its UART instead (see docs/firmware.md), or run
   the same firmware under QEMU: scripts/run.sh
 MSG
     exit 127

@@ -39,7 +39,7 @@ scripts/check-no-panic.sh
 log "reliability: fault injection on the MCU under QEMU (watchdog, re-initialisation, figure)"
 checks/firmware-faults/run.sh
 
-# A smoke run; the long runs are `scripts/fuzz.sh 600` (README, reliability).
+# A smoke run; the long runs are `scripts/fuzz.sh 600` (docs/validation.md, reliability).
 log "reliability: bounded fuzzing (10 s per target)"
 scripts/fuzz.sh 10
 # ---- end of reliability section ----
