@@ -17,10 +17,10 @@
 //! which the file says) with the same axes.
 //!
 //! URDF's `ixx ixy ixz iyy iyz izz` (and SDF's elements of the same names, and PX4's
-//! `SIH_IXX` ... `SIH_IYZ`) are the entries of the symmetric inertia matrix `J` (the one of
-//! `L = J w`) on and above its diagonal: `ixy = J_xy = -sum m x y`, not the product of inertia
-//! `sum m x y` that some texts call `I_xy`. The report's `tensor_kg_m2` is that matrix, so its
-//! entries are written as they are, never negated.
+//! `VM_INERTIA_XX` ... and `SIH_IXX` ...) are the entries of the symmetric inertia matrix `J`
+//! (the one of `L = J w`) on and above its diagonal: `ixy = J_xy = -sum m x y`, not the product
+//! of inertia `sum m x y` that some texts call `I_xy`. The report's `tensor_kg_m2` is that
+//! matrix, so its entries are written as they are, never negated.
 
 use std::fmt;
 use std::str::FromStr;
@@ -45,9 +45,9 @@ pub enum ExportFormat {
     Urdf,
     /// An SDF (version 1.9) `<model>` with one `<link>` and its `<inertial>`.
     Sdf,
-    /// PX4 parameters: `param set` lines for the simulator in hardware (SIH), the only PX4
-    /// parameters that hold a vehicle's mass and inertia, and the SDF inertial of a Gazebo
-    /// model in comments (see [`px4`]).
+    /// PX4 parameters: `param set` lines for the modules whose parameters hold a vehicle's mass
+    /// and inertia (`angular_velocity_controller`'s `VM_*`, the simulator in hardware's
+    /// `SIH_*`), and the SDF inertial of a Gazebo model in comments (see [`px4`]).
     Px4,
     /// The JSON report, byte for byte what `--json` writes.
     Json,
@@ -332,7 +332,7 @@ pub struct Inertial {
 
 impl Inertial {
     /// The six entries `ixx ixy ixz iyy iyz izz`: the matrix's own entries on and above its
-    /// diagonal (URDF's, SDF's and PX4 SIH's convention; see the module documentation).
+    /// diagonal (URDF's, SDF's and PX4's convention; see the module documentation).
     pub fn six(&self) -> [(&'static str, f32); 6] {
         let j = &self.tensor_kg_m2;
         [
@@ -356,7 +356,8 @@ impl Inertial {
         let mut v = vec![
             format!(
                 "Identified by `inertia identify` from {} (pooled tensor status {}).",
-                self.source, self.status
+                self.source.replace(char::is_control, " "),
+                self.status
             ),
             "Link frame: the log's gyro axes, origin at the IMU. The inertia is about the \
              centre of mass, in those axes, kg m^2."
@@ -458,27 +459,39 @@ pub fn sdf(b: &Inertial) -> String {
 }
 
 /// The PX4 parameters, as `param set` lines for the PX4 shell (an airframe file takes them as
-/// `param set-default`).
+/// `param set-default`), in two blocks, each for the module that reads it (a build without the
+/// module answers `param set` with "parameter not found"):
 ///
-/// PX4's flight stack has no parameter for the vehicle's inertia: its rate controllers take
-/// gains, not a model. The parameters that hold mass and inertia are those of SIH, PX4's
-/// simulator in hardware (module `simulator_sih`): `SIH_MASS` (kg) and `SIH_IXX`, `SIH_IYY`,
-/// `SIH_IZZ`, `SIH_IXY`, `SIH_IXZ`, `SIH_IYZ` (kg m^2), which SIH assembles into its symmetric
-/// inertia matrix as they are (`SIH_IXY` is the matrix's entry, as URDF's `ixy`). SIH takes
-/// them in the body frame (FRD) with the centre of mass at the body's origin: it has no
-/// centre-of-mass parameter. Gazebo SITL models take the SDF inertial of their base link,
-/// which follows in comments ([`sdf`]); their base link is FLU, so from FRD axes `ixy`, `ixz`
-/// and the pose's `y`, `z` change sign (`J' = R J R^T`, `R = diag(1, -1, -1)`), which the
-/// comments say rather than do, the log's axes being whatever its gyro's are.
+/// * `VM_MASS` (kg) and `VM_INERTIA_XX`, `VM_INERTIA_XY`, `VM_INERTIA_XZ`, `VM_INERTIA_YY`,
+///   `VM_INERTIA_YZ`, `VM_INERTIA_ZZ` (kg m^2), group "Vehicle Model", read by the module
+///   `angular_velocity_controller`, an alternative rate controller that outputs torque (the
+///   default multicopter rate controller, `mc_rate_control`, takes gains and no inertia);
+/// * `SIH_MASS` and `SIH_IXX`, `SIH_IXY`, `SIH_IXZ`, `SIH_IYY`, `SIH_IYZ`, `SIH_IZZ`, read by
+///   SIH, PX4's simulator in hardware (module `simulator_sih`).
+///
+/// Both modules assemble their symmetric inertia matrix from the parameters as they are: the
+/// `XY` ones are the matrix's entry, as URDF's `ixy`. Both take the body frame (FRD) with the
+/// centre of mass at its origin (`angular_velocity_controller` and SIH have no centre-of-mass
+/// parameter). Gazebo SITL models take the SDF inertial of their base link, which follows in
+/// comments ([`sdf`]); their base link is FLU, so from FRD axes `ixy`, `ixz` and the pose's
+/// `y`, `z` change sign (`J' = R J R^T`, `R = diag(1, -1, -1)`), which the comments say rather
+/// than do, the log's axes being whatever its gyro's are.
 pub fn px4(b: &Inertial) -> String {
     let mut s = String::new();
     for line in b.header() {
         s += &format!("# {line}\n");
     }
-    s += "# PX4's flight stack has no inertia parameter (its controllers are tuned by gains).\n\
-          # These are the parameters of SIH, PX4's simulator in hardware (simulator_sih), in\n\
-          # the body frame (FRD): the gyro axes above must be FRD for them to apply as they are\n\
-          # (a PX4 log's sensor_combined is). SIH has no centre-of-mass parameter.\n";
+    s += "# The parameters are in the body frame (FRD): the gyro axes above must be FRD for\n\
+          # them to apply as they are (a PX4 log's sensor_combined is). Neither module below has\n\
+          # a centre-of-mass parameter. A build without a module answers its lines with\n\
+          # \"parameter not found\".\n\
+          # angular_velocity_controller (an alternative rate controller; the default\n\
+          # mc_rate_control takes gains, no inertia):\n";
+    s += &format!("param set VM_MASS {}\n", b.mass_kg);
+    for (k, x) in b.six() {
+        s += &format!("param set VM_INERTIA_{} {x}\n", k[1..].to_ascii_uppercase());
+    }
+    s += "# SIH, PX4's simulator in hardware (simulator_sih):\n";
     s += &format!("param set SIH_MASS {}\n", b.mass_kg);
     for (k, x) in b.six() {
         s += &format!("param set SIH_{} {x}\n", k.to_ascii_uppercase());

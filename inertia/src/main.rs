@@ -200,8 +200,8 @@ struct IdentifyArgs {
     /// scale-factor error, and the standard deviations are otherwise the noise's only).
     #[arg(long)]
     gyro_scale_tolerance: Option<f32>,
-    /// Also write the pooled tensor for a simulator or flight stack: urdf, sdf (1.9), px4 (the
-    /// SIH simulator's parameters, the SDF inertial in comments) or json (the report, as
+    /// Also write the pooled tensor for a simulator or flight stack: urdf, sdf (1.9), px4
+    /// (parameters `VM_*` and `SIH_*`, the SDF inertial in comments) or json (the report, as
     /// --json writes it). Refused unless the tensor is a rigid body's and `Converged` (see
     /// --force); urdf, sdf and px4 need --mass and a rotor (the tensor in kg m^2).
     #[arg(long, value_name = "FORMAT", value_parser = parse_export_format, requires = "export_out")]

@@ -190,7 +190,7 @@ fn sdf_export_parses_with_its_structure_and_values() {
 }
 
 #[test]
-fn px4_export_sets_the_sih_parameters() {
+fn px4_export_sets_the_vehicle_model_and_sih_parameters() {
     let (j, text) = export_converged("px4", "px4", &["--mass", MASS]);
     let params: Vec<(&str, f64)> = text
         .lines()
@@ -205,11 +205,28 @@ fn px4_export_sets_the_sih_parameters() {
     let names: Vec<&str> = params.iter().map(|p| p.0).collect();
     assert_eq!(
         names,
-        ["SIH_MASS", "SIH_IXX", "SIH_IXY", "SIH_IXZ", "SIH_IYY", "SIH_IYZ", "SIH_IZZ"]
+        [
+            "VM_MASS",
+            "VM_INERTIA_XX",
+            "VM_INERTIA_XY",
+            "VM_INERTIA_XZ",
+            "VM_INERTIA_YY",
+            "VM_INERTIA_YZ",
+            "VM_INERTIA_ZZ",
+            "SIH_MASS",
+            "SIH_IXX",
+            "SIH_IXY",
+            "SIH_IXZ",
+            "SIH_IYY",
+            "SIH_IYZ",
+            "SIH_IZZ"
+        ]
     );
-    assert_eq!(params[0].1, 0.032);
-    let values: Vec<f32> = params[1..].iter().map(|p| p.1 as f32).collect();
-    assert_eq!(values, six(&j));
+    for block in params.chunks(7) {
+        assert_eq!(block[0].1, 0.032);
+        let values: Vec<f32> = block[1..].iter().map(|p| p.1 as f32).collect();
+        assert_eq!(values, six(&j));
+    }
     assert!(text.contains("# <inertial>"), "{text}");
 }
 

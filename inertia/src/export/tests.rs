@@ -169,6 +169,13 @@ fn sdf_and_px4_carry_the_same_entries() {
         .unwrap()
         .text;
     for line in [
+        "param set VM_MASS 0.25",
+        "param set VM_INERTIA_XX 0.00024",
+        "param set VM_INERTIA_XY -0.000012",
+        "param set VM_INERTIA_XZ 0.000003",
+        "param set VM_INERTIA_YY 0.00015",
+        "param set VM_INERTIA_YZ 0.000008",
+        "param set VM_INERTIA_ZZ 0.00031",
         "param set SIH_MASS 0.25",
         "param set SIH_IXX 0.00024",
         "param set SIH_IXY -0.000012",
@@ -182,9 +189,16 @@ fn sdf_and_px4_carry_the_same_entries() {
         assert!(px4.lines().any(|l| l == line), "{line:?} missing:\n{px4}");
     }
     // Every line a comment or a parameter.
-    assert!(px4
-        .lines()
-        .all(|l| l.starts_with('#') || l.starts_with("param set SIH_")));
+    assert!(px4.lines().all(|l| l.starts_with('#')
+        || l.starts_with("param set SIH_")
+        || l.starts_with("param set VM_")));
+    // A name with a line break stays in its comment.
+    let mut r = r;
+    r.input = "a\nparam set X 1".into();
+    let px4 = export(&r, &opts(ExportFormat::Px4, Some(0.25)))
+        .unwrap()
+        .text;
+    assert!(!px4.lines().any(|l| l.starts_with("param set X")), "{px4}");
 }
 
 #[test]
