@@ -203,7 +203,8 @@ struct IdentifyArgs {
     /// Also write the pooled tensor for a simulator or flight stack: urdf, sdf (1.9), px4
     /// (parameters `VM_*` and `SIH_*`, the SDF inertial in comments) or json (the report, as
     /// --json writes it). Refused unless the tensor is a rigid body's and `Converged` (see
-    /// --force); urdf, sdf and px4 need --mass and a rotor (the tensor in kg m^2).
+    /// --force); urdf, sdf and px4 need --mass and a rotor (the tensor in kg m^2). A refused
+    /// export exits with 3, the --json report written all the same.
     #[arg(long, value_name = "FORMAT", value_parser = parse_export_format, requires = "export_out")]
     export: Option<ExportFormat>,
     /// Where to write the --export file.
