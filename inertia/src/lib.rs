@@ -4,6 +4,7 @@
 
 pub mod calibrate;
 pub mod close_loop;
+pub mod export;
 pub mod identify;
 pub mod plots;
 pub mod readers;

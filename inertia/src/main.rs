@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use inertia::close_loop::{analysis, report};
+use inertia::export::{ExportError, ExportFormat, ExportOptions};
 use inertia::identify::{identify_source, parse_axis, IdentifyOptions, Progress, Rotor, RotorHold};
 use inertia::{read, AccelUnit, Format, GyroUnit, ReadOptions, TimeUnit};
 
@@ -199,6 +200,61 @@ struct IdentifyArgs {
     /// scale-factor error, and the standard deviations are otherwise the noise's only).
     #[arg(long)]
     gyro_scale_tolerance: Option<f32>,
+    /// Also write the pooled tensor for a simulator or flight stack: urdf, sdf (1.9), px4
+    /// (parameters `VM_*` and `SIH_*`, the SDF inertial in comments) or json (the report, as
+    /// --json writes it). Refused unless the tensor is a rigid body's and `Converged` (see
+    /// --force); urdf, sdf and px4 need --mass and a rotor (the tensor in kg m^2). A refused
+    /// export exits with 3, the --json report written all the same.
+    #[arg(long, value_name = "FORMAT", value_parser = parse_export_format, requires = "export_out")]
+    export: Option<ExportFormat>,
+    /// Where to write the --export file.
+    #[arg(long, value_name = "PATH", requires = "export")]
+    export_out: Option<PathBuf>,
+    /// The body's mass, kg, for --export urdf, sdf and px4.
+    #[arg(long, value_name = "KG", requires = "export")]
+    mass: Option<f64>,
+    /// The centre of mass's position from the IMU in the gyro axes, m (X,Y,Z; `inertia
+    /// calibrate` gives it), for --export urdf, sdf and px4; without it the inertial frame is
+    /// put at the IMU and the file says so.
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        requires = "export"
+    )]
+    com: Option<Vec<f64>>,
+    /// Export a tensor whose status is not `Converged` (with a warning). A tensor that is no
+    /// rigid body's is refused all the same.
+    #[arg(long, requires = "export")]
+    force: bool,
+}
+
+fn parse_export_format(s: &str) -> Result<ExportFormat, String> {
+    s.parse()
+}
+
+/// The `--export` options of `identify`, checked before the log is read (`rotor_known`:
+/// `--rotor-inertia` given); `None` without `--export`.
+fn export_options(args: &IdentifyArgs, rotor_known: bool) -> Result<Option<ExportOptions>, String> {
+    let Some(format) = args.export else {
+        return Ok(None);
+    };
+    let com_m = match &args.com {
+        None => None,
+        Some(v) => Some(
+            <[f64; 3]>::try_from(v.as_slice())
+                .map_err(|_| ExportError::BadCom(v.clone()).to_string())?,
+        ),
+    };
+    let opts = ExportOptions {
+        format,
+        mass_kg: args.mass,
+        com_m,
+        force: args.force,
+    };
+    inertia::export::check_options(&opts, rotor_known).map_err(|e| e.to_string())?;
+    Ok(Some(opts))
 }
 
 fn parse_gyro_unit(s: &str) -> Result<GyroUnit, String> {
@@ -371,6 +427,7 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
         }
     }
     let rotor = rotor_and_noise(&args.rotor, args.noise_std)?;
+    let export = export_options(&args, rotor.is_some())?;
     let segments = args.segments.as_ref().map(parse_segments).transpose()?;
     let opts = ReadOptions {
         gyro_unit: args.gyro_unit,
@@ -433,7 +490,18 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
     );
     if p.a.is_none() {
         eprintln!("error: the data cannot determine the tensor ({})", p.status);
+        if export.is_some() {
+            eprintln!("error: nothing exported");
+        }
         return Ok(ExitCode::from(4));
+    }
+    if let (Some(o), Some(path)) = (&export, &args.export_out) {
+        let e = inertia::export::export(&report, o).map_err(|e| e.to_string())?;
+        for w in &e.warnings {
+            eprintln!("warning: {w}");
+        }
+        std::fs::write(path, &e.text).map_err(|e| format!("{}: {e}", path.display()))?;
+        eprintln!("{} export written to {}", o.format, path.display());
     }
     Ok(ExitCode::SUCCESS)
 }
