@@ -73,7 +73,7 @@ for f in "${logs[@]}"; do
     d="$OUT/runs/$name"
     mkdir -p "$d"
     rotor=(--rotor-inertia 1.689e-6 --rotor-axis=-z)
-    case "$f" in *.BFL | *.bbl) rotor+=(--rotor-poles 12) ;; *no_rotor*) rotor=() ;; esac
+    case "$f" in *.BFL | *.bbl) rotor+=(--rotor-poles 14) ;; *no_rotor*) rotor=() ;; esac
     set +e
     "$INERTIA" identify --input "$f" "${rotor[@]}" --json "$d/identify.json" 2>"$d/identify.err"
     id_rc=$?

@@ -156,15 +156,17 @@ fn rel_frobenius(t: &[[f32; 3]; 3], truth: &[[f64; 3]; 3]) -> f64 {
 }
 
 /// A rotor whose speed telemetry is wrong while it idles (here 20 % low until the spin-up,
-/// as a sensorless ESC's can be after a start from rest): the fit of the whole flight does not
-/// fit to the noise, and the pipeline fits the flight from the rotor's spin-up instead
-/// (`TensorFit::close`), where the momentum that fixes the scale is large against the error.
-/// The status says `ModelMismatch`; the tensor is still within 1.5 % of the truth (the whole
-/// flight's fit: 1.6-10 % off, checked by disabling the refit). With the bias measured on the
-/// bench and a constant gyro bias, no bias is fitted (`close_without_bias`).
+/// as a sensorless ESC's can be after a start from rest): the flight does not fit to the
+/// noise, the status says `ModelMismatch`, and the tensor's reported standard deviation covers
+/// its error (every entry within 3.5 std). The multiple-shooting fit ((F11) of `tensor_fit`)
+/// takes every segment, the idle ones too, so J is 3-10 % off here; the single trajectory
+/// from the rotor's spin-up kept it within 1.5 %, but on thrown objects of known inertia the
+/// multiple-shooting fit is two to three times closer (`scripts/bench-objects.sh`). A constant
+/// gyro bias measured on the bench is removed.
 #[test]
-fn a_rotor_telemetry_wrong_before_the_spin_up_is_left_out_of_the_fit() {
+fn a_rotor_telemetry_wrong_before_the_spin_up_is_flagged_with_its_error_covered() {
     let mut worst: f64 = 0.0;
+    let mut worst_z: f64 = 0.0;
     for seed in 1..=4 {
         let mut cfg = board_throw_config(seed);
         cfg.gyro.bias = [0.01, -0.007, 0.015];
@@ -185,10 +187,19 @@ fn a_rotor_telemetry_wrong_before_the_spin_up_is_left_out_of_the_fit() {
             .map(|(k, &v)| if k < spin_up { 0.8 * v } else { v })
             .collect();
         let (e, outcome) = gated(&cfg, &sim, &wrong);
-        let err = rel_frobenius(&e.tensor.expect("absolute"), &cfg.inertia);
+        let t = e.tensor.expect("absolute");
+        let sd = e.tensor_std.expect("a std");
+        let err = rel_frobenius(&t, &cfg.inertia);
+        let mut z: f64 = 0.0;
+        for r in 0..3 {
+            for c in r..3 {
+                let d = t[r][c] as f64 - cfg.inertia[r][c];
+                z = z.max(d.abs() / sd[r][c] as f64);
+            }
+        }
         println!(
-            "seed {seed}: telemetry 20 % low before the spin-up: J off by {err:.4}, {:?}, \
-             residual {:.1}x the noise",
+            "seed {seed}: telemetry 20 % low before the spin-up: J off by {err:.4}, largest \
+             error {z:.2} std, {:?}, residual {:.1}x the noise",
             e.status, e.residual_ratio
         );
         assert_eq!(
@@ -198,8 +209,10 @@ fn a_rotor_telemetry_wrong_before_the_spin_up_is_left_out_of_the_fit() {
         );
         assert_eq!(e.status, TensorStatus::ModelMismatch, "seed {seed}");
         worst = worst.max(err);
+        worst_z = worst_z.max(z);
     }
-    assert!(worst < 0.015, "J off by {worst:.4}");
+    println!("worst: J off by {worst:.4}, {worst_z:.2} std");
+    assert!(worst_z < 3.5, "an entry {worst_z:.2} std off");
 }
 
 /// Without rotor momentum the scale of `J` is not determined: the pipeline fits `J / trace J`

@@ -978,9 +978,9 @@ impl<const M: usize> Pooled<M> {
 }
 
 /// One stretch's fit as the pooling takes it: the `M` parameters of interest, their
-/// unit-noise covariance block, the cost, the number of parameters fitted, the bias when
-/// the bias model was taken, and the lag-1 autocorrelation of its block residuals when it was
-/// measured (a fit that does not fit to the noise; 0 otherwise).
+/// unit-noise covariance block (inflated for the residual's correlation where the fit
+/// measured it: `tensor_fit`'s (F10)), the cost, the number of parameters fitted and the bias
+/// when the bias model was taken.
 pub(crate) struct StretchResult<const M: usize> {
     pub(crate) p: [f32; M],
     pub(crate) cov: Sym<M>,
@@ -991,6 +991,8 @@ pub(crate) struct StretchResult<const M: usize> {
     pub(crate) cost: f32,
     pub(crate) params: usize,
     pub(crate) bias: Option<[f32; 3]>,
+    /// Lag-1 autocorrelation of the block residuals, measured where the fit does not fit to
+    /// the noise (0 otherwise).
     pub(crate) lag1: f32,
     /// The cost with a constant torque fitted, when its score test rejected the torque-free
     /// model (`None`: not rejected, or not tested).

@@ -24,7 +24,7 @@ fn unit(paths: &[PathBuf]) -> Vec<UnitThrow> {
         .iter()
         .map(|p| {
             let rec = inertia::read(p, &Default::default()).unwrap();
-            unit_throw(&rec, [0.0, 0.0, -1.0], Some(12)).unwrap()
+            unit_throw(&rec, [0.0, 0.0, -1.0], Some(14)).unwrap()
         })
         .collect()
 }
@@ -70,67 +70,65 @@ fn calibrate_on_thrown_fc() {
             .map(|x| format!("{:.2} %", x * 100.0))
             .collect::<Vec<_>>()
     );
+    // The proof body's axes in the log's frame: the anchor's frame is the log's turned -90 deg
+    // about z (data README), so its x and y moments exchange.
     let c = cuboid();
-    // Two readings of the proof body's axes in the log's frame: as the data README lists them
-    // (x, y as logged) and with x and y exchanged (the anchor's frame turned 90 deg about z, as
-    // the board's products of inertia suggest).
+    let known = diag([c[1], c[0], c[2]]);
+    let (jt, rt) = mean(&proof);
+    let (d, m, c_o) = difference((&jb, rb), (&jt, rt), m_b, m_o);
+    let j = calibrate_j(&d, &m, &known);
+    let board_abs = jb.map(|r| r.map(|x| x * j));
+    println!(
+        "j = {j:.4e} kg m^2 (anchor 1.689e-6, 14 poles); board J diag {:.3e} {:.3e} {:.3e}; proof CoM from IMU {:.1} {:.1} {:.1} mm",
+        board_abs[0][0], board_abs[1][1], board_abs[2][2], c_o[0] * 1e3, c_o[1] * 1e3, c_o[2] * 1e3
+    );
+    // The rotor inertia from the corrected pole count agrees with the anchor's calibration.
+    assert!((j / 1.689e-6 - 1.0).abs() < 0.02, "j {j:.4e}");
+    let fit = object(j, &d, &m);
+    let cmp = compare(&fit, &known);
+    println!(
+        "in-sample: moments {:?} axes {:?} deg",
+        cmp.moment_errors, cmp.axis_errors_deg
+    );
     let (mut loo_moment, mut loo_axis) = (0.0f64, 0.0f64);
-    for (name, known) in [("as listed", diag(c)), ("x<->y", diag([c[1], c[0], c[2]]))] {
-        let (jt, rt) = mean(&proof);
-        let (d, m, c_o) = difference((&jb, rb), (&jt, rt), m_b, m_o);
-        let j = calibrate_j(&d, &m, &known);
-        let board_abs = jb.map(|r| r.map(|x| x * j));
+    for k in 0..proof.len() {
+        let others: Vec<UnitThrow> = proof
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| *i != k)
+            .map(|(_, t)| t.clone())
+            .collect();
+        let (jt, rt) = mean(&others);
+        let (d, m, _) = difference((&jb, rb), (&jt, rt), m_b, m_o);
+        let j_k = calibrate_j(&d, &m, &known);
+        let (dk, mk, _) = difference((&jb, rb), (&proof[k].j1, proof[k].imu_from_com), m_b, m_o);
+        let got = object(j_k, &dk, &mk);
+        let cmp = compare(&got, &known);
         println!(
-            "[{name}] j = {j:.4e} kg m^2 (anchor 1.689e-6); board J diag {:.3e} {:.3e} {:.3e}; proof CoM from IMU {:.1} {:.1} {:.1} mm",
-            board_abs[0][0], board_abs[1][1], board_abs[2][2], c_o[0] * 1e3, c_o[1] * 1e3, c_o[2] * 1e3
+            "leave out {}: j {:.4e}, moments {:>6.2} {:>6.2} {:>6.2} %, axes {:>5.2} {:>5.2} {:>5.2} deg",
+            k, j_k,
+            cmp.moment_errors[0] * 100.0, cmp.moment_errors[1] * 100.0, cmp.moment_errors[2] * 100.0,
+            cmp.axis_errors_deg[0], cmp.axis_errors_deg[1], cmp.axis_errors_deg[2]
         );
-        let fit = object(j, &d, &m);
-        let cmp = compare(&fit, &known);
-        println!(
-            "[{name}] in-sample: moments {:?} axes {:?} deg",
-            cmp.moment_errors, cmp.axis_errors_deg
-        );
-        for k in 0..proof.len() {
-            let others: Vec<UnitThrow> = proof
-                .iter()
-                .enumerate()
-                .filter(|(i, _)| *i != k)
-                .map(|(_, t)| t.clone())
-                .collect();
-            let (jt, rt) = mean(&others);
-            let (d, m, _) = difference((&jb, rb), (&jt, rt), m_b, m_o);
-            let j_k = calibrate_j(&d, &m, &known);
-            let (dk, mk, _) =
-                difference((&jb, rb), (&proof[k].j1, proof[k].imu_from_com), m_b, m_o);
-            let got = object(j_k, &dk, &mk);
-            let cmp = compare(&got, &known);
-            println!(
-                "[{name}] leave out {}: j {:.4e}, moments {:>6.2} {:>6.2} {:>6.2} %, axes {:>5.2} {:>5.2} {:>5.2} deg",
-                k, j_k,
-                cmp.moment_errors[0] * 100.0, cmp.moment_errors[1] * 100.0, cmp.moment_errors[2] * 100.0,
-                cmp.axis_errors_deg[0], cmp.axis_errors_deg[1], cmp.axis_errors_deg[2]
-            );
-            assert!(j_k.is_finite() && j_k > 0.0);
-            if name == "x<->y" {
-                loo_moment = cmp
-                    .moment_errors
-                    .iter()
-                    .fold(loo_moment, |a, e| a.max(e.abs()));
-                loo_axis = cmp.axis_errors_deg.iter().fold(loo_axis, |a, &e| a.max(e));
-            }
-        }
+        assert!(j_k.is_finite() && j_k > 0.0);
+        loo_moment = cmp
+            .moment_errors
+            .iter()
+            .fold(loo_moment, |a, e| a.max(e.abs()));
+        loo_axis = cmp.axis_errors_deg.iter().fold(loo_axis, |a, &e| a.max(e));
     }
-    // Guards against the regressions the README's figures were measured past: the fit of the
-    // whole flight with a bias re-estimated under model mismatch gave a spread up to 2.5 %,
-    // leave-one-out errors up to 8 % and axes up to 4.3 deg (targets: 1 %, 1 %, 1.5 deg, not
-    // all met; see the README).
+    // Guards against regressions past the figures of the multiple-shooting fit (the tensor
+    // fit's (F11)) on this calibration set: board spread 0.33-2.23 %, leave-one-out moments
+    // within 3.3 %, axes within 5 deg. The single trajectory it replaced spread the board less
+    // here (0.75-1.39 %, axes within 1.6 deg) but was two to three times further off on
+    // objects of known inertia (`scripts/bench-objects.sh`).
     let worst_spread = spread.iter().fold(0.0f64, |a, &x| a.max(x));
-    assert!(worst_spread < 0.015, "board spread {worst_spread:.4}");
+    assert!(worst_spread < 0.025, "board spread {worst_spread:.4}");
     assert!(
         loo_moment < 0.035,
         "leave-one-out moment error {loo_moment:.4}"
     );
-    assert!(loo_axis < 2.0, "leave-one-out axis error {loo_axis:.2} deg");
+    assert!(loo_axis < 5.5, "leave-one-out axis error {loo_axis:.2} deg");
 }
 
 /// `inertia calibrate` with one proof-body throw as the unknown object and the other four as
@@ -163,7 +161,7 @@ fn an_object_by_difference_comes_with_an_honest_uncertainty() {
             object: vec![proof[k].clone()],
             object_mass: Some(0.346),
             rotor_axis: [0.0, 0.0, -1.0],
-            rotor_poles: Some(12),
+            rotor_poles: Some(14),
             json: std::env::temp_dir().join("unused.json"),
             plots: None,
         };
@@ -215,7 +213,7 @@ fn a_bad_log_among_good_ones_is_left_out_with_its_reason() {
         object: vec![],
         object_mass: None,
         rotor_axis: [0.0, 0.0, -1.0],
-        rotor_poles: Some(12),
+        rotor_poles: Some(14),
         json: dir.join("unused.json"),
         plots: None,
     };

@@ -376,7 +376,7 @@ fn thrown_fc_free_flights_found_hand_and_catch_excluded() {
                 "--rotor-axis",
                 "-z",
                 "--rotor-poles",
-                "12",
+                "14",
             ],
             &json,
         );
@@ -670,11 +670,11 @@ fn a_blackbox_gyro_in_the_wrong_unit_is_named_and_not_trusted() {
     std::fs::write(&p, &edited).unwrap();
     let rotor = [
         "--rotor-inertia",
-        "1.467e-6",
+        "1.689e-6",
         "--rotor-axis",
         "-z",
         "--rotor-poles",
-        "12",
+        "14",
     ];
     let mut args = vec!["--input", p.to_str().unwrap()];
     args.extend(rotor);

@@ -131,6 +131,33 @@
 //! [`crate::TensorEstimator`]'s) and the first block's rate, on all the blocks at once, and on
 //! growing prefixes of them only when that does not fit to twice the noise.
 //!
+//! # When the model does not fit
+//!
+//! A real vehicle's flight leaves a residual far above the gyro's noise, and a slow one
+//! (drift, steps where a rotor spins up): the covariance scaled by the residual's level alone
+//! claims several times the information the flight holds. Each parameter's variance is then
+//! inflated by what the residual's correlation does to it, the sandwich of the block scores
+//! summed over batches of the residual's correlation length, never less than a first-order
+//! autoregressive residual's `(1 + rho) / (1 - rho)`:
+//!
+//! ```text
+//! k_i = max((1 + rho) / (1 - rho), (F^-1 V F^-1)_ii / (s^2 (F^-1)_ii)),
+//! V = K/(K-1) sum_k G_k G_k^T,   G_k = sum_(b in batch k) n_b R_b^T r_b              (F10)
+//! ```
+//!
+//! and the covariance becomes `D C D`, `D = diag(sqrt(k_i))`.
+//!
+//! A single trajectory also carries the model error along the whole flight: the error of a
+//! small unmodelled torque grows with time and `J` bends to follow it. When the single
+//! trajectory's residual is above twice the noise (less the rotor reading's known errors of
+//! (F8)), the flight is fitted again by multiple shooting: consecutive segments of the
+//! residual's correlation length, each from its own initial rate, one `J` shared, the initial
+//! rates eliminated from the normal equations ((F11), `shooting`), its covariance the sandwich
+//! over the segments. It is kept when its likelihood-ratio test against the single trajectory
+//! passes (`shooting_found`), with a covariance never below the single trajectory's (the
+//! segments' sandwich sees the residual within one flight, not what moves a whole flight's
+//! answer). `scripts/bench-objects.sh` measures both fits on thrown objects of known inertia.
+//!
 //! # Up to scale
 //!
 //! Without rotor momentum (`h = 0`), `w(t)` of (F1) does not change when `J` is multiplied by
@@ -174,6 +201,7 @@ use crate::trajectory::StretchOutcome;
 mod model;
 mod normal;
 mod reading;
+mod shooting;
 #[cfg(test)]
 mod tests;
 
@@ -362,10 +390,10 @@ fn fit_model<
             }
             if let Some(c1) = scaled_inverse(&f1) {
                 let g = |i: usize| t1.get(i).copied().unwrap_or(0.0);
-                let lag1 = if cost1 > 4.0 * noise_floor * noise_floor * dof1 {
-                    residual_lag1(blocks, &rule, &t1, trace, cells)
+                let (inflation, lag1) = if cost1 > 4.0 * noise_floor * noise_floor * dof1 {
+                    score_inflation(blocks, &rule, &t1, trace, cells, &c1, cost1, dof1)
                 } else {
-                    0.0
+                    ([1.0; M], 0.0)
                 };
                 // The torque's parameters go between the initial rate and the bias.
                 let th_t: [f32; PTB] = core::array::from_fn(|i| {
@@ -382,7 +410,7 @@ fn fit_model<
                 let input = input_cov(blocks, &rule, &t1, cells, res, &f1);
                 return Some(StretchResult {
                     p: leading(&t1),
-                    cov: leading_block(&c1),
+                    cov: inflated(&leading_block(&c1), &inflation),
                     input: input.map(|(c, e)| (leading_block(&c), e)),
                     cost: cost1,
                     params: PB,
@@ -397,10 +425,10 @@ fn fit_model<
     if *cells != Cells::NONE && !cells.plausible(&th) {
         return None;
     }
-    let lag1 = if cost0 > fits {
-        residual_lag1(blocks, &rule, &th, trace, cells)
+    let (inflation, lag1) = if cost0 > fits {
+        score_inflation(blocks, &rule, &th, trace, cells, &cov0, cost0, dof0)
     } else {
-        0.0
+        ([1.0; M], 0.0)
     };
     let th_t: [f32; PT] = leading(&th);
     let (torque, scale) =
@@ -408,7 +436,7 @@ fn fit_model<
     let input = input_cov(blocks, &rule, &th, cells, res, &f0);
     Some(StretchResult {
         p: leading(&th),
-        cov: leading_block(&cov0),
+        cov: inflated(&leading_block(&cov0), &inflation),
         input: input.map(|(c, e)| (leading_block(&c), e)),
         cost: cost0,
         params: P,
@@ -502,16 +530,90 @@ fn residual_lag1<const P: usize>(
     }
 }
 
-/// How much a residual of lag-1 autocorrelation `rho` inflates the variance of what is fitted
-/// to it, against white noise of the same variance: `(1 + rho) / (1 - rho)`, the variance of the
-/// mean of a first-order autoregressive series over that of a white one (`rho` taken in
-/// `[0, 0.98]`: at most 99). The blocks' residuals are independent for white gyro noise; a model
-/// error is not white (on the thrown-FC logs it is low-frequency, `rho` about 0.9), and the
-/// covariance scaled by the residual variance alone then claims several times the information
-/// the flight holds.
-fn ar1_inflation(rho: f32) -> f32 {
+/// Blocks per batch of [`score_inflation`] for block residuals of lag-1 autocorrelation `rho`
+/// over `n` blocks: twice the residual's correlation length `(1 + rho) / (1 - rho)` (the
+/// variance of the mean of a first-order autoregressive series over a white one's; `rho` taken
+/// in `[0, 0.98]`), so that neighbouring batches' sums are nearly independent, but no more
+/// than `n / 8` (eight batches at least).
+fn batch_len(rho: f32, n: usize) -> usize {
     let r = rho.clamp(0.0, 0.98);
-    (1.0 + r) / (1.0 - r)
+    let len = 2.0 * (1.0 + r) / (1.0 - r);
+    let cap = (n / MIN_BATCHES).max(1);
+    // `len` is in [2, 198]: the cast is exact for its ceiling.
+    let l = (len + 0.999) as usize;
+    l.max(1).min(cap)
+}
+
+/// `D C D` with `D = diag(sqrt(k))`: the covariance `c` inflated per parameter ((F10)).
+fn inflated<const M: usize>(c: &Sym<M>, k: &[f32; M]) -> Sym<M> {
+    let d = k.map(sqrt);
+    let mut out = *c;
+    for (row, di) in out.iter_mut().zip(d) {
+        for (x, dj) in row.iter_mut().zip(d) {
+            *x *= di * dj;
+        }
+    }
+    out
+}
+
+/// Fewest batches [`score_inflation`] takes.
+const MIN_BATCHES: usize = 8;
+
+/// Each parameter's variance inflation from the residual actually seen ((F10)): the sandwich
+/// `F^-1 V F^-1` with `V` the batch-means estimate of the score's covariance (the blocks'
+/// scores `n_b R_b^T r_b` summed over batches of [`batch_len`] blocks, `V = K/(K-1) sum_k G_k
+/// G_k^T` over the `K` batches), against the white residual's `s^2 F^-1`, `s^2 = cost / dof`:
+///
+/// ```text
+/// k_i = max(1, (F^-1 V F^-1)_ii / (s^2 (F^-1)_ii))                                 (F10)
+/// ```
+///
+/// and the covariance becomes `D C D`, `D = diag(sqrt(k_i))`. Why: a model error is not white
+/// (on a real thrown vehicle it is slow: drift, and steps where a rotor spins up), so the
+/// covariance scaled by the residual's level alone claims several times the information the
+/// flight holds; and how much a slow residual weighs differs per parameter, as its
+/// sensitivities do (the initial rates see the start of the flight, the entries of `J` its
+/// whole length). For white noise `E V = s^2 F` and `k_i` is 1 up to the batches' scatter,
+/// which the floor keeps from lowering the white covariance. `theta` and `finv` (`F^-1` at
+/// unit noise) are the fit's optimum; returns the leading `M`.
+#[allow(clippy::too_many_arguments)]
+fn score_inflation<const P: usize, const M: usize>(
+    blocks: &[Block<6>],
+    rule: &StepRule,
+    theta: &[f32; P],
+    trace: f32,
+    cells: &Cells,
+    finv: &Sym<P>,
+    cost: f32,
+    dof: f32,
+) -> ([f32; M], f32) {
+    let rho = residual_lag1(blocks, rule, theta, trace, cells);
+    let n = blocks.len();
+    let mut sums = BatchScores {
+        finv,
+        len: batch_len(rho, n),
+        open: 0,
+        r: [0.0; 3],
+        g: [0.0; P],
+        acc: [0.0; P],
+        batches: 0,
+    };
+    let ok = visit_fit::<P, P0>(blocks, rule, n, theta, trace, cells, &mut sums).is_some();
+    sums.flush();
+    let k = sums.batches as f32;
+    let s2 = if dof > 0.0 { cost / dof } else { 0.0 };
+    let r = rho.clamp(0.0, 0.98);
+    let ar1 = (1.0 + r) / (1.0 - r);
+    let inflation = core::array::from_fn(|i| {
+        let white = s2 * finv.get(i).and_then(|r| r.get(i)).copied().unwrap_or(0.0);
+        let seen = sums.acc.get(i).copied().unwrap_or(0.0) * k / (k - 1.0);
+        if ok && k > 1.0 && white > 0.0 && seen.is_finite() && seen > ar1 * white {
+            seen / white
+        } else {
+            ar1
+        }
+    });
+    (inflation, rho)
 }
 
 /// The absolute fit (six entries in kg m^2) from `init`: of all the blocks, and, when that
@@ -591,13 +693,15 @@ fn fit_stretch(
         // Offsets that are no quantisation's ([`Cells::plausible`]: `None`): the plain fit.
         with.or_else(plain)
     };
-    let mut r = fit_stretch_from(blocks, init, noise_floor, &from)?;
+    let (mut r, (whole_tensor, whole_lag1)) = fit_stretch_from(blocks, init, noise_floor, &from)?;
     // (F8): the reading's errors, in the covariance's units (it is scaled by the residual's
     // variance per degree of freedom when pooled); the residual's variance that scales the
     // rest is taken without what those errors are expected to leave in it (counted once, not
     // twice), never below the gyro's noise floor.
     let dof = (3 * blocks.len()) as f32 - r.params as f32;
     let s2 = r.cost / dof;
+    // The residual's variance the model leaves unexplained (the reading's errors taken out).
+    let mut unexplained = s2;
     if let (Some((x, expected)), true) = (r.input.take(), s2 > 0.0) {
         // Without a known gyro noise there is no floor to hold it to: the residual's as it is.
         let floor = noise_floor * noise_floor;
@@ -606,6 +710,7 @@ fn fit_stretch(
         } else {
             s2
         };
+        unexplained = adj;
         let scale = adj / s2;
         for (row, xr) in r.cov.iter_mut().zip(x) {
             for (c, xc) in row.iter_mut().zip(xr) {
@@ -613,43 +718,82 @@ fn fit_stretch(
             }
         }
     }
+    // A model error the single trajectory does not explain (nor the reading's known errors):
+    // multiple shooting ((F11)) over the same blocks, from its tensor, in segments of its
+    // residual's correlation length.
+    if unexplained > 4.0 * noise_floor * noise_floor {
+        // From the single trajectory's tensor (of the whole flight or from the spin-up), over
+        // every block: restarting the trajectory is what keeps a model error of the idle
+        // phase from accumulating.
+        let fit = || shooting::fit_segments(blocks, &whole_tensor, whole_lag1, res.gyro_spread);
+        if let Some(mut ms) = fit().filter(|m| shooting_found(&r, m, blocks.len())) {
+            // Never more precise than the single trajectory's covariance says, inflated for
+            // its residual ((F10)): the segments' sandwich sees the residual within one
+            // flight, not what moves the whole flight's answer (see the module docs).
+            let n = blocks.len();
+            let (vs, vm) = (per_dof(&r, n), per_dof(&ms, n));
+            let k: [f32; 6] = core::array::from_fn(|i| {
+                let (a, b) = (vs * r.cov[i][i], vm * ms.cov[i][i]);
+                if b > 0.0 && a > b {
+                    a / b
+                } else {
+                    1.0
+                }
+            });
+            ms.cov = inflated(&ms.cov, &k);
+            return Some(ms);
+        }
+    }
     Some(r)
 }
 
+/// The likelihood-ratio test of the multiple-shooting fit `ms` against the single trajectory
+/// `single` of the same `n` blocks (both costs over the whole stretch's degrees of freedom):
+/// true when the fall of the cost over `ms`'s residual variance exceeds the chi-square bound
+/// of its `3 (S - 1)` more parameters, taken as `df + 4 sqrt(2 df)` (beyond the 0.01 % point
+/// for any `df` it can have). A single trajectory whose residual is the reading's known errors
+/// (a rotor speed read in steps, (F7), (F8)) keeps its efficiency and their accounting.
+fn shooting_found(single: &StretchResult<6>, ms: &StretchResult<6>, n: usize) -> bool {
+    let s2 = per_dof(ms, n);
+    let df = ms.params.saturating_sub(single.params) as f32;
+    let bound = df + 4.0 * sqrt(2.0 * df);
+    s2 > 0.0 && df > 0.0 && (single.cost - ms.cost) > bound * s2
+}
+
 /// [`fit_stretch`]'s choice between the whole flight and the part from the spin-up, `from`
-/// fitting a run of blocks from a first guess.
+/// fitting a run of blocks from a first guess; with the whole flight's tensor and the lag-1
+/// autocorrelation of its residual.
 fn fit_stretch_from(
     blocks: &[Block<6>],
     init: &Mat3,
     noise_floor: f32,
     from: &dyn Fn(&[Block<6>], &Mat3) -> Option<StretchResult<6>>,
-) -> Option<StretchResult<6>> {
+) -> Option<(StretchResult<6>, (Mat3, f32))> {
     let whole = from(blocks, init)?;
-    let per_dof = |r: &StretchResult<6>, n: usize| r.cost / ((3 * n) as f32 - r.params as f32);
+    let start = tensor_of(&whole.p);
+    let of_whole = (start, whole.lag1);
     let whole_noise = per_dof(&whole, blocks.len());
     if whole_noise <= 4.0 * noise_floor * noise_floor {
-        return Some(whole);
+        return Some((whole, of_whole));
     }
-    // The model does not hold: the covariance is inflated for the residual's correlation.
-    let inflate = |mut r: StretchResult<6>| {
-        let f = ar1_inflation(r.lag1);
-        r.cov = r.cov.map(|row| row.map(|x| x * f));
-        r
-    };
     let Some(later) = spin_up(blocks).and_then(|s| blocks.get(s..)) else {
-        return Some(inflate(whole));
+        return Some((whole, of_whole));
     };
-    let start = tensor_of(&whole.p);
     match from(later, &start) {
         Some(mut r) if per_dof(&r, later.len()) < whole_noise => {
             // The flight as a whole still does not fit: its residual is the one reported
             // (status `ModelMismatch`, the covariance scaled to it), as the cost over the
             // whole stretch's degrees of freedom, which the pooling divides by.
             r.cost = whole_noise * ((3 * blocks.len()) as f32 - r.params as f32);
-            Some(inflate(r))
+            Some((r, of_whole))
         }
-        _ => Some(inflate(whole)),
+        _ => Some((whole, of_whole)),
     }
+}
+
+/// A stretch's residual variance per degree of freedom over its `n` blocks.
+fn per_dof<const M: usize>(r: &StretchResult<M>, n: usize) -> f32 {
+    r.cost / ((3 * n) as f32 - r.params as f32)
 }
 
 /// The first block at which the rotor momentum reaches half its peak magnitude over the

@@ -444,6 +444,67 @@ impl<const P: usize> Visitor<P> for Lag1 {
     }
 }
 
+/// [`score_inflation`]'s sums ((F10)): the blocks' scores `n_b R_b^T r_b` summed over
+/// batches of `len` consecutive blocks, each batch's sum `G_k` carried through `F^-1`, and
+/// the squares of `F^-1 G_k` summed over the batches.
+pub(super) struct BatchScores<'a, const P: usize> {
+    /// `F^-1` at the optimum (unit noise).
+    pub(super) finv: &'a Sym<P>,
+    /// Blocks per batch (at least 1).
+    pub(super) len: usize,
+    /// Blocks in the open batch.
+    pub(super) open: usize,
+    /// The current block's residuals.
+    pub(super) r: [f32; 3],
+    /// The open batch's score sum.
+    pub(super) g: [f32; P],
+    /// `sum_k (F^-1 G_k)_i^2`.
+    pub(super) acc: [f32; P],
+    /// Batches closed.
+    pub(super) batches: u32,
+}
+
+impl<const P: usize> BatchScores<'_, P> {
+    /// Closes the open batch (if it holds any block) into `acc`.
+    pub(super) fn flush(&mut self) {
+        if self.open == 0 {
+            return;
+        }
+        for (row, a) in self.finv.iter().zip(self.acc.iter_mut()) {
+            let mut x = 0.0f32;
+            for (f, g) in row.iter().zip(self.g) {
+                x += f * g;
+            }
+            *a += x * x;
+        }
+        self.g = [0.0; P];
+        self.open = 0;
+        self.batches += 1;
+    }
+}
+
+impl<const P: usize> Visitor<P> for BatchScores<'_, P> {
+    fn residual(&mut self, i: usize, r: f32) {
+        if let Some(slot) = self.r.get_mut(i) {
+            *slot = r;
+        }
+    }
+
+    fn node(&mut self, node: &Node<'_, P>) {
+        for (p, g) in self.g.iter_mut().enumerate() {
+            let mut s = 0.0f32;
+            for (row, r) in node.rows.iter().zip(self.r) {
+                s += row.get(p).copied().unwrap_or(0.0) * r;
+            }
+            *g += node.weight * s;
+        }
+        self.open += 1;
+        if self.open >= self.len {
+            self.flush();
+        }
+    }
+}
+
 /// A block's node as [`normal_visit`] leaves it, for [`input_cov`].
 pub(super) struct Node<'a, const P: usize> {
     /// The block's index.

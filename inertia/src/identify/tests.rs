@@ -229,7 +229,7 @@ fn thrown_fc_logs_bit_for_bit() {
         rotor: Some(Rotor {
             inertia: 1.689e-6,
             axis: [0.0, 0.0, -1.0],
-            poles: Some(12),
+            poles: Some(14),
         }),
         ..Default::default()
     };

@@ -1,0 +1,306 @@
+//! Objects of known inertia by difference, throw by throw: the thrown-FC rig's test series
+//! (`../shared/data/thrown-fc/objects/`), each throw run through `inertia calibrate` exactly as
+//! the command line does (`--board` the five board throws, `--assembly` the five proof-body
+//! throws, `--object` one throw), then all of an object's throws pooled (`--object` every
+//! throw). Prints, per object, the Frobenius and principal-axis errors against the truth,
+//! the errors over the reported standard deviations, and the anchor's published figures.
+//!
+//! Usage: `cargo run --release -p inertia --example bench-objects [-- --poles 14]`
+//! (`scripts/bench-objects.sh`). Skips with a message when `../shared` is absent.
+use std::path::{Path, PathBuf};
+
+use inertia::calibrate::{axis_angle_deg, eigen, rel_frobenius, run, unit_throw, CalibrateArgs};
+
+type M3 = [[f64; 3]; 3];
+
+fn data() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/thrown-fc")
+}
+
+fn logs(sub: &str) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(data().join(sub))
+        .map(|d| d.filter_map(|e| e.ok().map(|e| e.path())).collect())
+        .unwrap_or_default();
+    v.retain(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("bfl")));
+    v.sort();
+    v
+}
+
+/// The proof body about its own centre (the data README's cuboid) in the log's frame: the
+/// anchor's frame is the log's turned -90 deg about z, so x and y exchange.
+fn proof_log_frame() -> [f64; 3] {
+    let m = 0.346;
+    let anchor = [
+        m / 12.0 * (0.0302f64.powi(2) + 0.0700f64.powi(2)),
+        m / 12.0 * (0.0302f64.powi(2) + 0.0600f64.powi(2)),
+        m / 12.0 * (0.0600f64.powi(2) + 0.0700f64.powi(2)),
+    ];
+    [anchor[1], anchor[0], anchor[2]]
+}
+
+/// Each entry's error over its reported standard deviation: `(xx, yy, zz, xy, xz, yz)`.
+fn z_scores(got: &M3, std: &M3, truth: &M3) -> Vec<f64> {
+    [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]
+        .iter()
+        .filter(|&&(r, c)| std[r][c] > 0.0)
+        .map(|&(r, c)| (got[r][c] - truth[r][c]) / std[r][c])
+        .collect()
+}
+
+/// Largest angle between matched principal axes, degrees (axes matched by ascending moment).
+fn axis_error(got: &M3, truth: &M3) -> f64 {
+    let (_, eg) = eigen(got);
+    let (_, et) = eigen(truth);
+    (0..3)
+        .map(|i| axis_angle_deg(eg[i], et[i]))
+        .fold(0.0, f64::max)
+}
+
+struct Row {
+    name: String,
+    frob: f64,
+    axes: f64,
+    z: Vec<f64>,
+}
+
+fn args(object: Vec<PathBuf>, mass: f64, poles: u32) -> CalibrateArgs {
+    CalibrateArgs {
+        board: logs("device_only"),
+        assembly: logs("proof_body"),
+        proof_inertia: proof_log_frame().to_vec(),
+        board_mass: 0.10067,
+        proof_mass: 0.346,
+        object,
+        object_mass: Some(mass),
+        rotor_axis: [0.0, 0.0, -1.0],
+        rotor_poles: Some(poles),
+        json: std::env::temp_dir().join("bench-objects-unused.json"),
+        plots: None,
+    }
+}
+
+fn row(name: String, a: &CalibrateArgs, truth: &M3) -> Result<Row, String> {
+    let rep = run(a)?;
+    let got = rep.object_tensor_kg_m2.ok_or("no object tensor")?;
+    let std = rep.object_tensor_std_kg_m2.ok_or("no object std")?;
+    Ok(Row {
+        name,
+        frob: rel_frobenius(&got, truth),
+        axes: axis_error(&got, truth),
+        z: z_scores(&got, &std, truth),
+    })
+}
+
+/// The anchor's calibration of the board (data README): its tensor about its centre of mass
+/// and that centre from the IMU, anchor frame, and the flywheel's inertia (14 poles).
+const BOARD_ANCHOR: M3 = [
+    [7.545e-5, -1.68e-6, 1.10e-6],
+    [-1.68e-6, 2.179e-5, 6.75e-6],
+    [1.10e-6, 6.75e-6, 8.808e-5],
+];
+const BOARD_COM_ANCHOR_M: [f64; 3] = [10.9e-3, 1.6e-3, 9.0e-3];
+const ROTOR_ANCHOR_KG_M2: f64 = 1.689e-6;
+const BOARD_MASS_KG: f64 = 0.10067;
+
+/// A vector or tensor from the anchor's frame to the log's: `x_log = y_anchor`,
+/// `y_log = -x_anchor`, `z_log = z_anchor` (data README).
+fn to_log(v: [f64; 3]) -> [f64; 3] {
+    [v[1], -v[0], v[2]]
+}
+
+fn tensor_to_log(a: &M3) -> M3 {
+    let r = [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]];
+    std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            (0..3)
+                .map(|k| (0..3).map(|l| r[i][k] * a[k][l] * r[j][l]).sum::<f64>())
+                .sum()
+        })
+    })
+}
+
+/// The board with the object bolted on about their common centre of mass, log frame: the
+/// anchor's board, the object's truth and the parallel-axis term of the two centres,
+/// `m_b m_o / (m_b + m_o) (|d|^2 I - d d^T)`.
+fn assembly_truth(object: &M3, m_o: f64, com_o_anchor_mm: [f64; 3]) -> M3 {
+    let b = tensor_to_log(&BOARD_ANCHOR);
+    let d = to_log(std::array::from_fn(|k| {
+        com_o_anchor_mm[k] * 1e-3 - BOARD_COM_ANCHOR_M[k]
+    }));
+    let mu = BOARD_MASS_KG * m_o / (BOARD_MASS_KG + m_o);
+    let d2: f64 = d.iter().map(|x| x * x).sum();
+    std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            let delta = if i == j { d2 } else { 0.0 };
+            b[i][j] + object[i][j] + mu * (delta - d[i] * d[j])
+        })
+    })
+}
+
+/// One throw of the assembly through `inertia identify` (the anchor's rotor inertia) against
+/// the assembly's truth.
+fn assembly_row(path: &Path, poles: u32, truth: &M3) -> Result<Row, String> {
+    let rec = inertia::read(path, &Default::default()).map_err(|e| e.to_string())?;
+    let t = unit_throw(&rec, [0.0, 0.0, -1.0], Some(poles))?;
+    let j = ROTOR_ANCHOR_KG_M2;
+    let got = t.j1.map(|r| r.map(|x| x * j));
+    let std = t.j1_std.ok_or("no std")?.map(|r| r.map(|x| x * j));
+    Ok(Row {
+        name: path
+            .file_name()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into(),
+        frob: rel_frobenius(&got, truth),
+        axes: axis_error(&got, truth),
+        z: z_scores(&got, &std, truth),
+    })
+}
+
+/// RMS of the first three of every six (the diagonal entries' z).
+fn rms_diag(rows: &[&Row]) -> f64 {
+    let d: Vec<f64> = rows
+        .iter()
+        .flat_map(|r| r.z.iter().take(3).copied())
+        .collect();
+    rms(&d)
+}
+
+fn rms(v: &[f64]) -> f64 {
+    (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
+}
+
+fn main() {
+    let mut poles = 14;
+    let argv: Vec<String> = std::env::args().collect();
+    if let Some(i) = argv.iter().position(|a| a == "--poles") {
+        poles = argv.get(i + 1).and_then(|p| p.parse().ok()).unwrap_or(14);
+    }
+    let Ok(truth) = std::fs::read_to_string(data().join("objects/truth.json")) else {
+        eprintln!("../shared/data/thrown-fc/objects absent: nothing to measure");
+        return;
+    };
+    let truth: serde_json::Value = serde_json::from_str(&truth).expect("truth.json");
+    println!("objects by difference, {poles}-pole rotor, per throw and pooled");
+    println!(
+        "| object | throws | per throw: mean / max Frobenius | mean / max axes | RMS(error/std): all, diagonal | pooled: Frobenius | axes | RMS(error/std) | anchor per throw |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    let mut assembly_lines = Vec::new();
+    for name in ["config_empty", "config_a"] {
+        let o = &truth[name];
+        let mass = o["mass_kg"].as_f64().unwrap_or(1.0);
+        let t = &o["inertia_log_frame_kg_m2"];
+        let truth_m: M3 =
+            std::array::from_fn(|r| std::array::from_fn(|c| t[r][c].as_f64().unwrap_or(f64::NAN)));
+        let throws = logs(&format!("objects/{name}"));
+        let com = &o["anchor_object_com_from_imu_mm_anchor_frame"];
+        let com: [f64; 3] = std::array::from_fn(|k| com[k].as_f64().unwrap_or(f64::NAN));
+        let asm_truth = assembly_truth(&truth_m, mass, com);
+        let asm: Vec<Row> = throws
+            .iter()
+            .filter_map(|p| assembly_row(p, poles, &asm_truth).ok())
+            .collect();
+        let z: Vec<f64> = asm.iter().flat_map(|r| r.z.iter().copied()).collect();
+        let frob: Vec<f64> = asm.iter().map(|r| r.frob).collect();
+        for r in &asm {
+            println!(
+                "  assembly {name} {}: Frobenius {:.2} %, axes {:.2} deg, error/std {}",
+                r.name,
+                r.frob * 100.0,
+                r.axes,
+                r.z.iter()
+                    .map(|z| format!("{z:+.1}"))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            );
+        }
+        let asm_refs: Vec<&Row> = asm.iter().collect();
+        assembly_lines.push(format!(
+            "| {name} | {}/{} | {:.2} % / {:.2} % | {:.2}, {:.2} |",
+            asm.len(),
+            throws.len(),
+            frob.iter().sum::<f64>() / frob.len().max(1) as f64 * 100.0,
+            frob.iter().fold(0.0f64, |a, &x| a.max(x)) * 100.0,
+            rms(&z),
+            rms_diag(&asm_refs)
+        ));
+        // One throw at a time, on as many threads as the machine has.
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let chunks: Vec<Vec<PathBuf>> = throws
+            .chunks(throws.len().div_ceil(threads).max(1))
+            .map(|c| c.to_vec())
+            .collect();
+        let rows: Vec<Result<Row, String>> = std::thread::scope(|s| {
+            let hs: Vec<_> = chunks
+                .iter()
+                .map(|chunk| {
+                    s.spawn(|| {
+                        chunk
+                            .iter()
+                            .map(|p| {
+                                let n = p.file_name().unwrap_or_default().to_string_lossy();
+                                row(n.into(), &args(vec![p.clone()], mass, poles), &truth_m)
+                            })
+                            .collect::<Vec<_>>()
+                    })
+                })
+                .collect();
+            hs.into_iter()
+                .flat_map(|h| h.join().unwrap_or_default())
+                .collect()
+        });
+        let ok: Vec<&Row> = rows.iter().filter_map(|r| r.as_ref().ok()).collect();
+        for r in &rows {
+            match r {
+                Ok(r) => println!(
+                    "  {name} {}: Frobenius {:.2} %, axes {:.2} deg, error/std {}",
+                    r.name,
+                    r.frob * 100.0,
+                    r.axes,
+                    r.z.iter()
+                        .map(|z| format!("{z:+.1}"))
+                        .collect::<Vec<_>>()
+                        .join(" ")
+                ),
+                Err(e) => println!("  {name}: failed: {e}"),
+            }
+        }
+        let pooled = row(
+            "pooled".into(),
+            &args(throws.clone(), mass, poles),
+            &truth_m,
+        );
+        let n = ok.len().max(1) as f64;
+        let frob: Vec<f64> = ok.iter().map(|r| r.frob).collect();
+        let axes: Vec<f64> = ok.iter().map(|r| r.axes).collect();
+        let z: Vec<f64> = ok.iter().flat_map(|r| r.z.iter().copied()).collect();
+        let (pf, pa, pz) = match &pooled {
+            Ok(p) => (
+                format!("{:.2} %", p.frob * 100.0),
+                format!("{:.2} deg", p.axes),
+                format!("{:.2}", rms(&p.z)),
+            ),
+            Err(e) => (format!("failed: {e}"), String::new(), String::new()),
+        };
+        println!(
+            "| {name} | {}/{} | {:.2} % / {:.2} % | {:.2} / {:.2} deg | {:.2}, {:.2} | {pf} | {pa} | {pz} | {} |",
+            ok.len(),
+            throws.len(),
+            frob.iter().sum::<f64>() / n * 100.0,
+            frob.iter().fold(0.0f64, |a, &x| a.max(x)) * 100.0,
+            axes.iter().sum::<f64>() / n,
+            axes.iter().fold(0.0f64, |a, &x| a.max(x)),
+            rms(&z),
+            rms_diag(&ok),
+            o["anchor_object_error_per_throw"].as_str().unwrap_or("")
+        );
+    }
+    println!();
+    println!("assembly per throw (inertia identify, the anchor's rotor inertia) against the anchor's board plus the object");
+    println!("| object | throws | mean / max Frobenius | RMS(error/std): all, diagonal |");
+    println!("|---|---|---|---|");
+    for l in assembly_lines {
+        println!("{l}");
+    }
+}
