@@ -5,7 +5,7 @@
 //! throw). Prints, per object, the Frobenius and principal-axis errors against the truth,
 //! the errors over the reported standard deviations, and the anchor's published figures.
 //!
-//! Usage: `cargo run --release -p inertia --example bench-objects [-- --poles 14]`
+//! Usage: `cargo run --release -p inertia --example bench-objects [-- --poles 14] [--plot SVG]`
 //! (`scripts/bench-objects.sh`). Skips with a message when `../shared` is absent.
 use std::path::{Path, PathBuf};
 
@@ -61,6 +61,13 @@ struct Row {
     frob: f64,
     axes: f64,
     z: Vec<f64>,
+    /// Each diagonal entry's relative error and relative std.
+    rel: [(f64, f64); 3],
+}
+
+/// Each diagonal entry's error and std relative to the truth.
+fn relative(got: &M3, std: &M3, truth: &M3) -> [(f64, f64); 3] {
+    [0, 1, 2].map(|i| (got[i][i] / truth[i][i] - 1.0, std[i][i] / truth[i][i]))
 }
 
 fn args(object: Vec<PathBuf>, mass: f64, poles: u32) -> CalibrateArgs {
@@ -88,6 +95,7 @@ fn row(name: String, a: &CalibrateArgs, truth: &M3) -> Result<Row, String> {
         frob: rel_frobenius(&got, truth),
         axes: axis_error(&got, truth),
         z: z_scores(&got, &std, truth),
+        rel: relative(&got, &std, truth),
     })
 }
 
@@ -154,6 +162,7 @@ fn assembly_row(path: &Path, poles: u32, truth: &M3) -> Result<Row, String> {
         frob: rel_frobenius(&got, truth),
         axes: axis_error(&got, truth),
         z: z_scores(&got, &std, truth),
+        rel: relative(&got, &std, truth),
     })
 }
 
@@ -186,7 +195,13 @@ fn main() {
         "| object | throws | per throw: mean / max Frobenius | mean / max axes | RMS(error/std): all, diagonal | pooled: Frobenius | axes | RMS(error/std) | anchor per throw |"
     );
     println!("|---|---|---|---|---|---|---|---|---|");
+    let plot = argv
+        .iter()
+        .position(|a| a == "--plot")
+        .and_then(|i| argv.get(i + 1))
+        .map(PathBuf::from);
     let mut assembly_lines = Vec::new();
+    let mut plotted: Vec<(String, Vec<Row>)> = Vec::new();
     for name in ["config_empty", "config_a"] {
         let o = &truth[name];
         let mass = o["mass_kg"].as_f64().unwrap_or(1.0);
@@ -216,15 +231,17 @@ fn main() {
             );
         }
         let asm_refs: Vec<&Row> = asm.iter().collect();
+        let asm_len = asm.len();
         assembly_lines.push(format!(
             "| {name} | {}/{} | {:.2} % / {:.2} % | {:.2}, {:.2} |",
-            asm.len(),
+            asm_len,
             throws.len(),
             frob.iter().sum::<f64>() / frob.len().max(1) as f64 * 100.0,
             frob.iter().fold(0.0f64, |a, &x| a.max(x)) * 100.0,
             rms(&z),
             rms_diag(&asm_refs)
         ));
+        plotted.push((name.to_string(), asm));
         // One throw at a time, on as many threads as the machine has.
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
         let chunks: Vec<Vec<PathBuf>> = throws
@@ -303,4 +320,67 @@ fn main() {
     for l in assembly_lines {
         println!("{l}");
     }
+    if let Some(path) = plot {
+        match draw(&path, &plotted) {
+            Ok(()) => println!("\nplot: {}", path.display()),
+            Err(e) => eprintln!("plot {}: {e}", path.display()),
+        }
+    }
+}
+
+/// Each assembly throw's diagonal entries, error relative to the truth with one reported
+/// standard deviation as a bar, object after object.
+fn draw(path: &Path, groups: &[(String, Vec<Row>)]) -> Result<(), Box<dyn std::error::Error>> {
+    use plotters::prelude::*;
+    let n: usize = groups.iter().map(|g| g.1.len()).sum();
+    let root = SVGBackend::new(path, (900, 420)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            "assembly per throw (inertia identify): diagonal error against the truth, +- 1 reported std",
+            ("sans-serif", 16),
+        )
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(-0.5f64..n as f64 - 0.5, -10.0f64..10.0)?;
+    chart
+        .configure_mesh()
+        .x_desc("throw (config_empty, then config_a)")
+        .y_desc("error, % of the true moment")
+        .draw()?;
+    for (k, (colour, label)) in [RED, GREEN, BLUE]
+        .into_iter()
+        .zip(["Jxx", "Jyy", "Jzz"])
+        .enumerate()
+    {
+        let mut pts = Vec::new();
+        let mut x = 0.0;
+        for (_, rows) in groups {
+            for r in rows {
+                let (e, s) = r.rel[k];
+                pts.push((x + (k as f64 - 1.0) * 0.2, e * 100.0, s * 100.0));
+                x += 1.0;
+            }
+        }
+        chart
+            .draw_series(
+                pts.iter().map(|&(x, e, s)| {
+                    ErrorBar::new_vertical(x, e - s, e, e + s, colour.filled(), 6)
+                }),
+            )?
+            .label(label)
+            .legend(move |(x, y)| Circle::new((x, y), 4, colour.filled()));
+    }
+    chart.draw_series(std::iter::once(PathElement::new(
+        vec![(-0.5, 0.0), (n as f64 - 0.5, 0.0)],
+        BLACK,
+    )))?;
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
 }

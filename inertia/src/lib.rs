@@ -7,6 +7,7 @@ pub mod close_loop;
 pub mod export;
 pub mod identify;
 pub mod plots;
+pub mod pool;
 pub mod readers;
 pub mod recording;
 pub mod select;

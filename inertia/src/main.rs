@@ -168,9 +168,12 @@ fn parse_format(s: &str) -> Result<Format, String> {
 #[command(allow_negative_numbers = true)]
 struct IdentifyArgs {
     /// The log: Betaflight/INDIflight blackbox, PX4 ULog, phyphox export or CSV (detected
-    /// from the content).
-    #[arg(long)]
-    input: PathBuf,
+    /// from the content). Given more than once (`--input A --input B ...`: throws of one body
+    /// in several logs), each log is identified on its own and their tensors are pooled by
+    /// their covariances, the spread between them checked against those (needs a rotor:
+    /// the tensor in kg m^2; the JSON then holds `pooled`, `spread` and each log's report).
+    #[arg(long, required = true)]
+    input: Vec<PathBuf>,
     #[command(flatten)]
     rotor: RotorArgs,
     /// CSV of hand-chosen free flights, one `start_s,end_s` per line (log time).
@@ -434,7 +437,6 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
         time_unit: args.time_unit,
         accel_unit: args.accel_unit,
     };
-    let src = inertia::source::open(&args.input, &opts).map_err(|e| e.to_string())?;
     let iopts = IdentifyOptions {
         rotor,
         segments,
@@ -442,7 +444,12 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
         rotor_hold: args.rotor.hold(),
         trace: args.plots.is_some(),
     };
-    let mut bar = Bar::new(&args.input);
+    let input = match args.input.as_slice() {
+        [one] => one.clone(),
+        many => return run_identify_many(many, &args, &opts, &iopts),
+    };
+    let src = inertia::source::open(&input, &opts).map_err(|e| e.to_string())?;
+    let mut bar = Bar::new(&input);
     let report = identify_source(&*src, &iopts, &mut bar).map_err(|e| e.to_string());
     bar.clear();
     let mut report = report?;
@@ -503,6 +510,51 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
         std::fs::write(path, &e.text).map_err(|e| format!("{}: {e}", path.display()))?;
         eprintln!("{} export written to {}", o.format, path.display());
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `inertia identify` with several `--input`: each log identified on its own, their tensors
+/// pooled ([`inertia::pool`]). Exit 3 for a log that cannot be read or gives no tensor in
+/// kg m^2.
+fn run_identify_many(
+    inputs: &[PathBuf],
+    args: &IdentifyArgs,
+    opts: &ReadOptions,
+    iopts: &IdentifyOptions,
+) -> Result<ExitCode, String> {
+    if args.export.is_some() || args.plots.is_some() || args.gyro_scale_tolerance.is_some() {
+        return Err(
+            "--export, --plots and --gyro-scale-tolerance take one --input (identify the logs \
+             one by one for them)"
+                .into(),
+        );
+    }
+    let mut reports = Vec::new();
+    for input in inputs {
+        let src = inertia::source::open(input, opts).map_err(|e| e.to_string())?;
+        let mut bar = Bar::new(input);
+        let report = identify_source(&*src, iopts, &mut bar)
+            .map_err(|e| format!("{}: {e}", input.display()));
+        bar.clear();
+        reports.push(report?);
+    }
+    let pooled = inertia::pool::pool(reports)?;
+    for w in &pooled.warnings {
+        eprintln!("warning: {w}");
+    }
+    write_json(&args.json, &pooled)?;
+    let p = &pooled.pooled;
+    eprintln!(
+        "{} logs, {} free flight(s), {} samples: tensor status {}, spread chi2/dof {:.2}, J = {:?} \
+         +- {:?} kg m^2",
+        pooled.inputs.len(),
+        pooled.throws.len(),
+        p.samples,
+        p.tensor_status,
+        pooled.spread.ratio,
+        p.tensor_kg_m2.unwrap_or_default(),
+        p.tensor_std_kg_m2.unwrap_or_default()
+    );
     Ok(ExitCode::SUCCESS)
 }
 
