@@ -8,7 +8,7 @@
 # IEEE-754 bits).
 #
 # Logs: the 10 thrown-FC blackbox logs in ../shared/data/thrown-fc (skipped when absent;
-# flywheel 1.689e-6 kg m^2 about -z, 12 poles), a simulated board throw CSV
+# flywheel 1.689e-6 kg m^2 about -z, 14 poles), a simulated board throw CSV
 # (host-tests gen-throw --scenario board_throw --seed 1, same flywheel, speed in rad/s) and
 # the same throw as a Betaflight blackbox log (--format betaflight: filtered gyro and
 # accelerometer, eRPM) and as a PX4 ULog (--format px4: interval means, esc_status), and a
