@@ -334,7 +334,8 @@ fn tensor_flight_close(
 /// the spin-up passes half the peak speed (a telemetry wrong at idle, as on the real
 /// thrown-FC logs the model did not fit), and the close is the pipeline's with a bench bias,
 /// `close_without_bias`: the whole flight does not fit to the noise, so the fit is repeated
-/// from the spin-up and the residual's correlation measured (the real-data path's cost).
+/// from the spin-up, the residual's correlation measured and the flight fitted again by
+/// multiple shooting (the real-data path's cost).
 #[inline(never)]
 fn tensor_flight_close_mismatch(
     syst: &mut SYST,
@@ -749,18 +750,22 @@ fn main() -> ! {
         "Cortex-M4F QEMU -icount; tensor-fit-close-throw with the rotor momentum's quantum given (the flywheel's inertia times DShot's 100 eRPM step, 1.745 rad/s): the covariance counts the telemetry's constant errors over the steady runs of the speed, (F7)",
     );
     let (ticks, outcome, fitted) = tensor_flight_close_mismatch(&mut syst, init);
+    // The multiple-shooting fit takes the idle segments with their wrong momentum too: this
+    // checks that the path ran to a tensor near the truth (10 % of trace/3); its error against
+    // its reported std is the host test
+    // `a_rotor_telemetry_wrong_before_the_spin_up_is_flagged_with_its_error_covered`.
     check_tensor_fit(
         "tensor-fit-close-throw-mismatch",
         outcome,
         fitted,
         truth,
-        0.02,
+        0.10,
         16,
     );
     report_long(
         "tensor-fit-close-throw-mismatch",
         ticks,
-        "Cortex-M4F QEMU -icount; the same throw with the rotor momentum given 20 % low until the spin-up's half-peak speed, one FlightTensorFit::close_without_bias(Some(init)): the whole flight does not fit to the noise, so the fit from the spin-up and the residual's lag-1 correlation follow (the path of the real thrown-FC logs)",
+        "Cortex-M4F QEMU -icount; the same throw with the rotor momentum given 20 % low until the spin-up's half-peak speed, one FlightTensorFit::close_without_bias(Some(init)): the whole flight does not fit to the noise, so the fit from the spin-up, the residual's sandwich (F10) and the multiple-shooting fit (F11) follow (the path of the real thrown-FC logs)",
     );
     // The fit up to scale (no rotor momentum) that the pipeline runs at the end of a
     // gyro-only flight, from a first guess 2 % off (what the ratio fit's moments are not far
