@@ -436,6 +436,13 @@ impl<const N: usize> Pipeline<N> {
         &self.tensor_fit
     }
 
+    /// The same pipeline with the tensor fit's multiple shooting on (the default) or off
+    /// ([`TensorFit::with_multiple_shooting`]).
+    pub fn with_multiple_shooting(mut self, on: bool) -> Self {
+        self.tensor_fit = self.tensor_fit.with_multiple_shooting(on);
+        self
+    }
+
     /// The recommended ratios `a` with their standard deviations and status, from the samples
     /// fed so far:
     ///

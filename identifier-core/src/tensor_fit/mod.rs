@@ -308,6 +308,8 @@ pub struct TensorFit<const N: usize> {
     /// The gyro readings' own time variance of the latest sample ((B0), (B0'): the window's
     /// and the filters'), which the blocks' `v` holds and the rotor's readings lack.
     own_spread: f32,
+    /// Multiple shooting ((F11)) where the single trajectory leaves a model error.
+    shooting: bool,
 }
 
 /// The block buffer used by the pipeline: 256 blocks of rate and rotor momentum (16.7 KB in
@@ -644,6 +646,7 @@ fn fit_stretch(
     noise_floor: f32,
     test_bias: bool,
     res: Resolution,
+    shooting: bool,
 ) -> Option<StretchResult<6>> {
     let resolution = res.quantum;
     let from = |blocks: &[Block<6>], init: &Mat3| {
@@ -721,7 +724,7 @@ fn fit_stretch(
     // A model error the single trajectory does not explain (nor the reading's known errors):
     // multiple shooting ((F11)) over the same blocks, from its tensor, in segments of its
     // residual's correlation length.
-    if unexplained > 4.0 * noise_floor * noise_floor {
+    if shooting && unexplained > 4.0 * noise_floor * noise_floor {
         // From the single trajectory's tensor (of the whole flight or from the spin-up), over
         // every block: restarting the trajectory is what keeps a model error of the idle
         // phase from accumulating.
@@ -892,6 +895,7 @@ impl<const N: usize> TensorFit<N> {
             inputs: 1,
             readings: Readings::INSTANTS,
             own_spread: 0.0,
+            shooting: true,
         }
     }
 
@@ -911,6 +915,14 @@ impl<const N: usize> TensorFit<N> {
     /// as 0.
     pub const fn with_reading_smoothing(mut self, smoothing: f32) -> Self {
         self.readings = self.readings.with_smoothing(smoothing);
+        self
+    }
+
+    /// The same fit with the multiple-shooting refit ((F11)) on (the default) or off: off,
+    /// a flight the single trajectory does not explain keeps the single trajectory's tensor
+    /// (its covariance inflated by (F10)), at a quarter to half of the end-of-flight cost.
+    pub const fn with_multiple_shooting(mut self, on: bool) -> Self {
+        self.shooting = on;
         self
     }
 
@@ -967,9 +979,9 @@ impl<const N: usize> TensorFit<N> {
     /// Ends the open stretch: fits it from the tensor `init` (kg m^2; a positive definite
     /// first guess, such as [`crate::TensorEstimator`]'s), pools it and starts a new stretch.
     pub fn close(&mut self, init: Option<[[f32; 3]; 3]>) -> StretchOutcome {
-        let (noise, q) = (self.noise_std, self.resolution());
+        let (noise, q, ms) = (self.noise_std, self.resolution(), self.shooting);
         self.state
-            .close(|blocks| init.and_then(|j| fit_stretch(blocks, &j, noise, true, q)))
+            .close(|blocks| init.and_then(|j| fit_stretch(blocks, &j, noise, true, q, ms)))
     }
 
     /// [`TensorFit::close`] for a gyro whose bias is known and was removed (measured on a
@@ -980,9 +992,9 @@ impl<const N: usize> TensorFit<N> {
     /// soaks up model error. On the ten thrown-FC logs it found 0.1-0.38 rad/s on every throw,
     /// where the bench measured at most 0.015 rad/s, and moved `J` by up to 4 %.
     pub fn close_without_bias(&mut self, init: Option<[[f32; 3]; 3]>) -> StretchOutcome {
-        let (noise, q) = (self.noise_std, self.resolution());
+        let (noise, q, ms) = (self.noise_std, self.resolution(), self.shooting);
         self.state
-            .close(|blocks| init.and_then(|j| fit_stretch(blocks, &j, noise, false, q)))
+            .close(|blocks| init.and_then(|j| fit_stretch(blocks, &j, noise, false, q, ms)))
     }
 
     /// Ends the open stretch of a flight whose rotor momentum does not fix the scale of `J`
@@ -1120,6 +1132,7 @@ impl<const N: usize> TensorFit<N> {
     pub fn reset(&mut self) {
         *self = TensorFit::new(self.full_scale, self.max_dt, self.noise_std)
             .with_momentum_resolution(self.momentum_resolution)
-            .with_readings(self.readings);
+            .with_readings(self.readings)
+            .with_multiple_shooting(self.shooting);
     }
 }
