@@ -91,7 +91,7 @@ fn a_bias_detected_in_flight_keeps_the_tensor_from_converging() {
             if bias == 0.0 {
                 // No bias measured on a still stretch (there is none): the equation error,
                 // which cannot tell a bias, is at most `Converging` until the end-of-flight
-                // fits (test `online_gyro_bias`; it said `Converged` here before 2026-11-25).
+                // fits (test `online_gyro_bias`).
                 assert_eq!(t.status, TensorStatus::Converging, "seed {seed}");
             } else {
                 assert_eq!(

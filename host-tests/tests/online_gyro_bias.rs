@@ -51,9 +51,9 @@ fn an_unmeasured_gyro_bias_is_never_converged_during_the_flight() {
                     "seed {seed}, {at} s: tensor Converged {zt:.1} std off"
                 );
                 // The ratios are held to the same, whichever estimator they come from. The
-                // refined identifier's own (no bias model either) drifted up to 4.1 std while
-                // `Converged` in the first 1-2 s, before its bias test could tell, until they
-                // too were capped at `Converging` while no bias was measured (2026-11-26).
+                // refined identifier's own (no bias model either) drift off in the first
+                // seconds, before its bias test can tell, so they too are capped at
+                // `Converging` while no bias was measured.
                 assert!(
                     r.status != TensorStatus::Converged || zr < 4.0,
                     "seed {seed}, {at} s: ratios ({:?}) Converged {zr:.1} std off",
