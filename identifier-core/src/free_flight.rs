@@ -168,9 +168,9 @@ pub struct GateSettings {
     pub far_offset: f32,
     /// Largest RMS, m/s^2, that the constant force of (F2) may take from the (F1) residual in
     /// a window whose offset lies beyond [`GateSettings::max_offset`]: in free flight there is
-    /// none to find and it takes mostly noise (median 0.02 m/s^2, 1.3 % of windows above 0.5
-    /// on simulated throws with the IMU 0.16-0.21 m off), in a hand it finds the support
-    /// (0.75 m/s^2 and more in the hand windows looked at).
+    /// none to find and it takes mostly noise (nearly all windows far below 0.5 m/s^2), in a
+    /// hand it finds the support (above it); the test `gate_sim` measures both on simulated
+    /// throws with the IMU off the centre of mass.
     pub max_support: f32,
     /// Still: `| |f| - g |` below this, m/s^2, on every sample of the window.
     pub still_accel: f32,

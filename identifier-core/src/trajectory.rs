@@ -903,7 +903,7 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
     // a step off the constraint, decides whether the bias model is worth its fit (its score
     // without the torque's and the step's columns) and gives the plain model's tests (without
     // the bias's). Each of those columns is integrated on its own, so the two are what
-    // separate evaluations gave, for one.
+    // separate evaluations would give, for the cost of one.
     let mut plain12 = [0.0f32; P_TESTS_BIAS];
     plain12[..5].copy_from_slice(&theta5);
     let at_plain = normal::<P_TESTS_BIAS, C_TESTS>(blocks, total, &plain12);

@@ -433,9 +433,9 @@ impl Cells {
 
     /// Whether the fitted offsets `d` (the last [`CELLS`] of `theta`) are a quantisation's:
     /// each within one quantum (the reading's error is at most half of one; the other half
-    /// leaves room for the fit's own error). On the thrown-FC logs, whose model error is tens
-    /// of times the gyro's noise, free offsets came out at 5-20 quanta: soaking up that error,
-    /// not the telemetry's steps.
+    /// leaves room for the fit's own error). Where the model error is tens of times the gyro's
+    /// noise (the thrown-FC logs), free offsets come out at several quanta: soaking up that
+    /// error, not the telemetry's steps.
     pub(super) fn plausible(&self, theta: &[f32]) -> bool {
         let first = theta.len().saturating_sub(CELLS);
         self.runs.iter().enumerate().all(|(c, run)| {
