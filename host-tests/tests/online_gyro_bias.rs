@@ -1,11 +1,10 @@
 //! A gyro bias nobody measured (no still stretch, no accelerometer), seen during the flight:
 //! what the firmware streams before the catch. The equation-error tensor, which has no bias
-//! model, absorbs the bias into its moments and then into products of inertia; before the
-//! rule in `Pipeline::estimate` it said `Converged` 3 s into the flight with `a` 4 of its
-//! standard deviations off and 6 s in 38 off (3 of 4 seeds), and the ratios, taken from it,
-//! said the same; the refined identifier's own ratios 4.1 off in the first second. None may
-//! be `Converged` far off at
-//! any point of the flight; once the flight has ended, the output-error fit (with its bias
+//! model, absorbs the bias into its moments and then into products of inertia, so without the
+//! rule in `Pipeline::estimate` it would say `Converged` within seconds with `a` many of its
+//! standard deviations off, and the ratios, taken from it, the same; the refined identifier's
+//! own ratios drift off in the first second. None may be `Converged` far off at any point of
+//! the flight; once the flight has ended, the output-error fit (with its bias
 //! model) must still be `Converged` and right.
 
 use host_tests::gyro::GyroModel;
