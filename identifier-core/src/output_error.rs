@@ -531,8 +531,8 @@ pub(crate) fn staged_fit<const P: usize>(
 /// prefixes are run then. From a good start they only cost evaluations and throw information
 /// away: on a short noisy toss the tensor fit's first 16 blocks determine its eight
 /// parameters so poorly that the staged fit can leave the right basin, and the ratio fit would
-/// spend several times the evaluations of its trajectory for the same optimum (`bench-estimators`
-/// counts them on the benchmark's 85-sample toss).
+/// spend several times the evaluations of its trajectory for the same optimum (`bench-mcu`
+/// measures the fit's cost after the benchmark's 85-sample toss).
 pub(crate) fn whole_or_staged<const P: usize>(
     normal: impl Fn(&[f32; P], usize) -> Option<Normal<P>>,
     theta: [f32; P],

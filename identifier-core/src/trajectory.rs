@@ -493,7 +493,7 @@ fn resolution_factor<const P: usize>(f: &Sym<P>, theta: &[f32; P], cost: f32, do
 /// maximum likelihood's on the same samples, per unit of `kappa^2`, as measured on a body
 /// turning at 12 rad/s at 1 kHz for 4 s and 8 s (`bench-estimators --scenario fast-tumble`).
 /// The paper's body spinning at 8 rad/s near its major axis for 20 s has `kappa^2 = 1.6`, the
-/// benchmark's flights less, so the factor is 1 there to a few 1e-4.
+/// benchmark's flights less, so the factor is 1 there to about 1e-3.
 const RESOLUTION: f32 = 5e-4;
 
 /// Blocks between restorations of the invariants (`Invariants::restore`).
@@ -790,7 +790,7 @@ fn initial_a(blocks: &[Block<3>]) -> Option<[f32; 3]> {
 /// numbers on a flat body (`A3` close to `A1 + A2`, `a1` close to -1: a racquet, a plate, a
 /// flight controller's board): on a short toss it often gives no body at all or one far off,
 /// and the fit then takes about twice the evaluations of its trajectory for the same
-/// estimates (`bench-estimators` counts them on the benchmark's 85-sample toss).
+/// estimates (`bench-mcu` measures the fit's cost after the benchmark's 85-sample toss).
 fn moments_of(a: [f32; 3]) -> [f32; 2] {
     let m = [[a[0], -1.0, 1.0], [1.0, a[1], -1.0], [-1.0, 1.0, a[2]]];
     let mut n = [[0.0f32; 3]; 3];
