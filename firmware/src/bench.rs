@@ -14,8 +14,7 @@
 //! plugin (`firmware/bench/insn-count.c`) finds them by their encoding and counts the
 //! instructions executed between each pair. An `asm!` block is volatile and may touch memory,
 //! so the optimiser neither removes it nor moves the step's loads and stores across it.
-//! (Marker functions with symbol names were tried first: with fat LTO they disappeared from
-//! the image.)
+//! (Not marker functions with symbol names: with fat LTO they disappear from the image.)
 //!
 //! Without the feature all are empty and the flight build carries no trace of them.
 

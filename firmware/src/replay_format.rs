@@ -21,13 +21,13 @@
 //!                 f32 dt s }   (32 bytes each)
 //! ```
 //!
-//! Version 2 (2026-11-26) added the resolution: the tensor's uncertainty counts the rotor
-//! momentum's quantisation, so the replay gives the firmware the figure `inertia identify`
-//! uses. Version 3 (2026-11-27) added the gyro averaging: the output-error fits count a
-//! reading's window in their block means
+//! Why the header carries these: the resolution (from version 2), because the tensor's
+//! uncertainty counts the rotor momentum's quantisation, so the replay gives the firmware the
+//! figure `inertia identify` uses; the gyro averaging (from version 3), because the
+//! output-error fits count a reading's window in their block means
 //! (`identifier_core::PipelineSettings::with_averaging_gyro`), so the firmware must be given
-//! it to match `inertia identify` on a PX4 log. Version 4 (2026-11-27) added the gyro
-//! smoothing (`identifier_core::PipelineSettings::with_filtered_gyro`), for Betaflight logs.
+//! it to match `inertia identify` on a PX4 log; the gyro smoothing (from version 4,
+//! `identifier_core::PipelineSettings::with_filtered_gyro`), for Betaflight logs.
 
 /// First four bytes.
 pub const MAGIC: [u8; 4] = *b"IRPL";

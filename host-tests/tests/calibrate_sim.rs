@@ -334,11 +334,10 @@ fn assert_honest(z: &[f64], what: &str) {
 }
 
 /// `inertia identify` of one throw with the rotor speed at the logged resolution (DShot
-/// eRPM's 1.75 rad/s): the tensor's reported standard deviations cover its errors. Before the
-/// fit took the reading's steady errors as offsets ((F7), 2026-11-26) these throws came out
-/// `Converged` with errors of 5 to 34 reported standard deviations (RMS 4.85; the errors of
-/// the diagonal themselves up to 0.072 %, now 0.008 %); with the offsets alone RMS 1.32, since
-/// the ramps' errors are counted too ((F8)) 0.97.
+/// eRPM's 1.75 rad/s): the tensor's reported standard deviations cover its errors. It takes
+/// both the reading's steady errors fitted as offsets ((F7)), without which these throws come
+/// out `Converged` many reported standard deviations off, and the ramps' errors counted in the
+/// covariance ((F8)), without which the reported standard deviations are too small.
 #[test]
 fn the_rotor_speed_resolution_keeps_the_tensor_std_honest() {
     let dir = std::env::temp_dir().join(format!("calibrate-sim-std-{}", std::process::id()));

@@ -125,8 +125,8 @@ fn run(name: &str, tr: Truth, seed: u64) -> Analysis {
 
 /// The named effects were found; adding them reduced the on-board parameter error, did not
 /// worsen the batch fit's (and halved it where the effect biased `a` by more than 0.003), and
-/// the effect parameters came out within 20 % of their true size (they were 100 % wrong,
-/// i.e. zero, before).
+/// the effect parameters came out within 20 % of their true size (without the effects they
+/// are taken as zero, 100 % wrong).
 fn check(an: &Analysis, want: &[(Effect, Vec<f64>)]) {
     let mut got = an.effects.clone();
     got.sort();

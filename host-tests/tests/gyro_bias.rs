@@ -64,12 +64,11 @@ fn gyro_bias_is_detected_and_the_std_stays_honest() {
     }
 }
 
-/// During a gyro-only flight with a bias, before the end-of-flight fits, the tensor is the
-/// equation error's, which has no bias model and takes the bias for products of inertia: it
-/// said `Converged` with products on a body that has none. Now `ModelMismatch` once the bias
-/// test of the ratios finds the bias (`RefinedBias`); without a bias `Converging` (no bias was
-/// measured, so none can be ruled out yet); and after the flight's fits (bias modelled)
-/// `Converged`.
+/// During a gyro-only flight with a bias, before the end-of-flight fits, the tensor is the equation
+/// error's, which has no bias model and takes the bias for products of inertia: it could say
+/// `Converged` with products on a body that has none. It must be `ModelMismatch` once the bias test
+/// of the ratios finds the bias (`RefinedBias`); without a bias `Converging` (no bias was measured,
+/// so none can be ruled out yet); and after the flight's fits (bias modelled) `Converged`.
 #[test]
 fn a_bias_detected_in_flight_keeps_the_tensor_from_converging() {
     let body = Body::free([0.6, 1.54, 1.0]);
@@ -91,7 +90,7 @@ fn a_bias_detected_in_flight_keeps_the_tensor_from_converging() {
             if bias == 0.0 {
                 // No bias measured on a still stretch (there is none): the equation error,
                 // which cannot tell a bias, is at most `Converging` until the end-of-flight
-                // fits (test `online_gyro_bias`; it said `Converged` here before 2026-11-25).
+                // fits (test `online_gyro_bias`).
                 assert_eq!(t.status, TensorStatus::Converging, "seed {seed}");
             } else {
                 assert_eq!(

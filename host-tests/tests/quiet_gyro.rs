@@ -2,11 +2,11 @@
 //! pipeline with that noise declared: the ratios must come from the trajectory fit, within a
 //! few of their standard deviations, `Converged`.
 //!
-//! Found by `sweep-identify` (bodies and rates the benchmark does not use, through the
-//! `inertia identify` binary): the equation error's Wald test on the products of inertia, whose
-//! own discretisation error does not shrink with the noise, called a principal body's products
-//! significant; the ratios then came from the tensor's `a` (4-5x the bound) or the bias model
-//! (`PhysicallyImpossible`, 100-900x the bound) although the trajectory fit had them to 1e-6.
+//! Why it can fail: the equation error's Wald test on the products of inertia, whose own
+//! discretisation error does not shrink with the noise, calls a principal body's products
+//! significant, and the ratios would then come from the tensor's `a` or the bias model, far
+//! above the bound, although the trajectory fit has them to 1e-6 (`sweep-identify` runs such
+//! bodies and rates through the `inertia identify` binary).
 
 use host_tests::gyro::GyroModel;
 use host_tests::rigid_body::Body;

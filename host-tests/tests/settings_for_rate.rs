@@ -166,8 +166,8 @@ fn paper_identifier_noise_free_bias() {
     for rate in RATES {
         let b = paper_bias(rate);
         println!("paper identifier at {rate} Hz: noise-free bias {b:.2e}");
-        // Issue 11: below 1e-4 at 100 Hz (it was 2.6e-3 on the racquet-like body before the
-        // end-corrected trapezoid and the cubic sign-change crossing). Above 1 kHz the f32
+        // Issue 11: below 1e-4 at 100 Hz, which takes the end-corrected trapezoid and the cubic
+        // sign-change crossing on the racquet-like body. Above 1 kHz the f32
         // rounding of the many small increments dominates (1.8e-4 at 8 kHz), not asserted.
         if rate <= 1000.0 {
             assert!(b < 1e-4, "{rate} Hz: {b:.2e}");

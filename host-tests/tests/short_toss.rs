@@ -1,9 +1,9 @@
 //! A very short toss (20 to 35 samples at 150 Hz, a racquet-like body with two moments 8 %
 //! apart): the ratios must come from the trajectory fit, which has them to a few 1e-3 there.
 //! The output-error tensor's Wald test on the products of inertia, which trusts the fit's
-//! local curvature, called this principal body's products significant on 3 of 40 seeds at 20
-//! and at 27 samples, and the ratios then came from the tensor (a3 0.13 off, where the ratio
-//! fit was 0.003 off); the likelihood ratio against the ratio fit now has to confirm it.
+//! local curvature, can call this principal body's products significant on such short tosses,
+//! and the ratios would then come from the tensor, far less precise; so the likelihood ratio
+//! against the ratio fit has to confirm it.
 
 use host_tests::gyro::GyroModel;
 use host_tests::rigid_body::Body;

@@ -289,7 +289,7 @@ fn without_rotor_momentum_the_tensor_up_to_scale_comes_from_the_fit() {
 /// On a body whose sensor axes are principal axes the recommended ratios stay the
 /// principal-axis ratio fit's once the tensor's fit up to scale has run (which always estimates
 /// the products): with two moments 5 % apart the principal axes are barely defined and the full
-/// model's `a` is far less precise (a1 125x the constrained bound when it was used). `ratios()`
+/// model's `a` is far less precise (a1 many times the constrained bound). `ratios()`
 /// and `estimate_and_ratios()` (what `inertia identify` and the firmware report) agree.
 #[test]
 fn principal_bodies_keep_the_ratio_fits_a_after_the_tensor_fit() {

@@ -8,7 +8,7 @@
 //! | a thrown or tumbling vehicle with gyro and accelerometer (and rotor speeds, if any rotor turns) | [`FlightPipeline`]: free-flight gate, guards, gyro bias, [`TensorEstimator`] | the tensor `J` in the sensor frame (kg m^2 with a known rotor momentum, else up to scale), principal moments and axes, `a`, standard deviations, a [`TensorStatus`] |
 //! | gyro samples of a free tumble, axes taken as principal | [`RatioFit`] (output-error fit of the whole flight, all axes jointly, on the Cramer-Rao bound; a gyro bias when its test finds one; fitted once per flight); [`Refined`] (per sample, near the bound); [`FlightPipeline::ratios`] chooses | `a` with standard deviations and a [`Trust`] or status |
 //! | the same, for the tensor at the bound | [`TensorFit`] (output error, started from [`TensorEstimator`]'s tensor or the ratio fit's moments; the pipeline uses it when it fits to the noise) | `J` in kg m^2 with its covariance when a known rotor momentum fixes the scale ([`TensorFit::close`]), else `J / trace J` ([`TensorFit::close_normalized`]) |
-//! | the paper's method, as published | [`Identifier`] (V.F. Shcherbak's invariant relations, with the sign-change correction) | `a` and the paper's convergence criterion; on noisy data 30-700x the bound |
+//! | the paper's method, as published | [`Identifier`] (V.F. Shcherbak's invariant relations, with the sign-change correction) | `a` and the paper's convergence criterion; on noisy data far above the bound (`scripts/bench-estimators.sh`) |
 //! | a model with one extra effect (bias, torque, damping, products, rotor) | [`ExtendedIdentifier`] | `a` and the effect |
 //!
 //! Nothing is to be trusted unless its status says so: [`TensorStatus::Converged`] or

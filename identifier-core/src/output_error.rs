@@ -181,8 +181,8 @@ impl<const K: usize> Block<K> {
 /// w(tbar)` and `c_2 = w''/2` of the motion at a block's mean time: the terms fall roughly like
 /// `(|c_2| / |c_0|)^k mu_2k`, and a term below 1e-6 of `|w|` is left out (a gyro's noise on a
 /// block mean is hundreds of times more; with 1e-8, the `f32` rounding of `w`, the paper's
-/// 20 s flight took every term to sixth order and its fit cost 8 % more for nothing the
-/// benchmark could see). Short blocks (most flights) stop at the `v/2 w''` term. Shared by
+/// 20 s flight would take every term to sixth order and make its fit dearer for nothing the
+/// benchmark can see). Short blocks (most flights) stop at the `v/2 w''` term. Shared by
 /// both fits' block means.
 pub(crate) fn higher_orders(mu4: f32, mu6: f32, c0: &[f32; 3], c2: &[f32; 3]) -> usize {
     let (w2, c22) = (dot(*c0, *c0), dot(*c2, *c2));
@@ -529,10 +529,10 @@ pub(crate) fn staged_fit<const P: usize>(
 /// the data from being pulled into a wrong basin by the far blocks, and a wrong basin does not
 /// fit (its trajectory is out of phase with the data), so it is caught by the cost and the
 /// prefixes are run then. From a good start they only cost evaluations and throw information
-/// away: on a short noisy toss the tensor fit's first 16 blocks determined its eight
-/// parameters so poorly that the staged fit left the right basin on about 1 flight in 25, and
-/// the ratio fit spent eight evaluations of its trajectory on the benchmark's 85-sample toss
-/// where three reach the same optimum (400 seeds).
+/// away: on a short noisy toss the tensor fit's first 16 blocks determine its eight
+/// parameters so poorly that the staged fit can leave the right basin, and the ratio fit would
+/// spend several times the evaluations of its trajectory for the same optimum (`bench-mcu`
+/// measures the fit's cost after the benchmark's 85-sample toss).
 pub(crate) fn whole_or_staged<const P: usize>(
     normal: impl Fn(&[f32; P], usize) -> Option<Normal<P>>,
     theta: [f32; P],
@@ -567,16 +567,15 @@ pub(crate) const STAGE_TOLERANCE: f32 = 1.0;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Start {
     /// From a rough guess (a per-axis least-squares start, a tensor from the equation error):
-    /// 1e-3. Undamped, the first step from such a start on an 85-sample toss at 100 Hz
-    /// overshot into another minimum often enough to take the benchmark's `toss` to 4x the
-    /// bound on `a1` (400 seeds).
+    /// 1e-3. Undamped, the first step from such a start on a short toss at 100 Hz overshoots
+    /// into another minimum often enough to take the benchmark's `toss` scenario far above the
+    /// bound on `a1`.
     Cold,
     /// From a nearby optimum (a prefix's, the plain model's for the bias model or a refit):
     /// 1e-7, also the damping's floor. The scaled matrices are ill-conditioned (the moments
-    /// and the initial rates are correlated), and a damping of 1e-3 shortened the steps along
-    /// the weak directions tenfold per iteration (the paper's 20 s flight: five evaluations on
-    /// the whole record where two reach the optimum; on a fast 8 s tumble the fit stopped short
-    /// of it, at 1.4x the bound).
+    /// and the initial rates are correlated), and a damping of 1e-3 would shorten the steps
+    /// along the weak directions tenfold per iteration: more evaluations on a long flight, and
+    /// a fit of a fast tumble stopped short of its optimum, above the bound.
     Warm,
 }
 
@@ -657,9 +656,9 @@ pub(crate) fn levenberg<const P: usize>(
             cand[i] += step[i];
         }
         // Only the undamped step says the optimum is reached: a damped one is short because
-        // of the damping (along the weak directions even 1e-4 shortens it several-fold: a fit
-        // from a cold start that stopped there left the tensor up to scale of a fast tumble at
-        // 1.24x its bound, 1.09x when judged undamped). So a small damped step is looked at
+        // of the damping (along the weak directions even 1e-4 shortens it several-fold, and a
+        // fit from a cold start that stopped there would leave the tensor up to scale of a fast
+        // tumble above its bound). So a small damped step is looked at
         // again undamped (no evaluation). Below `tol` the cost's `f32` rounding (about 1e-4 of
         // itself from one evaluation to the next) would often refuse the step on noise.
         if pred < tol * per {
@@ -674,9 +673,10 @@ pub(crate) fn levenberg<const P: usize>(
             Some((c2, f2, g2)) if c2 < cost => {
                 // The gain against the model's prediction: a step that gained less than a
                 // quarter of it was too long for the quadratic model (an undamped first step
-                // from a poor start on a 20 s spin near the major axis: 3 % of its predicted
-                // gain, and the damping lowered after it let the next steps wander into
-                // another minimum), so the damping goes up; below three quarters it stays.
+                // from a poor start on a long spin near the major axis gains a few percent of
+                // its prediction, and a damping lowered after it would let the next steps
+                // wander into another minimum), so the damping goes up; below three quarters
+                // it stays.
                 let gain = (cost - c2) / pred;
                 theta = cand;
                 cost = c2;
@@ -698,11 +698,11 @@ pub(crate) fn levenberg<const P: usize>(
                 // the cost can tell (a damped step may be short only because of the damping).
                 // The trajectory is integrated in `f32`, and the cost moves by about 1e-4
                 // of itself from one evaluation to the next with no real change: steps
-                // predicted to gain less are refused on that noise, and the loop used to go on
-                // refusing and taking them (the damping never back below 1e-2) to its iteration
-                // limit, 23 evaluations where 4 had reached the optimum on the paper's 20 s
-                // flight. What is left is at most about 0.2 standard deviations along the
-                // worst direction, 0.02 typically.
+                // predicted to gain less are refused on that noise, and without this stop the
+                // loop would go on refusing and taking them (the damping never back below 1e-2)
+                // to its iteration limit, long after the optimum was reached. What is left is
+                // at most about 0.2 standard deviations along the worst direction, 0.02
+                // typically.
                 if pred < 0.05 * per && mu <= 1e-2 {
                     break;
                 }
@@ -735,9 +735,8 @@ pub(crate) fn refit_cost<const P: usize>(
 /// ((T4) against the same threshold), or when that fit failed (the score's verdict stands).
 /// The score is the likelihood ratio's approximation at the exact optimum; on a fast 8 s
 /// flight the `f32` fit stops where a step of one ulp moves the cost by units of
-/// log-likelihood, and the ratio fit's score called a free body's torque significant on 5 of
-/// 100 seeds whose refit gained under one unit (the tensor fit's, on 3 of 100 seeds of a fast
-/// 4 s tumble).
+/// log-likelihood, so the score alone can call a free body's torque significant where the
+/// refit gains under one unit (the test `a_free_body_is_still_converged` runs free bodies).
 pub(crate) fn torque_confirmed(
     refit: Option<f32>,
     cost: f32,

@@ -48,12 +48,12 @@ pub struct PipelineSettings {
     /// and the estimators by `d`. The other settings are for the decimated rate.
     pub decimation: u8,
     /// Time variance of each input reading's own averaging window over its interval squared:
-    /// 0 for a gyro read at instants, `s^2 / 12` for one that reports the mean rate over the
-    /// last `s` of each interval (PX4's `sensor_combined`: the rate integrated over the
-    /// sampling period, `s = 1` when every sample is logged). The output-error fits count it
-    /// in their block means ((B0) of the fits' shared block buffer): on a body tumbling at
-    /// 24 rad/s logged that way at 250 Hz, taking the means for instants put `a` 11-14 standard
-    /// deviations off (RMS over 16 seeds) while `Converged`.
+    /// 0 for a gyro read at instants, `s^2 / 12` for one that reports the mean rate over the last
+    /// `s` of each interval (PX4's `sensor_combined`: the rate integrated over the sampling period,
+    /// `s = 1` when every sample is logged). The output-error fits count it in their block means
+    /// ((B0) of the fits' shared block buffer): on a fast tumble logged that way at a low rate,
+    /// taking the means for instants puts `a` many standard deviations off while `Converged` (the
+    /// test `a_px4_gyro_that_averages_over_its_interval_is_read_as_means`).
     pub reading_window: f32,
     /// Time variance of the gyro's own low-pass filter, s^2 (the second cumulant of its
     /// impulse response: `tau^2` per first-order stage of time constant `tau`), 0 for an
@@ -173,9 +173,9 @@ pub struct Ratios {
 
 /// The trajectory fit gives the ratios only while its residual noise is at most this many times
 /// the configured gyro noise (the model holds to the noise). On simulated throws the ratio is
-/// 0.9-1.1; on the racquet tosses, where aerodynamic torque leaves a residual 10-30 times the
-/// noise, the whole-trajectory fit spreads 2-3x more from toss to toss than the refined
-/// identifier (measured with `scripts/bench-estimators.sh`, racquet section).
+/// near 1; on the racquet tosses, where aerodynamic torque leaves a residual tens of times the
+/// noise, the whole-trajectory fit spreads more from toss to toss than the refined identifier
+/// (measured with `scripts/bench-estimators.sh`, racquet section).
 pub const TRAJECTORY_FIT_RATIO: f32 = 2.0;
 
 /// The verdicts about the data themselves (too few samples, no excitation, units, clipping):
@@ -525,9 +525,9 @@ impl<const N: usize> Pipeline<N> {
         // `principal`: a Wald test on the products of inertia (`TensorSettings::products_chi2`).
         // Once a flight has ended `t` is the output-error fit up to scale, which always
         // estimates the products; its `a` is far less precise than the principal-axis ratio
-        // fit's where two moments are close (the principal axes are then barely defined: 125x
-        // the constrained bound on a1 of the near-symmetric body at 2 kHz, 2-8x on the tosses,
-        // when it was used for every body).
+        // fit's where two moments are close (the principal axes are then barely defined, and
+        // its `a` is many times the constrained bound on a near-symmetric body), so it is used
+        // only where the products are significant.
         let trust = self.refined.trust();
         let status = match trust {
             Trust::NoInformation | Trust::TooFewSamples => TensorStatus::TooFewSamples,
@@ -558,15 +558,15 @@ impl<const N: usize> Pipeline<N> {
                 // With a gyro bias the tensor estimator (which has no bias model) takes the
                 // bias for products of inertia; the fit that explains the data to the noise is
                 // the principal-axis one with the bias, so the products are not held against it
-                // (before: `ModelMismatch` on every seed of the gyro-bias scenario although its
-                // `a` was within 1.2 of its standard deviation).
+                // (else the gyro-bias scenario would be `ModelMismatch` although its `a` is
+                // within its standard deviation).
                 return self.trajectory_ratios(&fe, status, principal || fe.biased);
             }
             // The principal-axis model does not fit to the noise. If the tensor wants products
             // of inertia and is itself `Converged` (its residual within its threshold, precise,
             // physically valid), the sensor axes are simply not principal axes: its `a` below.
             // Otherwise the torque-free model does not hold on these data (on the racquet
-            // tosses through air the tensor's `a` spreads 10-36 % from toss to toss): the
+            // tosses through air the tensor's `a` spreads by tens of percent): the
             // refined identifier's estimate is the least affected, and marked as such.
             let tensor_fits = !principal && t.status == TensorStatus::Converged;
             if !fits && !tensor_fits && informed {
@@ -578,10 +578,9 @@ impl<const N: usize> Pipeline<N> {
         {
             // The flight ended and its fit found no torque-free motion that the data follow
             // (no fit at all, a stronger verdict than a residual above the noise): the same
-            // choice. On a racquet toss through air (round 2, toss 2) the equation-error
-            // tensor's products had been taken for a misaligned sensor and its `a` reported,
-            // 0.4 off on `a_2` where the refined identifier's was within 0.02 of the other
-            // tosses' (both `ModelMismatch`).
+            // choice. On a racquet toss through air the equation-error tensor's products would
+            // be taken for a misaligned sensor and its `a` reported far off, where the refined
+            // identifier's agrees with the other tosses' (both `ModelMismatch`).
             return self.refined_mismatch(status);
         }
         let (a_r, s_r) = (self.refined.block_estimate(), self.refined.std_a());
@@ -800,11 +799,10 @@ impl<const N: usize> Pipeline<N> {
     /// ratio fit's with the torque by the products' own test threshold
     /// (`TensorSettings::products_chi2` times the residual variance).
     ///
-    /// Why the comparison: a constant torque of 2e-3 rad/s^2 on a principal body was fitted by
-    /// the tensor as a gyro bias and products of inertia (its own torque test does not reject
-    /// there), and its `a`, 17-30 standard deviations off, could be reported `Converged`
-    /// (`sweep-identify`, row `trap-torque`; before any torque test `Converged` and more than
-    /// 4 standard deviations off on 100 of 100 seeds, now on none). A gyro mounted off the principal axes
+    /// Why the comparison: a small constant torque on a principal body is fitted by the tensor
+    /// as a gyro bias and products of inertia (its own torque test does not reject there), and
+    /// its `a`, many standard deviations off, would be reported `Converged` (`sweep-identify`,
+    /// row `trap-torque`, counts such flights). A gyro mounted off the principal axes
     /// makes the ratio fit's test reject too (it lacks the products), with or without a bias;
     /// there the products explain the data and the torque does not.
     fn torque_suspected(&self, principal: bool) -> bool {
@@ -825,13 +823,11 @@ impl<const N: usize> Pipeline<N> {
             return true;
         };
         // The two explanations are weighed against the residual variance of the one that fits
-        // better (never below the configured noise's). The ratio fit's own residual, which
-        // this had been, is that of the model without either: on a body with products of
-        // inertia it is the products' misfit, and a torque that took up part of it was judged
-        // against 21 times that misfit. A simulated toss without a rotor (`gen-throw
-        // --scenario no_rotor_toss --seed 1`) turned from `Converged` to `ModelMismatch` so
-        // once the ratio fit found its (wrong-model) optimum: the torque's cost 20, the
-        // tensor's 4e-4, the ratio fit's residual variance 3.7 (rad/s)^2.
+        // better (never below the configured noise's). Not the ratio fit's own residual: that
+        // is the model's without either, and on a body with products of inertia it is the
+        // products' misfit, against which a torque that took up part of it would be judged
+        // insignificant and the products rejected (a simulated toss without a rotor,
+        // `gen-throw --scenario no_rotor_toss --seed 1`, shows it).
         let cfg = self.settings.tensor.noise_std;
         let torque_var = fe.noise * fe.noise * (fe.cost_with_torque / fe.cost);
         let tensor_var = tf.noise * tf.noise;
@@ -855,10 +851,9 @@ impl<const N: usize> Pipeline<N> {
     /// `TensorSettings::products_chi2`. Taken from the output-error fit up to scale once it
     /// fits to the noise (efficient, and its discretisation error far below the noise), else
     /// from the equation error (`own`'s model). The equation error's own error does not shrink
-    /// with the noise: with a quiet gyro (5e-5 rad/s at 1 kHz) it called the products of a
-    /// principal body significant on every seed, and the ratios then came from the tensor's
-    /// `a` (4-5x the bound) or from the bias model (`PhysicallyImpossible` on a body the
-    /// trajectory fit had to 1e-6).
+    /// with the noise: with a quiet gyro it calls the products of a principal body
+    /// significant, and the ratios would then come from the tensor's `a`, several times the
+    /// bound off (the test `a_quiet_gyro_gets_the_trajectory_fit`).
     fn principal_axes(&self, own: &TensorEstimate) -> bool {
         if !self.rotor_seen {
             if let Some(f) = self.tensor_fit.estimate_normalized() {
@@ -881,20 +876,20 @@ impl<const N: usize> Pipeline<N> {
                     // Confirmed by the likelihood ratio against the ratio fit (the same model
                     // with the products held at zero, fitted to the same blocks with the same
                     // bias choice): on short flights the Wald test, which trusts the fit's
-                    // local curvature, called a principal body's products significant on 3
-                    // of 40 seeds of a 27-sample toss at 150 Hz (and the ratios then came
-                    // from the tensor, 0.13 off on a3 where the ratio fit was 0.003 off).
+                    // local curvature, can call a principal body's products significant, and
+                    // the ratios would then come from the tensor, far less precise than the
+                    // ratio fit's (the test `a_short_toss_keeps_the_principal_axes`).
                     if let Some(fe) = self.trajectory.estimate() {
                         if fe.biased == f.biased {
                             let s2 = self.fit_variance(&fe);
                             let products_explain = fe.cost - f.cost > chi2 * s2;
                             // Nor significantly better than the gyro's scale factors would,
                             // where the ratio fit's rigid-body test found ratios no rigid body
-                            // has (a principal body read 0.5 % and 0.3 % off on two axes:
-                            // products found, the tensor's `a` `Converged` and 10-35 std off).
-                            // The same margin as against the ratio fit: with a bare `<=` the
-                            // products, two parameters more, won by 5 noise variances on 1 seed
-                            // of 100 and said `Converged` 6 std off.
+                            // has (a principal body read a few tenths of a percent off on two
+                            // axes: products found, the tensor's `a` `Converged` and many std
+                            // off; `sweep-identify`, row `trap-scale`). The same margin as
+                            // against the ratio fit: the products have two parameters more, and
+                            // with a bare `<=` they would win on noise now and then.
                             let scale_explains =
                                 fe.constraint_rejected && fe.cost_with_scale <= f.cost + chi2 * s2;
                             return !products_explain || scale_explains;
@@ -944,10 +939,9 @@ impl<const N: usize> Pipeline<N> {
     /// has no bias model) absorbs into the principal moments and then into products of inertia
     /// that the body need not have, and its standard deviations do not know it. Only the
     /// end-of-flight output-error fits, which test a bias, tell a bias apart; until then such
-    /// an estimate is at most `Converging`. Measured before this rule (paper's body, 1 kHz,
-    /// bias (2, -1.5, 1)e-3 rad/s, test `online_gyro_bias`): `Converged` 3 s into the flight
-    /// with `a` 4 standard deviations off (principal model), and 6 s in 38 off (products), on 3
-    /// of 4 seeds, until the refined identifiers' bias test caught up.
+    /// an estimate is at most `Converging` (a bias of a few mrad/s would otherwise let it say
+    /// `Converged` several standard deviations off within seconds; the test
+    /// `online_gyro_bias`).
     fn bias_unknown(&self, t: &TensorEstimate) -> bool {
         t.method == TensorMethod::EquationError && !self.bias_measured()
     }
@@ -956,9 +950,8 @@ impl<const N: usize> Pipeline<N> {
     /// measured on a still stretch (nor removed by the caller) and no end-of-flight ratio fit
     /// that found none. The refined identifier has no bias model either (the same reason as
     /// [`Pipeline::bias_unknown`]); its Hausman test against [`RefinedBias`] needs a second or
-    /// two to see a bias of a few mrad/s. Measured before this rule (`online_gyro_bias`: the
-    /// paper's body, 1 kHz, bias (2, -1.5, 1)e-3 rad/s): `Converged` up to 4.1 standard
-    /// deviations off in the first second of the flight.
+    /// two to see a bias of a few mrad/s, and until then its ratios could say `Converged`
+    /// standard deviations off (the test `online_gyro_bias`).
     fn refined_bias_unknown(&self) -> bool {
         !self.bias_measured() && self.trajectory.estimate().is_none_or(|f| f.biased)
     }

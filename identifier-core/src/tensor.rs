@@ -100,9 +100,9 @@ pub struct TensorSettings {
     /// (21.11: 0.01 % false-alarm rate). `0` forces the full tensor, `INFINITY` the
     /// principal-axis model. The two errors cost differently: a false alarm on a principal body
     /// makes the pipeline report the full tensor's `a`, several times less precise than the
-    /// principal-axis ratio fit's (on the 100 Hz toss one seed in 400 at 0.1 %, with an `a_2`
-    /// error of ten bounds, took that scenario's RMS to 1.11x the bound; 1.01x at 0.01 %, the
-    /// constrained maximum likelihood's own figure), while products just below the threshold
+    /// principal-axis ratio fit's (one such flight, an `a` many bounds off, shows in a scenario's
+    /// RMS error; at 0.01 % they are rare enough that the RMS stays the constrained maximum
+    /// likelihood's own, `scripts/bench-estimators.sh`), while products just below the threshold
     /// are at most 4.6 of their standard deviations.
     pub products_chi2: f32,
     /// Residual standard deviation over the gyro noise beyond which the model does not describe
@@ -674,9 +674,9 @@ pub struct TensorEstimator {
     closed: Normal,
     closed_stretches: u32,
     /// Axis weights of the rows (T3). Equal: weights `1 / (J J^T)_rr` from the estimate (the
-    /// white part of the residual, `J n`) were tried and made the reported standard deviation
-    /// 1.7-5.7x too small on simulated throws, because the integrals' noise mixes all three
-    /// axes into every row; equal weights measured 0.54-1.61x (`tensor-bench`).
+    /// white part of the residual, `J n`) make the reported standard deviation several times
+    /// too small on simulated throws, because the integrals' noise mixes all three axes into
+    /// every row; with equal weights it stays near the errors (`tensor-bench` measures both).
     weights: [f32; 3],
     pending_dt: f32,
     restart: bool,
@@ -962,9 +962,9 @@ impl TensorEstimator {
         };
         let floor = sigma2 * f;
         // The uncertainty uses the larger floor `sigma^2`: the least squares ignore that the
-        // integrals' noise is correlated from sample to sample, and the white floor alone made
-        // the reported standard deviation up to 4x too small on simulated throws (measured with
-        // `tensor-bench`); `sigma^2` brings it to 0.5-1.6x.
+        // integrals' noise is correlated from sample to sample, and the white floor alone would
+        // make the reported standard deviation several times too small on simulated throws;
+        // `sigma^2` brings it near the errors (measured with `tensor-bench`).
         let s2n = max(chosen.s2, sigma2);
         let cov_n = scale(&chosen.cov, s2n);
 

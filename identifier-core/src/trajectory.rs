@@ -6,10 +6,11 @@
 //! [`crate::Refined`] fits each axis of the integrated (1) on its own. The information about
 //! `a_i` that lives in the *other* axes' motion (a different `a_i` bends the whole trajectory)
 //! and the correlation between one axis's integral noise and the other axes' measurement noise
-//! are lost, which leaves it 1.2-1.4x the Cramer-Rao bound on near-symmetric bodies and short,
-//! fast tosses. The efficient estimator for white gyro noise is the output-error fit: the
-//! parameters whose trajectory is closest to the samples. This module makes it fit on a
-//! Cortex-M4F: per sample it only adds to a block sum; the fit runs once per free flight.
+//! are lost, which leaves it above the Cramer-Rao bound on near-symmetric bodies and short, fast
+//! tosses (`scripts/bench-estimators.sh` measures both estimators). The efficient estimator for
+//! white gyro noise is the output-error fit: the parameters whose trajectory is closest to the
+//! samples. This module makes it fit on a Cortex-M4F: per sample it only adds to a block sum; the
+//! fit runs once per free flight.
 //!
 //! # The model
 //!
@@ -79,17 +80,17 @@
 //! # Uncertainty, bias, pooling
 //!
 //! `sigma^2 = cost / (3 B - P)` (B blocks, P parameters) from the fit's own residual; the
-//! covariance is `sigma^2 F^-1`, `F = sum_b n_b S_b^T S_b`, times the factor of (T7) for the
-//! fit's own `f32` resolution (1 on most flights; 1.01-1.07 on a body turning at 12 rad/s
-//! for 4-8 s at 1 kHz). The bias model (`P = 8`) replaces
-//! the plain one (`P = 5`) when `(cost_5 - cost_8) / sigma_8^2 > 21.11` (chi-square, 3 degrees
-//! of freedom, 0.01 %: at 0.1 % one false alarm in 400 short noisy tosses, whose `a_3` then
-//! came out nine times the bound, made the scenario's RMS error 1.13x the bound, 1.04x at
-//! 0.01 %; biases of 1e-3 rad/s and more are still taken in every seed); it is fitted only when the score statistic `g^T F^-1 g` of the bias
-//! model at the plain optimum exceeds half that threshold (one evaluation instead of a fit when
-//! there is no bias). Each closed stretch (a free flight) adds its information on `p` with the
-//! initial rates and the bias marginalised (`(F^-1)_pp^-1`) to a pooled sum; the pooled
-//! estimate is the information-weighted mean, its noise the pooled residual.
+//! covariance is `sigma^2 F^-1`, `F = sum_b n_b S_b^T S_b`, times the factor of (T7) for the fit's
+//! own `f32` resolution (1 on most flights, a little above on long, fast ones). The bias model
+//! (`P = 8`) replaces the plain one (`P = 5`) when `(cost_5 - cost_8) / sigma_8^2 > 21.11`
+//! (chi-square, 3 degrees of freedom, 0.01 %: a false alarm on a short noisy toss puts its ratios
+//! many bounds off and shows in a scenario's RMS error, so the level is strict, while biases of
+//! 1e-3 rad/s and more are still found; the test `gyro_bias_is_detected_and_the_std_stays_honest`
+//! checks both); it is fitted only when the score statistic `g^T F^-1 g` of the bias model at the
+//! plain optimum exceeds half that threshold (one evaluation instead of a fit when there is no
+//! bias). Each closed stretch (a free flight) adds its information on `p` with the initial rates
+//! and the bias marginalised (`(F^-1)_pp^-1`) to a pooled sum; the pooled estimate is the
+//! information-weighted mean, its noise the pooled residual.
 //!
 //! `a` and its standard deviations follow by the chain rule, `cov(a) = (da/dp) cov(p)
 //! (da/dp)^T`.
@@ -112,15 +113,13 @@
 //! and the likelihood ratio `(cost - cost_c) / s2` must reject too (the score is its
 //! approximation at the exact optimum, which an `f32` fit of a fast flight reaches only to
 //! its resolution). When both reject, [`RatioFitEstimate::torque`] is set and the pipeline
-//! does not call the ratios `Converged`. The residual alone cannot show such an effect: a constant torque of
-//! 2e-3 rad/s^2 on a 6 s, 500 Hz flight moved `a` by 10-15 standard deviations while the
-//! residual stayed within 1.1 of the noise (`scripts/sweep-identify.sh`, row `trap-torque`).
-//! On that sweep (100 seeds a row) no row of a free body is flagged; air drag of 0.01/s is on
-//! every seed; a gyro bias random-walking at 2e-3 rad/s/sqrt(s) on 99 (no seed `Converged`
-//! more than 4 standard deviations off, against 5 without the test); gyro scale factors off by
-//! (0, +0.5, -0.3) % only on 62: a scale error is mostly absorbed by `a` itself (34 seeds stayed
-//! `Converged` and more than 4 standard deviations off, against 100 without the test; 1 with
-//! the rigid-body test below and the tensor fit's scale test).
+//! does not call the ratios `Converged`. The residual alone cannot show such an effect: a
+//! small constant torque on a long flight moves `a` by many standard deviations while the
+//! residual stays near the noise (`scripts/sweep-identify.sh`, row `trap-torque`). The same
+//! sweep measures how often the test flags each row (`trap-drag`, `trap-bias-walk`,
+//! `trap-scale`, and the free bodies, which it should not flag). A gyro scale error is mostly
+//! absorbed by `a` itself and often escapes this test, which is why the rigid-body test below
+//! and the tensor fit's scale test follow.
 //!
 //! # Ratios no rigid body has
 //!
@@ -148,12 +147,12 @@
 //! and its cost ([`RatioFitEstimate::cost_with_scale`]) is what the products of inertia of the
 //! tensor must beat to be believed: they absorb part of a scale error too.
 //!
-//! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 146 / 209
-//! instructions per sample (a block sum; a merge of the 256 blocks once in a while costs up to
-//! 14 k); one fit 4.36 / 4.51 M instructions after 20 s at 1 kHz, 1.19 / 1.24 M after an
-//! 85-sample toss (the bias's score and the tests (T4), (T5) are one evaluation with 12
-//! columns at the plain optimum; (T6), the bias model and the torque's refit run only where
-//! their score test rejected).
+//! Cost: per sample a block sum (and once in a while a merge of the blocks); one fit per free
+//! flight, in which the bias's score and the tests (T4), (T5) are one evaluation with 12
+//! columns at the plain optimum, and (T6), the bias model and the torque's refit run only where
+//! their score test rejected. `bench-mcu` measures the per-sample and per-fit instruction
+//! counts on the Cortex-M4F in the release and flight builds, after a long flight and after a
+//! short toss.
 #![allow(
     // Fixed-size loops over the 3 axes and the P <= 8 parameters read as the equations; the
     // crate's link-time no-panic check proves no bounds check survives.
@@ -280,15 +279,15 @@ pub struct RatioFit<const N: usize> {
 }
 
 /// The block buffer used by the pipeline: 256 blocks (10 KB in all). With 128 blocks (156 ms
-/// each over a 20 s flight at 1 kHz) the noise-free error of the paper's body rose from 4e-7
-/// to 8e-6: the block correction's neglected fourth-order term.
+/// each over a 20 s flight at 1 kHz) the block correction's neglected fourth-order term would
+/// set the noise-free error of the paper's body, an order of magnitude above the rounding's.
 pub type FlightRatioFit = RatioFit<256>;
 
 /// Standard deviation of the `f32` fit's own error in `a` (rounding in the sums and the RK4
 /// steps), added in quadrature to the noise's. On noise-free data the fit's residual is the
-/// rounding's (about 1e-8 rad/s) and its covariance alone claimed `a` to 3e-8 where the error
-/// was 2.2e-7 RMS (`scripts/sweep-identify.sh`, row `noise-free-1k`; at most 9.6e-7 on the
-/// benchmark's noise-free runs). `|a_i| <= 1` for every rigid body: about 2.5 units in the
+/// rounding's (about 1e-8 rad/s) and its covariance alone would claim `a` several times more
+/// precisely than the rounding lets it be (`scripts/sweep-identify.sh`, row `noise-free-1k`,
+/// measures the noise-free error). `|a_i| <= 1` for every rigid body: about 2.5 units in the
 /// last place of `f32`.
 pub const STD_A_ROUNDING: f32 = 3e-7;
 
@@ -490,14 +489,11 @@ fn resolution_factor<const P: usize>(f: &Sym<P>, theta: &[f32; P], cost: f32, do
     }
 }
 
-/// The constant of (T7). Measured on a body turning at 12 rad/s at 1 kHz (moments 1, 2.1,
-/// 2.9; 100 seeds each, `bench-estimators --scenario fast-tumble`, and the same with 8 s):
-/// after 4 s `kappa^2 = 26` and the fit's error variance was 1.02x the `f64` constrained
-/// maximum likelihood's on the same samples, after 8 s `kappa^2 = 141` and 1.00-1.08x
-/// (0.0003-0.0008 per unit of `kappa^2`). (A first measurement, 1.23x and 2.77x, was of a fit
-/// that stopped short of its optimum: its damping held the steps along the weak directions
-/// back.) The paper's body spinning at 8 rad/s near its major axis for 20 s has
-/// `kappa^2 = 1.6`, the benchmark's flights less.
+/// The constant of (T7): the excess of the fit's error variance over the `f64` constrained
+/// maximum likelihood's on the same samples, per unit of `kappa^2`, as measured on a body
+/// turning at 12 rad/s at 1 kHz for 4 s and 8 s (`bench-estimators --scenario fast-tumble`).
+/// The paper's body spinning at 8 rad/s near its major axis for 20 s has `kappa^2 = 1.6`, the
+/// benchmark's flights less, so the factor is 1 there to about 1e-3.
 const RESOLUTION: f32 = 5e-4;
 
 /// Blocks between restorations of the invariants (`Invariants::restore`).
@@ -680,8 +676,8 @@ fn normal_with<const P: usize, const C: usize>(
                 // The step count from the data (the faster of the two block means, `|a_i| <= 1`
                 // for a rigid body), not from the parameters: a count that changed with them
                 // would make the cost jump (the RK4 error of one step count against another)
-                // where the fit needs it smooth. Measured on a 4 s flight at 12 rad/s: one ulp
-                // of an initial rate moved the cost by up to 3 % with the count from `x.w`.
+                // where the fit needs it smooth; with the count from `x.w`, one ulp of an
+                // initial rate would move the cost by percents on a fast flight.
                 let speed = speed_prev.max(speed_here) * amax.max(1.0);
                 let steps = substeps(span, speed);
                 let h = span / steps as f32;
@@ -790,11 +786,11 @@ fn initial_a(blocks: &[Block<3>]) -> Option<[f32; 3]> {
 /// (`a1 A1 - A2 + A3 = 0` and cyclic), so `A` is taken as the eigenvector of `M^T M` with the
 /// smallest eigenvalue, scaled to trace 1; the sphere when that is not a body.
 ///
-/// Why all three: `A2/A1 = (1 + a1)/(1 - a2)` from two of them, which this start had been, is
-/// a small difference of noisy numbers on a flat body (`A3` close to `A1 + A2`, `a1` close to
-/// -1: a racquet, a plate, a flight controller's board): on the benchmark's 85-sample toss
-/// it gave no body at all or one far off often enough that the fit took 20.7 evaluations of
-/// its trajectory per seed on average (400 seeds; 10.1 from (T8), the same estimates).
+/// Why all three: `A2/A1 = (1 + a1)/(1 - a2)` from two of them is a small difference of noisy
+/// numbers on a flat body (`A3` close to `A1 + A2`, `a1` close to -1: a racquet, a plate, a
+/// flight controller's board): on a short toss it often gives no body at all or one far off,
+/// and the fit then takes about twice the evaluations of its trajectory for the same
+/// estimates (`bench-mcu` measures the fit's cost after the benchmark's 85-sample toss).
 fn moments_of(a: [f32; 3]) -> [f32; 2] {
     let m = [[a[0], -1.0, 1.0], [1.0, a[1], -1.0], [-1.0, 1.0, a[2]]];
     let mut n = [[0.0f32; 3]; 3];
@@ -907,7 +903,7 @@ fn fit_stretch(blocks: &[Block<3>], noise_floor: f32) -> Option<StretchFit> {
     // a step off the constraint, decides whether the bias model is worth its fit (its score
     // without the torque's and the step's columns) and gives the plain model's tests (without
     // the bias's). Each of those columns is integrated on its own, so the two are what
-    // separate evaluations gave, for one.
+    // separate evaluations would give, for the cost of one.
     let mut plain12 = [0.0f32; P_TESTS_BIAS];
     plain12[..5].copy_from_slice(&theta5);
     let at_plain = normal::<P_TESTS_BIAS, C_TESTS>(blocks, total, &plain12);
@@ -1053,8 +1049,8 @@ impl<const N: usize> RatioFit<N> {
     /// stages in series). It adds to each block's time variance ((B0')); the filter's delay
     /// (its first cumulant) is the caller's to take out of the sample times. Betaflight's
     /// default gyro filters (first-order stages at 250 and 500 Hz at an 8 kHz loop) are
-    /// 6e-7 s^2: simulated tosses at 15-25 rad/s logged at 2 kHz through them, taken for
-    /// instants, came out `Converged` up to 6.8 standard deviations off (3 of 6 beyond 4).
+    /// 6e-7 s^2: enough that fast tosses logged at 2 kHz through them, taken for instants,
+    /// come out `Converged` several standard deviations off.
     /// Values outside `[0, 1e-4]` count as 0.
     pub const fn with_reading_smoothing(mut self, smoothing: f32) -> Self {
         self.readings = self.readings.with_smoothing(smoothing);

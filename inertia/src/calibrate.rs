@@ -586,12 +586,12 @@ fn solve(
 /// deviations of `J1` enter to first order (each of the six entries moved by one standard
 /// deviation and everything recomputed, combined with the entries' correlations the estimate
 /// reported: one rotor momentum fixes the scale of all of them), and so does its centre of
-/// mass (the jackknife of [`fit_offset`]). An object from one simulated throw, 8 seeds
-/// (`host-tests/tests/calibrate_sim.rs`): error over standard deviation RMS 1.07 (1.11 before
-/// the rotor telemetry's steps along the ramps were counted, (F8) of the tensor fit; 3.23 with
-/// the entries independent, no centre-of-mass term and the telemetry's steps not fitted). On the shared thrown-FC logs the proof body's throw LOG00126 as the object (`j`
-/// from the other four): standard deviations of the moments 1.88, 2.03, 1.54 %, errors +2.35,
-/// +1.98, -0.10 %.
+/// mass (the jackknife of [`fit_offset`]). The entries' correlations, the centre-of-mass term
+/// and the rotor telemetry's errors ((F7), (F8) of the tensor fit) are all needed: without
+/// them the reported standard deviations are several times too small. Measured by the tests
+/// `an_object_from_one_throw_comes_with_an_honest_uncertainty` (simulated throws) and
+/// `an_object_by_difference_comes_with_an_honest_uncertainty` (the shared thrown-FC logs, the
+/// proof body's throw as the object).
 #[derive(Clone, Copy, Debug, Default)]
 struct Uncertainty {
     j: f64,

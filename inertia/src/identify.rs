@@ -8,10 +8,10 @@
 //! pipeline fed during that throw.
 //!
 //! The log is read as a [`Source`], sample by sample, never held whole (a 10-minute 8 kHz log
-//! took 950 MiB as a [`Recording`]):
+//! takes 950 MiB as a [`Recording`]):
 //!
-//! 1. a first reading ([`crate::survey`]) finds what used to be computed from the whole
-//!    recording before the pipeline ran: sample count, median time step (the rate), gyro
+//! 1. a first reading ([`crate::survey`]) finds what the pipeline needs from the whole
+//!    recording before it runs: sample count, median time step (the rate), gyro
 //!    noise, unit warnings, the rotor channel's changes; the medians exactly, reading the log
 //!    again when the first reading cannot fix them;
 //! 2. the pooled pipeline's reading, per-throw pipelines on worker threads beside it
@@ -19,7 +19,8 @@
 //! 3. only when needed, a reading that feeds again the throws begun with another bias than
 //!    the final one.
 //!
-//! Every number in the report is the same bits as when the whole recording was held.
+//! Every number in the report is the same bits as when the whole recording is held (module
+//! `reference`, the tests' reference).
 
 mod inputs;
 mod passes;

@@ -1,7 +1,7 @@
 //! The exact k-th smallest of a long stream of numbers in bounded memory.
 //!
 //! `identify` takes medians over the whole log (the time step, the gyro's third differences);
-//! its report must stay bit for bit what sorting every value gave. A median of millions of
+//! its report must stay bit for bit what sorting every value gives. A median of millions of
 //! values cannot be kept exactly in bounded memory in one reading in general, but the log can
 //! be read again, so this is a radix selection over the values' ordered bit patterns:
 //!

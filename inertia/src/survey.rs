@@ -1,4 +1,4 @@
-//! The first reading of a log, before the pipeline can start: everything `identify` computed
+//! The first reading of a log, before the pipeline can start: everything `identify` needs
 //! from the whole recording (sample count, median time step, gyro noise, unit warnings, the
 //! rotor channel's changes, the plot's extent), in bounded memory and bit for bit.
 //!

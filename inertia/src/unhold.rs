@@ -17,8 +17,8 @@ pub const LOOKAHEAD: usize = 8192;
 ///
 /// ESC telemetry (eRPM) arrives every one to a few milliseconds and the log holds each value
 /// until the next: a staircase that lags the true speed by about half an update interval. On
-/// the thrown-FC logs this lag was the largest effect the model lacked (the residual of the
-/// rotor axis correlated -0.79 with the rotor's speed changes). Each new value is taken as the
+/// the thrown-FC logs this lag is the largest effect the model lacks (the residual of the
+/// rotor axis follows the rotor's speed changes closely). Each new value is taken as the
 /// speed at the middle of the interval it replaced and the speed is interpolated linearly
 /// between those points; before the first change the log is kept as it is (a rotor at rest).
 pub fn unhold(t: &[f64], speed: &[f32]) -> Vec<f32> {
@@ -81,9 +81,10 @@ pub struct Knot {
 ///
 /// ESC telemetry holds each value until the next. Fast telemetry (bidirectional DShot eRPM,
 /// a new value every millisecond or so) is best taken as logged: on the thrown-FC logs the
-/// staircase gave the board's tensors 0.75-1.39 % apart and the proof body within 2.9 %
-/// (leave one out), the interpolation 0.83-1.94 % and 3.3 %, and a lag scan of the rotor
-/// fit put the best timing within half a step of the staircase's. Slow telemetry (an ESC
+/// staircase gives the board's throws closer tensors and the proof body a smaller
+/// leave-one-out error than the interpolation, and a lag scan of the rotor fit
+/// (`inertia close-loop`'s `rotor_lag`) puts the best timing within half a step of the
+/// staircase's. Slow telemetry (an ESC
 /// status at tens of hertz) is a staircase whose steps are themselves a model error, and is
 /// interpolated ([`unhold`]). `Auto` decides from the log: interpolate when most intervals
 /// between changes of the logged value are longer than [`SLOW_HOLD_S`].

@@ -445,10 +445,10 @@ fn thrown_fc_free_flights_found_hand_and_catch_excluded() {
         ));
     }
     // The reported std under `ModelMismatch` against the throw-to-throw scatter of the same
-    // body: RMS over the five throws of (entry - their mean) / std, times sqrt(5/4). Before the
-    // covariance was inflated for the residual's correlation it was 2.0-3.7 on the board
-    // (0.7-3.0 with the proof body): the std claimed two to three times what the throws agree
-    // to. It is 0.7-1.4 and 0.4-1.0 now; five throws give it a spread of about 30 %.
+    // body: RMS over the five throws of (entry - their mean) / std, times sqrt(5/4). Without
+    // the covariance inflated for the residual's correlation ((F10) of the tensor fit) the std
+    // claims two to three times what the throws agree to; five throws give the figure a spread
+    // of about 30 %.
     for (name, group) in ["board", "proof body"].iter().zip(&groups) {
         assert_eq!(group.len(), 5);
         for e in 0..9 {
@@ -858,7 +858,8 @@ fn a_px4_gyro_that_averages_over_its_interval_is_read_as_means() {
 
 /// A slow tumble logged in deg/s stays below the sustained-rate check (50 rad/s as read), and
 /// for a body with one ratio near zero the 57.3x smaller ratios still satisfy the rigid-body
-/// constraint, so the fits cannot tell: it came out `Converged` with `a` 57 times too small.
+/// constraint, so the fits cannot tell: taken as rad/s it is `Converged` with `a` 57 times too
+/// small.
 /// The ratios give it away (all within 0.02 while the gyro reads above 2 rad/s): not trusted
 /// unless the unit is declared; declared, it is identified or taken as said.
 #[test]
@@ -932,11 +933,10 @@ fn identify_betaflight(
 
 /// Betaflight logs its filtered gyro. Read for instants (the header's filter lines taken
 /// out), a throw with a flywheel spinning up is `ModelMismatch` (the rate 0.95 ms behind the
-/// rotor's logged speed) and so is a fast tumble without one (`a` 4-8 standard deviations
-/// off; simulated hand tosses at 15-25 rad/s read that way came out `Converged` up to 6.8
-/// standard deviations off, 3 of 6 beyond 4). With the filters read from the header (each rate read their
-/// delay later, their time spread counted), both are `Converged` within their standard
-/// deviations.
+/// rotor's logged speed) and so is a fast tumble without one (`a` several standard deviations
+/// off; slower tosses read that way can even say `Converged` that far off). With the filters
+/// read from the header (each rate read their delay later, their time spread counted), both
+/// are `Converged` within their standard deviations.
 #[test]
 fn a_betaflight_gyro_is_read_through_its_filters() {
     let filters = betaflight_header(true);
@@ -1021,12 +1021,11 @@ fn a_betaflight_gyro_is_read_through_its_filters() {
 
 /// Betaflight logs whole deg/s by default (0.0175 rad/s per count). On the bench before a
 /// throw the filtered gyro then reads a constant, so the third differences the noise is
-/// estimated from are zero for most of the log: the noise came out at its 1e-4 rad/s floor,
-/// some 50 times below what the logged rate carries in flight (its rounding alone is
-/// 5e-3 rad/s): `gen-throw`'s simulated board tosses written so came out `Converged` with a
-/// standard deviation that small, their tensor tens of standard deviations off (2 of 4; the
-/// others `ModelMismatch`, residual 35-1700 times the noise), and this test's tosses
-/// `ModelMismatch` (3 of 3). With the log's unit counted as white rounding noise under the
+/// estimated from are zero for most of the log: taken as measured, the noise is at its
+/// 1e-4 rad/s floor, some 50 times below what the logged rate carries in flight (its rounding
+/// alone is 5e-3 rad/s), and simulated board tosses written so come out `Converged` with a
+/// standard deviation that small, their tensor tens of standard deviations off, or
+/// `ModelMismatch`. With the log's unit counted as white rounding noise under the
 /// filters' model ((G2)), the noise is the rounding's and the toss is `Converged` within its
 /// standard deviations.
 #[test]

@@ -481,9 +481,8 @@ fn replay(path: &str, uart: &mut Usart1) -> ! {
         }
     }
     // The log has ended: a flight still being fed ends with it and its fits run, as
-    // `inertia identify` does at the end of a log (before this, a flight that the gate had
-    // already closed was reported without its fits; no difference showed while the fits'
-    // results did not reach the report on the replayed logs).
+    // `inertia identify` does at the end of a log, so that no flight is reported without its
+    // fits.
     app.end_flight();
     let r = app.report();
     firmware::app::log_report(&r);

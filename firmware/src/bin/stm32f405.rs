@@ -215,11 +215,10 @@ fn main() -> ! {
                 );
             }
         }
-        // A free flight ended: its output-error fits (up to about 0.4 s: measured 0.22 s for a
-        // 0.6 s throw with a rotor, 0.4 s when its model does not fit and the fit is repeated
-        // from the rotor's spin-up, 0.29 s for a 20 s gyro-only flight, `bench-mcu`) run
-        // between samples, with the watchdog stretched as for a flash save. The gyro's FIFO
-        // overflows meanwhile; the samples lost after a catch are counted as missed.
+        // A free flight ended: its output-error fits (up to about 0.4 s, the longest when the model
+        // does not fit and the fit is repeated from the rotor's spin-up; `bench-mcu` measures each
+        // case) run between samples, with the watchdog stretched as for a flash save. The gyro's
+        // FIFO overflows meanwhile; the samples lost after a catch are counted as missed.
         if app.fits_pending() {
             watchdog.start(WATCHDOG_SAVE_MS.millis());
             app.fit_ended_flight();

@@ -5,10 +5,10 @@
 //!
 //! [`crate::TensorEstimator`] solves Euler's equation integrated per stretch by least squares:
 //! one pass, no iteration, cheap per sample, but the measured rates enter its regressors, so
-//! their noise is in both sides of the equations and the estimate is not efficient (1.5-2.2x
-//! the Cramer-Rao bound per entry on the simulated flywheel throw). The output-error fit is the
-//! efficient estimator for white gyro noise; like [`crate::RatioFit`] it only sums blocks per
-//! sample and fits once per free flight.
+//! their noise is in both sides of the equations and the estimate is not efficient (above the
+//! Cramer-Rao bound per entry; `tensor-bench` measures both on the simulated flywheel throw).
+//! The output-error fit is the efficient estimator for white gyro noise; like
+//! [`crate::RatioFit`] it only sums blocks per sample and fits once per free flight.
 //!
 //! # The model
 //!
@@ -43,8 +43,9 @@
 //! bias model (`b`, three more parameters) replaces the plain one by the likelihood-ratio test;
 //! stretches are pooled by the information on the six entries (see `output_error`). Without
 //! rotor momentum the integrated momentum is held on the two invariants `|L|^2` and `L . J^-1 L`
-//! of (F1) ((F6), every eight blocks, evaluated to twice the `f32` precision): on a fast 8 s
-//! tumble the `f32` drift of the motion's phase had left the fit up to scale 1.1-1.4x its bound.
+//! of (F1) ((F6), every eight blocks, evaluated to twice the `f32` precision): otherwise the
+//! `f32` drift of the motion's phase on a long fast tumble leaves the fit up to scale above its
+//! bound.
 //! The sensitivities are moved with the state, so the invariants' derivatives keep their
 //! start's and the Jacobian stays that of the restored trajectory.
 //!
@@ -65,8 +66,8 @@
 //!
 //! at `kappa = 0`, scored beyond the fitted model's own columns, against 21.11. A scale error
 //! keeps the rates of a torque-free body with other ratios (see [`crate::RatioFit`]), which the
-//! products of inertia partly absorb: on a principal body with the gyro 0.5 % and 0.3 % off on
-//! two axes the products were found and the tensor's `a` said `Converged` 10-35 standard
+//! products of inertia partly absorb: on a principal body with the gyro a few tenths of a
+//! percent off on two axes, products appear and the tensor can say `Converged` many standard
 //! deviations off (`scripts/sweep-identify.sh`, row `trap-scale`); a sensor turned off the
 //! principal axes is the tensor's own model and passes.
 //!
@@ -86,17 +87,16 @@
 //!
 //! (`A`, `M` as in `deriv`). Why fitted and not only counted in the covariance: the offsets
 //! are well determined by the flight (the gyroscopic coupling sees them), so fitting them costs
-//! the tensor little (its variance 1-3x the exact momentum's, where taking them as errors of
-//! uniform variance would have made it tens of times larger). On simulated board throws at the
-//! logged resolution (`tensor-bench`) the errors went from 46-115x the white-noise bound to
-//! 1.6-10x; the errors along the ramps, where the reading changes from block to block, are
-//! left (they also act on later blocks through the integrated momentum, which neither the
-//! residual's level nor the offsets count: the reported standard deviation is up to 2.3x too
-//! small there). The fit is kept only when every offset came out within one quantum (a
-//! quantisation's error is at most half of one): on the thrown-FC logs, whose model error is
-//! tens of times the gyro's noise, free offsets came out at 5-20 quanta, soaking up that error,
-//! and the fit without them is taken. A first version (2026-11-26) only added the offsets'
-//! effect to the covariance: as honest, ten times less accurate.
+//! the tensor little (its variance stays near the exact momentum's, where taking them as errors
+//! of uniform variance makes it tens of times larger); `tensor-bench` measures the errors
+//! against the white-noise bound on simulated board throws at the logged resolution. The
+//! errors along the ramps, where the reading changes from block to block, are left (they also
+//! act on later blocks through the integrated momentum, which neither the residual's level nor
+//! the offsets count: the reported standard deviation is too small there). The fit is kept
+//! only when every offset came out within one quantum (a quantisation's error is at most half
+//! of one): where the model error is tens of times the gyro's noise (the thrown-FC logs), free
+//! offsets come out at several quanta, soaking up that error, and the fit without them is
+//! taken.
 //!
 //! Elsewhere (along the ramps, on runs too short for an offset, and everywhere when the
 //! offsets were not kept) the reading's error is counted in the covariance ((F8),
@@ -119,13 +119,11 @@
 //! expected to leave (`sum_b n_b (v_b |J^-1 u|^2 + tr(J^-1 Phi_b C_b Phi_b^T J^-1))`, the
 //! direct part and the integrated momentum's, `C_b = sum_(k < b) v_k c_k c_k^T`, less what the
 //! fit takes up, `tr(F^-1 K)`; not below the gyro's noise), so they are not counted twice: on
-//! the light board they are several times the gyro's noise per block, and the products'
-//! standard deviation was twice their errors. On simulated light board throws
-//! (`tensor-bench`, 100 seeds) the pipeline's reported standard deviation went from 0.67-1.95
-//! of its errors to 0.59-1.09 with the errors counted, 0.77-1.19 once the residual's variance
-//! no longer counted them too (Jxx 1.00, Jyy 1.19, Jzz 1.02, Jxy 0.77, Jxz 0.99, Jyz 1.05); on
-//! assembly throws through `inertia identify` (`calibrate_sim`) RMS 1.32 -> 0.97; the
-//! thrown-FC logs' are set by their model error and did not move.
+//! the light board they are several times the gyro's noise per block, and counted in the
+//! residual's level too they would double the products' standard deviation. The reported
+//! standard deviation against the errors is measured by `tensor-bench` on simulated light
+//! board throws and by the test `calibrate_sim` on assembly throws through `inertia identify`;
+//! on the thrown-FC logs it is set by their model error.
 //!
 //! The fit starts from an estimate of `J` the caller gives (the pipeline gives
 //! [`crate::TensorEstimator`]'s) and the first block's rate, on all the blocks at once, and on
@@ -169,16 +167,11 @@
 //! [`crate::RatioFit`] (which assumes principal axes) and is pooled apart from the absolute
 //! fits.
 //!
-//! Cost (measured by `bench-mcu` on the Cortex-M4F, release / flight build): 225 / 308
-//! instructions per sample; one fit of a 0.6 s throw at 2 kHz 11.9 M / 11.4 M instructions
-//! (16.8 M / 19.7 M with the rotor telemetry's offsets of (F7): four more parameters),
-//! about 0.07 s at 168 MHz (28 M / 27 M when the model does not fit to the noise and
-//! the fit from the rotor's spin-up follows); up to scale, 20 s of a slow tumble at 1 kHz from a
-//! first guess 2 % off 13.4 M / 13.5 M (0.08 s; about 8.6 M from the pipeline's own first
-//! guesses) and a 0.85 s toss at 100 Hz 3.0 M / 3.1 M
-//! (34, 50, 43 and 30 M in release before 2026-11-26): too long for one gyro period, which is
-//! why the pipeline runs it in [`crate::Pipeline::fit_ended_flight`], outside its per-sample
-//! step.
+//! Cost: a few hundred instructions per sample, and millions per fit (tens of milliseconds at
+//! 168 MHz on the Cortex-M4F; more with the rotor telemetry's offsets of (F7), four more
+//! parameters, or when the fit from the rotor's spin-up follows). `bench-mcu` measures each
+//! case in the release and flight builds. A fit is too long for one gyro period, which is why
+//! the pipeline runs it in [`crate::Pipeline::fit_ended_flight`], outside its per-sample step.
 #![allow(
     // Fixed-size loops over the 3 axes and the parameters read as the equations; the crate's
     // link-time no-panic check proves no bounds check survives.
@@ -462,9 +455,9 @@ fn fit_model<
 /// - the gyro's scale-factor errors ((F5)): scored beyond the model's own columns (the torque
 ///   dropped, see `output_error::score_beyond`) against 21.11.
 ///
-/// The two tests were two evaluations (12 and 9 sensitivity columns) until 2026-11-26; the
-/// columns are integrated independently, so one evaluation with the torque's and the scale
-/// factors' columns gives both the same sums.
+/// Both tests come from one evaluation with the torque's and the scale factors' columns: the
+/// columns are integrated independently, so it gives the same sums as one evaluation per test
+/// at less cost.
 fn tests_found<const PT: usize, const PS: usize>(
     blocks: &[Block<6>],
     rule: &StepRule,
@@ -508,9 +501,9 @@ fn tests_found<const PT: usize, const PS: usize>(
 /// Lag-1 autocorrelation of the block residuals at `theta` over the three axes: the sum of
 /// each block's residual times the previous block's on the same axis, over the sum of
 /// squares; 0 when the residuals cannot be computed. Only the residuals are needed: without
-/// the offsets of (F7) the trajectory is integrated without sensitivities (until 2026-11-26
-/// with the nine columns, unused: the fit of a flight its model does not explain costs about 5 %
-/// less), with them the columns go along (the layout needs them).
+/// the offsets of (F7) the trajectory is integrated without sensitivities (the columns would go
+/// unused and cost time in the fit of a flight its model does not explain), with them the
+/// columns go along (the layout needs them).
 fn residual_lag1<const P: usize>(
     blocks: &[Block<6>],
     rule: &StepRule,
@@ -628,12 +621,12 @@ fn score_inflation<const P: usize, const M: usize>(
 /// Why: the rotor's momentum is what fixes the scale of `J`, and where it is small against its
 /// peak (idle before the spin-up, or the start from rest at the release, when a sensorless
 /// ESC's speed telemetry is least trustworthy) a model error of the same size weighs far more
-/// against it. On the ten thrown-FC logs the fit of the whole free flight left a residual of
-/// 0.1-0.2 rad/s (several hundred times the gyro's noise, low-frequency: a model error, not
-/// vibration), and the part before the spin-up alone gave a scale 7-10 % above the rest's;
-/// from the spin-up on the residual fell by a third and the five board-alone throws agreed
-/// to 0.7-1.5 % instead of 0.5-2.5 %. On a flight the model explains to the noise the whole
-/// fit is kept and nothing changes.
+/// against it. On the thrown-FC logs the fit of the whole free flight leaves a residual
+/// hundreds of times the gyro's noise and low-frequency (a model error, not vibration), and
+/// the part before the spin-up alone gives a higher scale than the rest; from the spin-up on
+/// the residual is lower and the board-alone throws agree more closely (the test
+/// `calibrate_on_thrown_fc`). On a flight the model explains to the noise the whole fit is kept
+/// and nothing changes.
 ///
 /// `resolution` (kg m^2/s) is the rotor momentum's quantum as the rotor speed is read (0: exact):
 /// where the speed is steady its error is one constant per run, fitted as an offset of the
@@ -989,8 +982,8 @@ impl<const N: usize> TensorFit<N> {
     /// looked for. Why not test for one anyway: the likelihood-ratio test measures the gain
     /// against the gyro's white noise, so when the model leaves a residual far above it (a
     /// real vehicle's unmodelled effects) the test always "finds" a bias, and the bias then
-    /// soaks up model error. On the ten thrown-FC logs it found 0.1-0.38 rad/s on every throw,
-    /// where the bench measured at most 0.015 rad/s, and moved `J` by up to 4 %.
+    /// soaks up model error: on the thrown-FC logs it finds a bias on every throw, far above
+    /// the one measured on the bench, and moves `J` by percents.
     pub fn close_without_bias(&mut self, init: Option<[[f32; 3]; 3]>) -> StretchOutcome {
         let (noise, q, ms) = (self.noise_std, self.resolution(), self.shooting);
         self.state

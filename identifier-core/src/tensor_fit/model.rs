@@ -279,7 +279,7 @@ impl<const C: usize> Invariants<C> {
     /// principal axis, where the gradients are parallel), and each column of the sensitivities
     /// the same way so that the invariants' derivatives keep their start's: the Jacobian stays
     /// that of the restored trajectory (with the state alone moved, the Gauss-Newton steps near
-    /// the optimum were mispredicted and refused).
+    /// the optimum would be mispredicted and refused).
     pub(super) fn restore(&self, k: &Mat3, x: &mut Aug<C>) {
         let [(v0h, v0l), (v1h, v1l)] = self.value;
         let (h0, l0) = weighted_squares(&[1.0; 3], &x.l, &x.lc);
@@ -433,9 +433,9 @@ impl Cells {
 
     /// Whether the fitted offsets `d` (the last [`CELLS`] of `theta`) are a quantisation's:
     /// each within one quantum (the reading's error is at most half of one; the other half
-    /// leaves room for the fit's own error). On the thrown-FC logs, whose model error is tens
-    /// of times the gyro's noise, free offsets came out at 5-20 quanta: soaking up that error,
-    /// not the telemetry's steps.
+    /// leaves room for the fit's own error). Where the model error is tens of times the gyro's
+    /// noise (the thrown-FC logs), free offsets come out at several quanta: soaking up that
+    /// error, not the telemetry's steps.
     pub(super) fn plausible(&self, theta: &[f32]) -> bool {
         let first = theta.len().saturating_sub(CELLS);
         self.runs.iter().enumerate().all(|(c, run)| {
@@ -542,11 +542,10 @@ pub(super) fn norm(v: [f32; 3]) -> f32 {
 /// for `h` along `z` of a diagonal `J`, `|h| / sqrt(Jxx Jyy)`), with `|w|` and `|h|` the larger
 /// of the two block means'. `J` is the fit's first guess, held for the whole fit: a step count
 /// that changed with the parameters would make the cost jump by the RK4 error of one count
-/// against another, and the fit, which needs the cost smooth to a few 1e-4 of itself, refused
-/// its last steps on those jumps (a simulated board throw: 30 evaluations with the current
-/// `J`'s nutation, 6 with the first guess's). The bound `|J^-1| |L|` the fit used until
-/// 2026-11-26 took 1.9 times the steps on the paper's 20 s flight and 8.5 times on a racquet's
-/// 85-sample toss (its `J^-1` is ill-conditioned), for the same estimates to 1e-7.
+/// against another, and the fit, which needs the cost smooth to a few 1e-4 of itself, would
+/// refuse its last steps on those jumps and take several times the evaluations. A bound
+/// `|J^-1| |L|` would take more steps for the same estimates, many more where `J^-1` is
+/// ill-conditioned (a racquet's short toss).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct StepRule {
     /// `max(1, a_max)`: infinite (the most steps) when `J`'s moments are not positive.

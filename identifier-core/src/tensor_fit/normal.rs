@@ -146,7 +146,7 @@ impl Layout {
 ///
 /// Never inlined: each instantiation's frame (its RK4 stages of `C` columns, its normal
 /// sums) then lives only while it runs; inlined into [`normal`], which holds two of them, the
-/// frames added up and the flight build's bench overflowed its stack (2026-11-26).
+/// frames would add up and overflow the flight build's stack (`bench-mcu` runs it).
 #[inline(never)]
 pub(super) fn normal_visit<const P: usize, const C: usize>(
     blocks: &[Block<6>],
@@ -165,9 +165,9 @@ pub(super) fn normal_visit<const P: usize, const C: usize>(
     let torque = C == C_TORQUE;
     let oc = if C == C_OFFSET { CELLS } else { 0 };
     // The entry count is told by `normalized` wherever the parameter count cannot tell it: a
-    // torque (F4) or scale factors (F5) beyond the plain or bias layout (before 2026-11-25 the
-    // torque test of a biased fit up to scale, 14 parameters, read the layout as six entries
-    // and its tensor from the wrong slots, so it never ran there).
+    // torque (F4) or scale factors (F5) beyond the plain or bias layout (the torque test of a
+    // biased fit up to scale has 14 parameters, which the count alone would read as six
+    // entries, taking its tensor from the wrong slots).
     let m = if torque || scale || oc > 0 {
         if normalized {
             5
@@ -236,8 +236,8 @@ pub(super) fn normal_visit<const P: usize, const C: usize>(
     };
     // Without a rotor momentum and a torque, (F1) keeps `|L|^2` and `L . J^-1 L`. The torque's
     // score test evaluates the extended model at zero torque: the same trajectory as the plain
-    // model's, so the same restorations (without them its score saw the difference of the two
-    // integrations and rejected a free body on 18 of 100 seeds of a fast 4 s tumble). A rotor
+    // model's, so the same restorations (without them its score would see the difference of
+    // the two integrations and reject free bodies on fast tumbles). A rotor
     // momentum, from the first node on, gives them up below.
     // (F7) is for flights with a rotor, which give the invariants up anyway.
     let mut invariants = (q == [0.0; 3] && oc == 0).then(|| Invariants::new(&k, &x));

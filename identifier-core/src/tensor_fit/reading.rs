@@ -12,7 +12,7 @@ use super::*;
 /// ([`each_gamma`]) from the suffix `Z - Y_b` of `Z = sum_b a_b Phi_b`, which the normal
 /// matrix holds already. (The sums `S_pp`, `S_pc`, `S_cc` of the expanded square, with `Z`
 /// applied at the end, are the same algebra, but in `f32` their terms cancel to less than
-/// their rounding: they gave negative variances on a simulated throw.) `None` without a
+/// their rounding and can give negative variances.) `None` without a
 /// resolution, a rotor or a trajectory.
 pub(super) fn input_cov<const P: usize>(
     blocks: &[Block<6>],

@@ -373,8 +373,8 @@ fn a_rotor_started_and_stopped_in_flight_keeps_the_tensor() {
     let e = fit.estimate().unwrap();
     std::println!("{o:?} noise {} tensor {:?}", e.noise, e.tensor);
     assert_eq!(o, StretchOutcome::Fitted);
-    // Noise-free: the trajectory explains the rates (restored onto the start's energy
-    // after the rotor stopped, the residual was 2.1 rad/s).
+    // Noise-free: the trajectory explains the rates (the invariants are not restored once the
+    // rotor has run: the start's energy no longer holds after it stops).
     assert!(e.noise < 1e-3, "residual {} rad/s", e.noise);
     assert_near(&e.tensor, &j, 2e-4 * 3.6e-4, "rotor started and stopped");
 }

@@ -18,7 +18,7 @@
 //! * `gyro_bias` (`b`, rad/s): the gyro reads `w + b`; (TB) at `w - b`, linearised at the
 //!   current `J`: `-b x integral (J w + h) dt - integral w x (J b) dt`;
 //! * `rotor_lag` (`delta`, s): the logged rotor speed lags the rotor, `h(t + delta)` is the
-//!   true momentum. Not linearised (a first-order column `delta h'` came out at half the lag
+//!   true momentum. Not linearised (a first-order column `delta h'` finds about half the lag
 //!   put into a simulated log): `delta` is searched over +-10 ms (0.25 ms grid, parabolic
 //!   refinement), `J` and the other effects refitted at each, its standard deviation from the
 //!   curvature of the residual sum of squares;

@@ -1,6 +1,7 @@
 //! The pipeline's inputs, sample by sample: what `identify` gives `FlightPipeline::step` for
-//! each sample of the log (rate, specific force, rotor momentum, time step), computed as it
-//! always was (same expressions, same order) while the log is read.
+//! each sample of the log (rate, specific force, rotor momentum, time step), computed while
+//! the log is read by the same expressions in the same order as the whole-recording reference
+//! (`reference`), so the report is the same bits.
 
 use std::path::Path;
 use std::sync::mpsc::sync_channel;

@@ -1,5 +1,5 @@
-//! `identify` as it was when the whole log was held as a [`Recording`] (kept verbatim for the
-//! tests: the streaming `identify` must give the same report bit for bit).
+//! `identify` on the whole log held as a [`Recording`], the reference for the tests: the
+//! streaming `identify` must give the same report bit for bit.
 
 use std::ops::Range;
 

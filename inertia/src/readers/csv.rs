@@ -436,8 +436,8 @@ mod tests {
         assert_eq!(fast, 3);
     }
 
-    /// The reading as it was before the blocks and threads: line by line, each row parsed,
-    /// checked and kept in turn (the reference for [`CsvSource::read_all`]).
+    /// The reading without the blocks and threads: line by line, each row parsed, checked and
+    /// kept in turn (the reference for [`CsvSource::read_all`]).
     fn line_by_line(src: &CsvSource) -> Result<(Vec<Sample>, Reading), ReadError> {
         let mut check = super::super::check::Checker::new(&src.path);
         let mut scratch = String::new();

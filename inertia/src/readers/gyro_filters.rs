@@ -18,10 +18,10 @@
 //! of `identifier_core`'s output-error fits). The noise they assume is the filtered noise's
 //! white equivalent, the log's rounding included ((G2), [`GyroFilters::white_noise`]). Taken
 //! for instants, the filtered rate is a window nobody counted: simulated tosses through
-//! Betaflight's default filters came out `Converged` up to 6.8 standard deviations off, and
-//! the 0.95 ms between the rate and a logged rotor's speed left a model error the fit called
-//! `ModelMismatch` (see the tests of `inertia identify`). The accelerometer's low-pass is read
-//! the same way for the free-flight gate ([`betaflight_accel_delay`]).
+//! Betaflight's default filters come out `Converged` several standard deviations off, and the
+//! filter's delay (about 1 ms) between the rate and a logged rotor's speed leaves a model error the
+//! fit calls `ModelMismatch` (see the tests of `inertia identify`). The accelerometer's low-pass is
+//! read the same way for the free-flight gate ([`betaflight_accel_delay`]).
 //!
 //! The cumulants are those of the firmware's discrete filters at its gyro loop rate (the
 //! header's `looptime`), computed from their impulse responses. What is read:

@@ -264,7 +264,7 @@ pub fn detect(path: &Path) -> Result<Format, ReadError> {
     }
     // Only the first 256 bytes were read: a longer first line may be cut inside a character
     // of more than one byte, an incomplete sequence at the end (`error_len()` `None`) that is
-    // no sign of binary content (a wide CSV header was refused as binary for it). A file that
+    // no sign of binary content (a wide CSV header must not be refused as binary). A file that
     // really ends there is refused by the CSV reader, at that line.
     let not_utf8 = std::str::from_utf8(first_line).is_err_and(|e| e.error_len().is_some());
     if first_line.contains(&0) || not_utf8 {

@@ -2,11 +2,10 @@
 //! blocks of whole lines parsed on threads beside the reading and visited in order
 //! ([`read_table`]).
 //!
-//! The lines are the ones the readers always saw: a BOM stripped from the file's start, a
-//! trailing `\r` removed, the empty piece after a final newline left out. The readers used to
-//! check the whole file for UTF-8 before parsing a line, so a line that is not UTF-8 is the
-//! error even when an earlier line is malformed: once a line fails, the rest of the file is
-//! still read, for UTF-8 only.
+//! The lines: a BOM stripped from the file's start, a trailing `\r` removed, the empty piece
+//! after a final newline left out. A file that is not UTF-8 is refused for that first, so a
+//! line that is not UTF-8 is the error even when an earlier line is malformed: once a line
+//! fails, the rest of the file is still read, for UTF-8 only.
 
 use std::fs::File;
 use std::io::{BufRead, BufReader, Read};
@@ -28,7 +27,7 @@ fn cannot_read(path: &Path, e: std::io::Error) -> ReadError {
 
 /// Every line of `path` in order to `visit(number, line)` (1-based numbers), until it says
 /// [`Flow::Stop`]. An error of `visit` stops the parsing; it is returned unless a later line
-/// is not UTF-8 (then that line's error is, as when the whole file was checked first).
+/// is not UTF-8 (then that line's error is, as if the whole file were checked first).
 pub(crate) fn each_line(
     path: &Path,
     visit: &mut dyn FnMut(usize, &str) -> Result<Flow, ReadError>,

@@ -18,9 +18,9 @@
 //! PX4's `gyro_rad` is not the rate at an instant: it is the IMU's delta angle over the last
 //! `gyro_integral_dt` divided by it, the mean rate over that interval, stamped with the
 //! interval's last reading. Each time is moved to the interval's middle, and the fits are told
-//! the readings are means ([`Recording::gyro_averaging`]): taken for instants, a body tumbling
-//! at 24 rad/s logged at 250 Hz came out 11-14 standard deviations off (RMS over 16
-//! seeds), `Converged`.
+//! the readings are means ([`Recording::gyro_averaging`]): taken for instants, a fast tumble
+//! logged at 250 Hz comes out many standard deviations off yet `Converged` (the test
+//! `a_px4_gyro_that_averages_over_its_interval_is_read_as_means`).
 //!
 //! The first instance (lowest multi id) of each topic is read. Axes are PX4's body frame as
 //! logged.

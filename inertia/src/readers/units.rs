@@ -78,9 +78,9 @@ pub const SLOW_DEG_PER_SEC_RAD_S: f32 = 2.0;
 /// The warning when a gyro whose unit was assumed (not fixed by the format nor declared)
 /// gives ratios `a` that are all within [`NEAR_SPHERE_RATIO`] while it read up to `rate_max`
 /// rad/s (above [`SLOW_DEG_PER_SEC_RAD_S`]): what a slow tumble logged in deg/s gives, below
-/// the [`DEG_PER_SEC_SUSPECT_RAD_S`] the sustained-rate check needs. A simulated body
-/// (1, 1, 1.6) tumbling at 0.3-0.8 rad/s, logged in deg/s, came out `Converged` with `a` 57
-/// times too small before this check. The fix either way is to declare the unit.
+/// the [`DEG_PER_SEC_SUSPECT_RAD_S`] the sustained-rate check needs. Such a tumble read as
+/// rad/s comes out `Converged` with `a` 57 times too small (the unit's factor), so only this
+/// warning tells. The fix either way is to declare the unit.
 pub fn ratios_warning(a: [f32; 3], rate_max: f32) -> Option<String> {
     let biggest = a.iter().fold(0.0f32, |m, x| m.max(x.abs()));
     let near_sphere = a.iter().all(|x| x.is_finite()) && biggest <= NEAR_SPHERE_RATIO;
