@@ -754,6 +754,67 @@ pub struct CalibrationReport {
     pub throws_per_group: [usize; 3],
     /// The throws left out ([`usable`]), with the reason.
     pub skipped: Vec<SkippedThrow>,
+    /// With several object throws: each one's object by difference, as if it were given alone.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub object_throws: Vec<ObjectThrow>,
+    /// With several object throws: RMS over the throws and the diagonal entries of each
+    /// throw's deviation from the throws' mean over its own standard deviation, times
+    /// `sqrt(n / (n - 1))`: about 1 or below when the throws agree to their standard
+    /// deviations (each of which also counts the calibration's error, common to all).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub object_spread_ratio: Option<f64>,
+}
+
+/// One object throw of several, by difference on its own.
+#[derive(Clone, Debug, Serialize)]
+pub struct ObjectThrow {
+    /// The log.
+    pub source: String,
+    /// The object about its centre of mass, kg m^2.
+    pub tensor_kg_m2: M3,
+    /// Standard deviation of each entry, kg m^2.
+    pub tensor_std_kg_m2: M3,
+}
+
+/// Each object throw by difference as if given alone ([`ObjectThrow`]), and the spread ratio
+/// of [`CalibrationReport::object_spread_ratio`]; nothing with fewer than two throws.
+fn object_throws(
+    board: &[UnitThrow],
+    assembly: &[UnitThrow],
+    objects: &[UnitThrow],
+    known: &M3,
+    m: Masses,
+) -> (Vec<ObjectThrow>, Option<f64>) {
+    if objects.len() < 2 {
+        return (Vec::new(), None);
+    }
+    let each: Vec<ObjectThrow> = objects
+        .iter()
+        .filter_map(|o| {
+            let one = std::slice::from_ref(o);
+            let full = solve(board, assembly, one, known, m)?;
+            let tensor = full.object?;
+            let u = uncertainty([board, assembly, one], known, m, &full);
+            Some(ObjectThrow {
+                source: o.source.clone(),
+                tensor_kg_m2: tensor,
+                tensor_std_kg_m2: u.object.map(|r| r.map(f64::sqrt)),
+            })
+        })
+        .collect();
+    let n = each.len();
+    if n < 2 {
+        return (each, None);
+    }
+    let mut z2 = 0.0;
+    for i in 0..3 {
+        let mean = each.iter().map(|t| t.tensor_kg_m2[i][i]).sum::<f64>() / n as f64;
+        for t in &each {
+            z2 += ((t.tensor_kg_m2[i][i] - mean) / t.tensor_std_kg_m2[i][i]).powi(2);
+        }
+    }
+    let ratio = (z2 / (3 * n) as f64 * n as f64 / (n - 1) as f64).sqrt();
+    (each, ratio.is_finite().then_some(ratio))
 }
 
 /// Runs `inertia calibrate`.
@@ -858,6 +919,7 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
         difference((&jb, rb), (&jo, ro), args.board_mass, masses[2]).2
     });
     let u = uncertainty([&board, &assembly, &objects], &known, m, &full);
+    let (per_object, object_spread_ratio) = object_throws(&board, &assembly, &objects, &known, m);
     let sd = |v: &M3| v.map(|r| r.map(f64::sqrt));
     let eig = full.object.map(|o| eigen(&o));
     Ok(CalibrationReport {
@@ -878,5 +940,7 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
         throws_per_group: [board.len(), assembly.len(), objects.len()],
         throws: board.into_iter().chain(assembly).chain(objects).collect(),
         skipped,
+        object_throws: per_object,
+        object_spread_ratio,
     })
 }

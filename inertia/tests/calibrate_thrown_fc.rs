@@ -243,3 +243,46 @@ fn a_bad_log_among_good_ones_is_left_out_with_its_reason() {
     assert!(err.contains("no usable board throw") && err.contains("notes.txt"));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Several object throws: each is reported by difference on its own with its standard
+/// deviation, and the spread between them is checked against those (two proof-body throws as
+/// the object, the other three as the assembly).
+#[test]
+fn several_object_throws_are_reported_each_and_their_spread_checked() {
+    let (Some(board), Some(proof)) = (logs("device_only"), logs("proof_body")) else {
+        eprintln!("../shared/data/thrown-fc absent: skipped");
+        return;
+    };
+    let c = cuboid();
+    let args = inertia::calibrate::CalibrateArgs {
+        board,
+        assembly: proof[..3].to_vec(),
+        proof_inertia: vec![c[1], c[0], c[2]],
+        board_mass: 0.10067,
+        proof_mass: 0.346,
+        object: proof[3..].to_vec(),
+        object_mass: Some(0.346),
+        rotor_axis: [0.0, 0.0, -1.0],
+        rotor_poles: Some(14),
+        json: std::env::temp_dir().join("unused-several.json"),
+        plots: None,
+    };
+    let rep = inertia::calibrate::run(&args).unwrap();
+    assert_eq!(rep.object_throws.len(), 2);
+    let ratio = rep.object_spread_ratio.expect("a spread ratio");
+    println!("object spread over its std: {ratio:.2}");
+    assert!(ratio.is_finite() && ratio > 0.0);
+    // The pooled object is more precise than either throw alone.
+    let pooled = rep.object_tensor_std_kg_m2.unwrap();
+    for t in &rep.object_throws {
+        println!(
+            "{}: diag std {:?}",
+            t.source,
+            [0, 1, 2].map(|i| t.tensor_std_kg_m2[i][i])
+        );
+        for i in 0..3 {
+            assert!(t.tensor_std_kg_m2[i][i] > 0.0);
+            assert!(pooled[i][i] <= t.tensor_std_kg_m2[i][i], "entry {i}");
+        }
+    }
+}
