@@ -280,9 +280,9 @@ fn several_object_throws_are_reported_each_and_their_spread_checked() {
             t.source,
             [0, 1, 2].map(|i| t.tensor_std_kg_m2[i][i])
         );
-        for i in 0..3 {
+        for (i, row) in pooled.iter().enumerate() {
             assert!(t.tensor_std_kg_m2[i][i] > 0.0);
-            assert!(pooled[i][i] <= t.tensor_std_kg_m2[i][i], "entry {i}");
+            assert!(row[i] <= t.tensor_std_kg_m2[i][i], "entry {i}");
         }
     }
 }
