@@ -67,9 +67,9 @@ use std::ops::Range;
 use identifier_core::{PipelineSettings, Ratios, TensorEstimate, TensorStatus};
 use serde::Serialize;
 
-use crate::readers::gyro_filters::GyroFilters;
 use crate::readers::ReadError;
 use crate::recording::Recording;
+pub use crate::recording::{estimate_noise, median_dt, white_noise};
 use crate::source::{RecordingSource, Source};
 use crate::survey::{survey, Wanted};
 pub use crate::unhold::{slow_telemetry, unhold, RotorHold};
@@ -288,62 +288,6 @@ impl std::error::Error for IdentifyError {}
 impl From<ReadError> for IdentifyError {
     fn from(e: ReadError) -> Self {
         IdentifyError::Read(e)
-    }
-}
-
-/// Median time step of the recording, s.
-pub fn median_dt(t: &[f64]) -> f64 {
-    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    if d.is_empty() {
-        return f64::NAN;
-    }
-    d.sort_by(|a, b| a.total_cmp(b));
-    d[d.len() / 2]
-}
-
-/// Gyro white noise estimated from the data: the median absolute third difference per axis
-/// (third differences cancel any quadratic motion; for white noise their variance is
-/// `20 sigma^2`), turned into a standard deviation, smallest over the axes. Floored at
-/// `1e-4 rad/s`.
-pub fn estimate_noise(gyro: &[[f32; 3]]) -> f32 {
-    noise_from_medians((0..3).map(|ax| {
-        let mut d: Vec<f32> = gyro
-            .windows(4)
-            .map(|w| (w[3][ax] - 3.0 * w[2][ax] + 3.0 * w[1][ax] - w[0][ax]).abs())
-            .filter(|x| x.is_finite())
-            .collect();
-        d.sort_by(|a, b| a.total_cmp(b));
-        d.get(d.len() / 2).copied()
-    }))
-}
-
-/// The white noise the fits assume, from the noise `measured` by [`estimate_noise`] on a log
-/// of step `log_dt` whose gyro has passed through `filters` ((G2) of
-/// [`GyroFilters::white_noise`]); `measured` itself without filters.
-pub fn white_noise(measured: f32, filters: Option<&GyroFilters>, log_dt: f64) -> f32 {
-    match filters {
-        Some(f) => f.white_noise(f64::from(measured), log_dt) as f32,
-        None => measured,
-    }
-}
-
-/// The noise from each axis's median absolute third difference (`None` for an axis without
-/// one): the median turned into a standard deviation (third differences of white noise have
-/// variance `20 sigma^2`), smallest over the axes, floored at `1e-4 rad/s`; `2e-3` when no axis
-/// has a difference. Shared by [`estimate_noise`] and the streaming survey, so both give the
-/// same bits.
-pub(crate) fn noise_from_medians(medians: impl IntoIterator<Item = Option<f32>>) -> f32 {
-    let mut best = f32::INFINITY;
-    for mad in medians.into_iter().flatten() {
-        let s = mad / 0.6745 / 20f32.sqrt();
-        if s < best {
-            best = s;
-        }
-    }
-    if best.is_finite() {
-        best.max(1e-4)
-    } else {
-        2e-3
     }
 }
 

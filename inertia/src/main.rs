@@ -4,7 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use inertia::close_loop::{analysis, report};
+use inertia::close_loop;
 use inertia::export::{ExportError, ExportFormat, ExportOptions};
 use inertia::identify::{identify_source, parse_axis, IdentifyOptions, Progress, Rotor, RotorHold};
 use inertia::{read, AccelUnit, Format, GyroUnit, ReadOptions, TimeUnit};
@@ -582,16 +582,16 @@ fn run_close_loop(args: CloseLoopArgs) -> Result<ExitCode, String> {
         );
     }
     let (log, warnings) =
-        inertia::close_loop::load(&args.input, args.format, args.segments.as_deref(), &units)?;
+        close_loop::load(&args.input, args.format, args.segments.as_deref(), &units)?;
     for w in &warnings {
         eprintln!("warning: {w}");
     }
-    let opts = analysis::Options {
+    let opts = close_loop::Options {
         alpha: args.alpha,
         truth: args.truth.as_ref().map(|t| [t[0], t[1], t[2]]),
         ..Default::default()
     };
-    let an = match analysis::analyse(&log, &opts) {
+    let an = match close_loop::analyse(&log, &opts) {
         Ok(an) => an,
         Err(e) => {
             eprintln!("error: {}: {e}", args.input.display());
@@ -614,31 +614,30 @@ fn run_close_loop(args: CloseLoopArgs) -> Result<ExitCode, String> {
     }
     write_json(&args.json, &an)?;
     let title = args.title();
-    let md = report::markdown(&an, &title);
+    let md = close_loop::markdown(&an, &title);
     if let Some(dir) = &args.plots {
         std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
         std::fs::write(dir.join("summary.md"), &md)
             .map_err(|e| format!("writing {}: {e}", dir.display()))?;
-        report::plots(&an, dir, &title).map_err(|e| e.to_string())?;
+        close_loop::plots(&an, dir, &title).map_err(|e| e.to_string())?;
     }
-    println!("{}", report::summary_line(&an));
+    println!("{}", close_loop::summary_line(&an));
     Ok(ExitCode::SUCCESS)
 }
 
 /// `inertia close-loop` with a rotor: the tensor as the base model
-/// ([`inertia::close_loop::tensor`]). Exit 3 for unusable input, 4 when the free flights
+/// ([`close_loop::analyse_tensor`]). Exit 3 for unusable input, 4 when the free flights
 /// cannot determine the tensor.
 fn run_close_loop_tensor(
     args: &CloseLoopArgs,
     rotor: Rotor,
     units: &ReadOptions,
 ) -> Result<ExitCode, String> {
-    use inertia::close_loop::tensor;
     let rec = read(&args.input, units).map_err(|e| e.to_string())?;
     // The same refusals as the torque-free close-loop: rates that look like deg/s, a time step
     // that looks like ms or us, unless the unit was declared.
     let omega: Vec<[f64; 3]> = rec.gyro.iter().map(|w| w.map(f64::from)).collect();
-    inertia::close_loop::input::check_series_units(
+    close_loop::check_series_units(
         &rec.t,
         &omega,
         units.gyro_unit.is_some(),
@@ -650,20 +649,20 @@ fn run_close_loop_tensor(
     }
     // Both segment formats, as `identify` takes them (the flights are identify's).
     let segments = args.segments.as_ref().map(parse_segments).transpose()?;
-    let opts = tensor::TensorOptions {
+    let opts = close_loop::TensorOptions {
         rotor,
         alpha: args.alpha,
         block_s: 0.01,
         segments,
         rotor_hold: args.rotor.hold(),
     };
-    let an = match tensor::analyse_tensor(&rec, &opts) {
+    let an = match close_loop::analyse_tensor(&rec, &opts) {
         Ok(an) => an,
         Err(e) => {
             eprintln!("error: {}: {e}", args.input.display());
             let code = match e {
-                tensor::TensorLoopError::Input(_) => 3,
-                tensor::TensorLoopError::Data(_) => 4,
+                close_loop::TensorLoopError::Input(_) => 3,
+                close_loop::TensorLoopError::Data(_) => 4,
             };
             return Ok(ExitCode::from(code));
         }
@@ -672,11 +671,14 @@ fn run_close_loop_tensor(
     let title = args.title();
     if let Some(dir) = &args.plots {
         std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
-        std::fs::write(dir.join("summary.md"), tensor::markdown(&an, &title))
-            .map_err(|e| format!("writing {}: {e}", dir.display()))?;
-        tensor::plots(&an, dir, &title).map_err(|e| e.to_string())?;
+        std::fs::write(
+            dir.join("summary.md"),
+            close_loop::tensor_markdown(&an, &title),
+        )
+        .map_err(|e| format!("writing {}: {e}", dir.display()))?;
+        close_loop::tensor_plots(&an, dir, &title).map_err(|e| e.to_string())?;
     }
-    println!("{}", tensor::summary_line(&an));
+    println!("{}", close_loop::tensor_summary_line(&an));
     Ok(ExitCode::SUCCESS)
 }
 

@@ -15,9 +15,8 @@
 use std::io::Write;
 use std::path::Path;
 
-use inertia::identify::{
-    estimate_noise, median_dt, slow_telemetry, unhold, white_noise, Rotor, RotorHold,
-};
+use inertia::identify::{slow_telemetry, unhold, Rotor, RotorHold};
+use inertia::recording::{estimate_noise, median_dt, white_noise};
 use inertia::Recording;
 
 /// What was written.

@@ -93,7 +93,7 @@ impl RotorStep {
 }
 
 /// Median absolute third difference of each gyro axis (see
-/// [`crate::identify::estimate_noise`]).
+/// [`crate::recording::estimate_noise`]).
 #[derive(Clone, Debug, Default)]
 pub struct NoiseStats {
     last: [[f32; 3]; 3],
@@ -134,7 +134,7 @@ impl NoiseStats {
     /// (third differences of white noise have variance `20 sigma^2`), smallest over the axes,
     /// floored at `1e-4 rad/s`; `2e-3` when no axis has a difference.
     pub fn noise(&self) -> f32 {
-        crate::identify::noise_from_medians(self.medians.iter().map(|m| m.result().flatten()))
+        crate::recording::noise_from_medians(self.medians.iter().map(|m| m.result().flatten()))
     }
 }
 

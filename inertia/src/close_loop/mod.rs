@@ -1,7 +1,10 @@
 //! Closing the loop on measured data: identify, compute the residual of the torque-free model,
 //! trace it to a library of candidate effects, add the chosen effect(s) to the model and
 //! report the error before and after. See [`analysis::analyse`]; the command is
-//! `inertia close-loop` ([`load`] reads and checks its input).
+//! `inertia close-loop` ([`load`] reads and checks its input). The binary goes through the
+//! API re-exported here ([`load`], [`analyse`] and its report, [`analyse_tensor`] and its
+//! report); nothing in the product path (`identify`, `calibrate`, `pool`, `export`) uses this
+//! module.
 //!
 //! Input goes through the crate's readers ([`crate::read`]: phyphox, named-column CSV,
 //! blackbox, ULog), the segments through [`crate::readers::phyphox::read_segments`]; [`input`] holds the checks
@@ -14,6 +17,16 @@ pub mod plot;
 pub mod report;
 pub mod stats;
 pub mod tensor;
+
+// The API of `inertia close-loop` (all the binary uses). The modules above stay public for
+// the research tests that take the analysis apart.
+pub use analysis::{analyse, Analysis, Options};
+pub use input::check_series_units;
+pub use report::{markdown, plots, summary_line};
+pub use tensor::{
+    analyse_tensor, markdown as tensor_markdown, plots as tensor_plots,
+    summary_line as tensor_summary_line, TensorAnalysis, TensorLoopError, TensorOptions,
+};
 
 use std::path::Path;
 

@@ -637,10 +637,10 @@ pub fn analyse_tensor(
             blocks.len()
         )));
     }
-    let noise = f64::from(crate::identify::white_noise(
-        crate::identify::estimate_noise(&rec.gyro),
+    let noise = f64::from(crate::recording::white_noise(
+        crate::recording::estimate_noise(&rec.gyro),
         rec.gyro_filters.as_ref(),
-        crate::identify::median_dt(&rec.t),
+        crate::recording::median_dt(&rec.t),
     ));
     let zero = [0.0; 6];
     let (base, jb) = fit_model(&blocks, &zero, &[])

@@ -33,10 +33,10 @@ use blackbox_log::{File, Headers, ParserEvent};
 use super::check::Checker;
 use super::gyro_filters::{self, GyroFilters};
 use super::{collect, guard, Location, ReadError, BLACKBOX_MARKER};
-use crate::recording::Recording;
+use crate::readers::Recording;
 #[cfg(doc)]
-use crate::recording::RotorSpeed;
-use crate::source::{Channels, Flow, Reading, RotorUnit, Sample, Source, Visit};
+use crate::readers::RotorSpeed;
+use crate::readers::{Channels, Flow, Reading, RotorUnit, Sample, Source, Visit};
 
 /// Raw gyro counts per deg/s (16-bit over +-2000 deg/s).
 pub const GYRO_LSB_PER_DEG_S: f64 = 16.384;

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use super::{Location, ReadError};
-use crate::source::{Reading, Sample};
+use crate::readers::{Reading, Sample};
 
 const AXES: [&str; 3] = ["x", "y", "z"];
 

@@ -16,8 +16,8 @@
 use std::path::Path;
 
 use super::{collect, fields, quote, text, Location, ReadError, ReadOptions};
-use crate::recording::Recording;
-use crate::source::{Channels, Reading, RotorUnit, Source, Visit};
+use crate::readers::Recording;
+use crate::readers::{Channels, Reading, RotorUnit, Source, Visit};
 
 /// Column positions found in a header.
 struct Columns {
@@ -337,9 +337,9 @@ impl Source for CsvSource {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::readers::RotorSpeed;
     use crate::readers::{AccelUnit, GyroUnit, TimeUnit};
-    use crate::recording::RotorSpeed;
-    use crate::source::{Flow, Sample};
+    use crate::readers::{Flow, Sample};
 
     fn tmp(name: &str, bytes: &[u8]) -> std::path::PathBuf {
         crate::readers::test_file("csv", name, bytes)

@@ -360,7 +360,7 @@ impl GyroFilters {
     }
 
     /// The white noise a fit should assume per sample, from `measured`: the noise
-    /// [`crate::identify::estimate_noise`] finds from third differences of the rates the
+    /// [`crate::recording::estimate_noise`] finds from third differences of the rates the
     /// reader gives, `log_dt` apart (the log's resolution, its unit, counted as white
     /// quantisation noise).
     ///

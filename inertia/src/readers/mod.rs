@@ -22,11 +22,15 @@ pub mod blackbox;
 mod check;
 pub mod csv;
 pub mod gyro_filters;
+mod output;
 pub mod phyphox;
 mod text;
 pub mod ulog;
 mod units;
 
+pub use output::{
+    Channels, Flow, Reading, Recording, RotorSpeed, RotorUnit, Sample, Source, Visit,
+};
 pub use units::{
     ratios_warning, time_warning, unit_warnings, AccelCheck, UnitCheck, DEG_PER_SEC_SUSPECT_RAD_S,
     NEAR_SPHERE_RATIO, SLOW_DEG_PER_SEC_RAD_S, SUSTAINED_S,
@@ -34,9 +38,6 @@ pub use units::{
 
 use std::fmt;
 use std::path::{Path, PathBuf};
-
-use crate::recording::{Recording, RotorSpeed};
-use crate::source::Source;
 
 use check::Checker;
 
@@ -456,7 +457,7 @@ pub(crate) fn collect(src: &dyn Source) -> Result<Recording, ReadError> {
             if ch.rotor.is_some() {
                 rotor.push(s.rotor);
             }
-            Ok(crate::source::Flow::Continue)
+            Ok(Flow::Continue)
         },
         &mut |_| {},
     )?;

@@ -8,8 +8,8 @@
 use std::path::{Path, PathBuf};
 
 use super::{collect, data_file, fields, number, quote, read_lines, text, Location, ReadError};
-use crate::recording::Recording;
-use crate::source::{Channels, Reading, Source, Visit};
+use crate::readers::Recording;
+use crate::readers::{Channels, Reading, Source, Visit};
 
 /// Reads a phyphox gyroscope export (`Raw Data.csv`, or its folder): time in seconds, rates
 /// in rad/s, the phone's axes.

@@ -14,7 +14,7 @@ use std::sync::mpsc::sync_channel;
 
 use super::check::Checker;
 use super::{quote, Location, ReadError};
-use crate::source::{Flow, Reading, Visit};
+use crate::readers::{Flow, Reading, Visit};
 
 /// Read buffer: large enough that a line rarely straddles two reads.
 const BUFFER: usize = 1 << 20;

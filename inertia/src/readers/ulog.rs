@@ -31,7 +31,7 @@ use std::path::Path;
 use px4_ulog::full_parser::{read_file, MultiId, SomeVec};
 
 use super::{guard, Location, ReadError, RotorWrap, Samples};
-use crate::recording::{Recording, RotorSpeed};
+use crate::readers::{Recording, RotorSpeed};
 
 /// One field of a topic as `f64`s (integers converted exactly up to 2^53).
 fn as_f64(v: &SomeVec) -> Vec<f64> {
