@@ -1,7 +1,7 @@
 //! Error-free transformations of `f32` arithmetic (Knuth's two-sum, Dekker's two-product):
 //! a sum or product as the rounded result and the exact rounding error, for the few
 //! quantities that must be known to better than `f32` precision (the invariants of a long,
-//! fast trajectory, see [`crate::trajectory`]). No fused multiply-add is assumed: `core` has
+//! fast trajectory, see [`crate::ratio_fit`]). No fused multiply-add is assumed: `core` has
 //! none without `std`, and Rust never contracts `a * b + c` on its own.
 
 /// `a + b = s + e` exactly, `s` the rounded sum.

@@ -366,10 +366,10 @@ impl ExtendedIdentifier {
     /// scale correction, 1 without; `k` = [`ExtendedIdentifier::noise_inflation`]), judged at
     /// each update of `theta`:
     ///
-    /// * enough: at least [`MIN_SAMPLES`] samples in blocks that updated `theta`;
+    /// * enough: at least `MIN_SAMPLES` samples in blocks that updated `theta`;
     /// * excited: every `var_i <= (prior_a / 2)^2` (the data at least halved the prior's
     ///   standard deviation) and [`Exposure::moved`] with [`ExtendedSettings::noise_std`];
-    /// * possible: [`physically_possible`]`(a, var)` on the reported `a`;
+    /// * possible: `physically_possible``(a, var)` on the reported `a`;
     /// * settled: every standard deviation below [`ExtendedSettings::tolerance`].
     ///
     /// `P` is a covariance only when `noise_std` is the actual gyro noise and the effects

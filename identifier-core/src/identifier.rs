@@ -151,7 +151,7 @@ impl Identifier {
     /// identifier has no standard deviation of its own, so this is a **weaker** verdict than
     /// [`crate::Refined::trust`]'s, derived from:
     ///
-    /// * enough: at least [`MIN_SAMPLES`] accepted samples (identifiable or not: a stretch
+    /// * enough: at least `MIN_SAMPLES` accepted samples (identifiable or not: a stretch
     ///   where (2) fails is judged by the excitation below);
     /// * excited: the excitation `E = integral |w1 w2 w3| dt` over integrated intervals
     ///   satisfies `lambda E >= ln(1 / eps)`, `lambda = -trace(C) / 3` (for `C = -lambda E`

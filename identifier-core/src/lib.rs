@@ -62,8 +62,13 @@
 //! input, including NaN, infinite or saturated rates and zero, negative or huge time steps, has
 //! a defined [`SampleStatus`] and leaves the state finite.
 //!
-//! Data flows one way: [`invariant`] holds the paper's functions of omega, [`Identifier`]
-//! integrates them, [`convergence`] watches the result and [`inertia`] turns `a` into ratios.
+//! Data flows one way, sensor to report, through [`FlightPipeline::step`] once per sample: the
+//! [`FreeFlightGate`] tells free flight from the bench, the hand and the catch (and measures
+//! the gyro bias at rest); the samples it passes feed the [`TensorEstimator`] (per sample) and
+//! the two output-error fits' block buffers ([`RatioFit`], [`TensorFit`]); when a flight ends,
+//! [`FlightPipeline::fit_ended_flight`] runs the fits off the sample path; the estimate and its
+//! status come out of [`FlightPipeline::estimate_and_ratios`]. The paper's own path is
+//! [`invariant`] (its functions of omega) integrated by [`Identifier`].
 #![no_std]
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
@@ -78,24 +83,24 @@
     )
 )]
 
-pub mod convergence;
+mod convergence;
 mod exact;
 pub mod extended;
 pub mod free_flight;
-pub mod identifier;
-pub mod inertia;
+mod identifier;
+mod inertia;
 pub mod invariant;
 mod linalg;
 mod output_error;
-pub mod pipeline;
-pub mod refined;
-pub mod refined_bias;
-pub mod settings;
-pub mod status;
+mod pipeline;
+mod ratio_fit;
+mod refined;
+mod refined_bias;
+mod settings;
+mod status;
 pub mod symmetric;
-pub mod tensor;
-pub mod tensor_fit;
-pub mod trajectory;
+mod tensor;
+mod tensor_fit;
 
 #[cfg(test)]
 mod test_motion;
@@ -107,10 +112,12 @@ pub use extended::{
 pub use free_flight::{AccelUnits, FreeFlightGate, GateSettings, WindowFit};
 pub use identifier::Identifier;
 pub use inertia::{consistency, InertiaRatios};
+pub use output_error::StretchOutcome;
 pub use pipeline::{
     Exit, FlightPipeline, Pending, Pipeline, PipelineSettings, RatioSource, Ratios,
     TRAJECTORY_FIT_RATIO,
 };
+pub use ratio_fit::{FlightRatioFit, RatioFit, RatioFitEstimate};
 pub use refined::{Refined, RefinedSettings};
 pub use refined_bias::RefinedBias;
 pub use settings::{GainMatrix, Settings, SettingsError, SignChangeCorrection};
@@ -121,4 +128,3 @@ pub use tensor::{
     TensorStatus,
 };
 pub use tensor_fit::{FlightTensorFit, TensorFit, TensorFitEstimate};
-pub use trajectory::{FlightRatioFit, RatioFit, RatioFitEstimate, StretchOutcome};

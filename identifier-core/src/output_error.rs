@@ -60,7 +60,24 @@
 use crate::exact::compensated_add;
 use crate::linalg::dot;
 use crate::symmetric::{cholesky_inverse, cholesky_rel, cholesky_solve, sqrt, Sym};
-use crate::trajectory::StretchOutcome;
+
+/// What happened to the last stretch closed by one of the output-error fits
+/// ([`crate::RatioFit::close`], [`crate::TensorFit::close`] and its variants).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum StretchOutcome {
+    /// No sample was added since the last close.
+    Empty,
+    /// Fewer than 8 blocks of data: too short to fit.
+    TooShort,
+    /// The fit did not converge to a finite, positive estimate (no excitation, or a
+    /// motion the model cannot produce); the stretch is left out.
+    Failed,
+    /// Fitted without a bias and pooled.
+    Fitted,
+    /// Fitted with a constant gyro bias (the likelihood-ratio test chose it) and pooled.
+    FittedWithBias,
+}
 
 /// One block of samples: count, start time, sums of time since the block's start and of its
 /// square, and for each of `K` channels its first sample and the sum of the samples' deviations

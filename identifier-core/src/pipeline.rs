@@ -16,6 +16,8 @@
 //! the delay is zero.
 
 use crate::free_flight::{FreeFlightGate, GateSettings, WindowFit};
+use crate::output_error::StretchOutcome;
+use crate::ratio_fit::{FlightRatioFit, RatioFit, RatioFitEstimate};
 use crate::refined::{Refined, RefinedSettings};
 use crate::refined_bias::RefinedBias;
 use crate::status::{physically_possible, precise, SampleStatus, Trust};
@@ -24,7 +26,6 @@ use crate::tensor::{
     TensorStatus,
 };
 use crate::tensor_fit::{FlightTensorFit, TensorFit};
-use crate::trajectory::{FlightRatioFit, RatioFit, RatioFitEstimate, StretchOutcome};
 
 /// Tuning of [`Pipeline`].
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -552,13 +552,13 @@ impl Refined {
     /// [`Trust::assess`]), with `var_i = (L^-1)_aa sigma^2` the filter's variance of `a_i`
     /// (`sigma` = [`RefinedSettings::noise_std`]):
     ///
-    /// * enough: at least [`MIN_SAMPLES`] samples in completed blocks;
+    /// * enough: at least `MIN_SAMPLES` samples in completed blocks;
     /// * excited: the data carried information, i.e. every `var_i <= (prior_std / 2)^2` (the
     ///   data at least halved the prior's standard deviation on every axis) **and** the
     ///   rates moved: [`Exposure::moved`] (two axes swung by more than
-    ///   [`crate::status::SWING_SIGMAS`] `sigma`; a still gyro, with or without bias, does
+    ///   `SWING_SIGMAS` `sigma`; a still gyro, with or without bias, does
     ///   not);
-    /// * possible: [`physically_possible`]`(a, var)`;
+    /// * possible: `physically_possible``(a, var)`;
     /// * settled: every standard deviation below [`RefinedSettings::eps`]:
     ///   `var_i < eps^2`.
     ///

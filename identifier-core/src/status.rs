@@ -151,10 +151,10 @@ pub const CONSISTENCY_FLOOR: f32 = 1e-4;
 /// |---|---|
 /// | [`Trust::NoInformation`] | no sample has been accepted and none was saturated |
 /// | [`Trust::Saturated`] | more than 1 % of the samples offered were at full scale (`100 saturated > accepted`) |
-/// | [`Trust::UnitsLookWrong`] | an accepted rate exceeded [`MAX_PLAUSIBLE_RATE`] |
-/// | [`Trust::TooFewSamples`] | fewer than [`MIN_SAMPLES`] samples are in the reported estimate |
+/// | [`Trust::UnitsLookWrong`] | an accepted rate exceeded `MAX_PLAUSIBLE_RATE` |
+/// | [`Trust::TooFewSamples`] | fewer than `MIN_SAMPLES` samples are in the reported estimate |
 /// | [`Trust::NoExcitation`] | the data carried no information about `a` (estimator's rule) |
-/// | [`Trust::PhysicallyImpossible`] | the estimate is no rigid body beyond its uncertainty ([`physically_possible`]) |
+/// | [`Trust::PhysicallyImpossible`] | the estimate is no rigid body beyond its uncertainty (`physically_possible`) |
 /// | [`Trust::Converging`] | the estimate's own precision is not yet the configured tolerance |
 /// | [`Trust::Converged`] | none of the above: informative data, a possible body, precise enough |
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -162,7 +162,7 @@ pub const CONSISTENCY_FLOOR: f32 = 1e-4;
 pub enum Trust {
     /// Nothing accepted yet: `a` is the initial value.
     NoInformation,
-    /// Fewer than [`MIN_SAMPLES`] samples in the reported estimate.
+    /// Fewer than `MIN_SAMPLES` samples in the reported estimate.
     TooFewSamples,
     /// Samples arrived but did not excite (1): a still gyro, a spin about a principal axis,
     /// `|w1 w2 w3|` too small for too short a time. The estimator's rule is in its docs.
@@ -175,7 +175,7 @@ pub enum Trust {
     /// cause: a wrong time step (`dt` 10x too small gives `a` 10x too large), a gyro scale
     /// error, an unmodelled torque.
     PhysicallyImpossible,
-    /// Rates beyond [`MAX_PLAUSIBLE_RATE`]: the samples are probably not in rad/s.
+    /// Rates beyond `MAX_PLAUSIBLE_RATE`: the samples are probably not in rad/s.
     UnitsLookWrong,
     /// Informative data, a possible body, not yet precise enough.
     Converging,
@@ -225,7 +225,7 @@ impl Trust {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Verdict {
-    /// At least [`MIN_SAMPLES`] samples are in the reported estimate.
+    /// At least `MIN_SAMPLES` samples are in the reported estimate.
     pub enough: bool,
     /// The data carried information about `a`.
     pub excited: bool,
@@ -320,7 +320,7 @@ impl Exposure {
         s
     }
 
-    /// True when at least two axes swung by more than [`SWING_SIGMAS`] `noise_std`: the
+    /// True when at least two axes swung by more than `SWING_SIGMAS` `noise_std`: the
     /// rates changed beyond what noise (or a constant bias) explains, so (1) was exercised.
     pub fn moved(&self, noise_std: f32) -> bool {
         let bar = SWING_SIGMAS * noise_std;

@@ -115,7 +115,7 @@ pub struct TensorSettings {
     /// speed telemetry's step (DShot eRPM: 100 eRPM, `100 / (poles / 2) * 2 pi / 60` rad/s).
     /// The output-error fit's absolute tensor then fits the reading's constant error over each
     /// steady run of the speed as an offset of the momentum ((F7) of
-    /// [`crate::tensor_fit`]) and counts its error elsewhere (along the ramps) in the
+    /// `tensor_fit`) and counts its error elsewhere (along the ramps) in the
     /// covariance ((F8)). `0` takes the momentum as exact.
     pub momentum_resolution: f32,
 }

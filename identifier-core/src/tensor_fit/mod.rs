@@ -183,13 +183,13 @@
 
 use crate::exact::{compensated_add, quadratic_form, weighted_squares};
 use crate::linalg::{det, dot, solve, Gram2};
+use crate::output_error::StretchOutcome;
 use crate::output_error::{
     bias_found, bias_worth_fitting, higher_orders, levenberg, refit_cost, scaled_inverse, score,
     score_beyond, score_rejects, substeps, torque_confirmed, whole_or_staged, without, Block,
     FitState, Normal, NormalSums, Pooled, Readings, Start, StretchResult, TOLERANCE,
 };
 use crate::symmetric::{eigen_symmetric3, sqrt, Sym};
-use crate::trajectory::StretchOutcome;
 
 mod model;
 mod normal;

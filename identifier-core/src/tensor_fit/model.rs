@@ -231,7 +231,7 @@ pub(super) const RESTORE_EVERY: usize = 8;
 
 /// The two quadratic invariants of (F1) without rotor momentum or torque, held along the
 /// integrated trajectory (the tensor's analogue of the ratio fit's, see
-/// [`crate::trajectory`]):
+/// [`crate::ratio_fit`]):
 ///
 /// ```text
 /// |L|^2 = const,   L . K L = 2 E = const,   K = J^-1 symmetric          (F6)

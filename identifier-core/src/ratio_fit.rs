@@ -167,7 +167,8 @@ use crate::linalg::Gram2;
 use crate::output_error::{
     bias_found, bias_worth_fitting, higher_orders, levenberg, refit_cost, scaled_inverse, score,
     score_beyond, score_rejects, score_rejects_at, substeps, torque_confirmed, whole_or_staged,
-    without, Block, FitState, Normal, NormalSums, Readings, Start, StretchResult, TOLERANCE,
+    without, Block, FitState, Normal, NormalSums, Readings, Start, StretchOutcome, StretchResult,
+    TOLERANCE,
 };
 use crate::symmetric::{eigen_symmetric3, sqrt, Sym};
 
@@ -178,7 +179,7 @@ pub struct RatioFitEstimate {
     /// `a` of (1) from the moments: `a1 = (A2 - A3)/A1` and cyclic.
     pub a: [f32; 3],
     /// Standard deviations of `a`: `sqrt(diag((da/dp) cov(p) (da/dp)^T) + r^2)`, `r`
-    /// the rounding's [`STD_A_ROUNDING`].
+    /// the rounding's `STD_A_ROUNDING`.
     pub std_a: [f32; 3],
     /// Principal moments scaled to trace 1, `(p1, p2, 1 - p1 - p2)`.
     pub moments: [f32; 3],
@@ -215,23 +216,6 @@ pub struct RatioFitEstimate {
     /// The same with the constant torque fitted on the stretches whose test rejected (the
     /// alternative the pipeline weighs against the tensor's products of inertia).
     pub cost_with_torque: f32,
-}
-
-/// What happened to the last stretch closed by [`RatioFit::close`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum StretchOutcome {
-    /// No sample was added since the last close.
-    Empty,
-    /// Fewer than 8 blocks of data: too short to fit.
-    TooShort,
-    /// The fit did not converge to a finite, positive set of moments (no excitation, or a
-    /// motion (1) cannot produce); the stretch is left out.
-    Failed,
-    /// Fitted without a bias and pooled.
-    Fitted,
-    /// Fitted with a constant gyro bias (the likelihood-ratio test chose it) and pooled.
-    FittedWithBias,
 }
 
 /// Output-error fit of (1) over free flights, `N` blocks per flight (see the module docs).
