@@ -728,14 +728,16 @@ fn fit_stretch(
             // flight, not what moves the whole flight's answer (see the module docs).
             let n = blocks.len();
             let (vs, vm) = (per_dof(&r, n), per_dof(&ms, n));
-            let k: [f32; 6] = core::array::from_fn(|i| {
-                let (a, b) = (vs * r.cov[i][i], vm * ms.cov[i][i]);
-                if b > 0.0 && a > b {
-                    a / b
-                } else {
-                    1.0
+            let mut k = [1.0f32; 6];
+            for (i, ki) in k.iter_mut().enumerate() {
+                let diag = |c: &Sym<6>| c.get(i).and_then(|row| row.get(i)).copied();
+                if let (Some(a), Some(b)) = (diag(&r.cov), diag(&ms.cov)) {
+                    let (a, b) = (vs * a, vm * b);
+                    if b > 0.0 && a > b {
+                        *ki = a / b;
+                    }
                 }
-            });
+            }
             ms.cov = inflated(&ms.cov, &k);
             return Some(ms);
         }
