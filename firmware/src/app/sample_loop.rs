@@ -4,10 +4,16 @@
 use embedded_hal::delay::DelayNs;
 use icm42688::{Config, Error, Icm42688, RawImu, RegisterInterface, Saturation};
 use identifier_core::{
-    Convergence, Counters, Estimate, FlightPipeline, Identifier, InertiaRatios, PipelineSettings,
-    Refined, RefinedSettings, SampleStatus, Settings, SettingsError, TensorStatus,
+    Counters, Estimate, FlightPipeline, Identifier, InertiaRatios, PipelineSettings, Refined,
+    SampleStatus, SettingsError,
 };
 
+use super::{
+    gate_rate_bound, identifier_settings, pipeline_settings, refined_settings, LoopCounters,
+    NoRotor, Report, RotorConfig, RotorSpeedSource, SampleClock, SensorStatus, TensorReport,
+    FAILED_REPORT_AFTER, GATE_MARGIN, GATE_RATE_MARGIN, GATE_RELEARN, HEALTH_EVERY, REINIT_AFTER,
+    STALLED_AFTER,
+};
 use crate::bench;
 
 /// Reports per second (one every `odr / REPORT_HZ` sample periods).
@@ -16,173 +22,6 @@ pub const REPORT_HZ: u32 = 10;
 pub const INIT_ATTEMPTS: u32 = 5;
 /// Data-ready is polled every this many microseconds, for up to two sample periods.
 pub const POLL_US: u32 = 10;
-
-/// The identifier's settings for a gyro configured with `config`: the paper's
-/// `C = -3 E` (section 4), and `full_scale` just below the gyro's clip level, so that a
-/// clipped reading (+-32767 counts) is rejected as saturated instead of integrated as a
-/// wrong rate.
-pub fn identifier_settings(config: &Config) -> Settings {
-    let mut s = Settings::with_lambda(3.0);
-    s.full_scale = icm42688::raw_to_rad_s(32767, config.full_scale);
-    s
-}
-
-/// Gyro rate noise density of the ICM-42688-P, degrees per second per sqrt(Hz) (datasheet
-/// DS-000347, table 1: 2.8 mdps/sqrt(Hz)).
-pub const GYRO_NOISE_DENSITY_DPS: f32 = 2.8e-3;
-
-/// The refined identifier's settings for a gyro configured with `config`:
-/// [`RefinedSettings::for_rate`] at the configured output data rate (block size and end
-/// correction from the rate, the same function the host uses), with
-/// * `noise_std`: the part's noise density times the square root of the Nyquist bandwidth
-///   `odr / 2` (1.09 mrad/s at 1 kHz; an upper bound, the part's default UI filter is
-///   narrower). It sets only the weight of the prior, the filter's gains do not depend on it;
-/// * `full_scale`, `max_dt`, `eps` and `h` as for the paper's identifier
-///   ([`identifier_settings`]), so that both reject the same samples, restart after the same
-///   gaps and are judged by the same accuracy criterion.
-pub fn refined_settings(config: &Config) -> RefinedSettings {
-    let paper = identifier_settings(config);
-    let odr = config.odr.hz();
-    let noise_std = GYRO_NOISE_DENSITY_DPS * (core::f32::consts::PI / 180.0) * sqrt_pos(0.5 * odr);
-    let mut s = RefinedSettings::for_rate(odr, noise_std);
-    s.full_scale = paper.full_scale;
-    s.max_dt = paper.max_dt;
-    s.eps = paper.eps;
-    s.h = paper.h;
-    s
-}
-
-/// The free-flight pipeline's settings for a gyro configured with `config`:
-/// [`PipelineSettings::for_rate`] at the output data rate with the noise of
-/// [`refined_settings`], and the estimator's `full_scale` at the gyro's clip level (the same
-/// function and the same fields `inertia identify` sets from a log).
-pub fn pipeline_settings(config: &Config) -> PipelineSettings {
-    let r = refined_settings(config);
-    PipelineSettings::for_rate(config.odr.hz(), r.noise_std)
-        .with_full_scale(identifier_settings(config).full_scale)
-}
-
-/// A rotor whose angular momentum goes with each sample to the free-flight pipeline:
-/// `h = axis * inertia * speed` (kg m^2/s), the speed from the [`RotorSpeedSource`].
-///
-/// A speed read from telemetry comes in steps (DShot's eRPM: 100 eRPM, `100 / (poles / 2) *
-/// 2 pi / 60` rad/s, 1.75 rad/s for 12 poles): give the pipeline `inertia * step` with
-/// [`PipelineSettings::with_momentum_resolution`] so that the tensor's uncertainty counts the
-/// steps' error (the QEMU image does, from the replay's header, as `inertia identify` does
-/// from the log).
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct RotorConfig {
-    /// Inertia about the rotor's axis, kg m^2.
-    pub inertia: f32,
-    /// Unit axis in the gyro frame, the direction of positive speed.
-    pub axis: [f32; 3],
-}
-
-impl RotorConfig {
-    /// The rotor momentum at `speed` rad/s, in the order of operations `inertia identify`
-    /// uses (`axis_i * inertia * speed`).
-    pub fn momentum(&self, speed: f32) -> [f32; 3] {
-        self.axis.map(|a| a * self.inertia * speed)
-    }
-}
-
-/// The tensor estimate of the free-flight pipeline, as reported.
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct TensorReport {
-    /// Why `a` is or is not to be trusted ([`FlightPipeline::ratios`]).
-    pub status: TensorStatus,
-    /// The recommended ratios `a` ([`FlightPipeline::ratios`]: the tensor's with a rotor or
-    /// products of inertia, else the refined identifier's on the same samples).
-    pub a: Option<[f32; 3]>,
-    /// Their standard deviations.
-    pub std_a: Option<[f32; 3]>,
-    /// `J`, kg m^2, when a rotor momentum fixes the scale.
-    pub tensor: Option<[[f32; 3]; 3]>,
-    /// Free flights that reached the estimator.
-    pub throws: u32,
-    /// Samples committed to the estimator.
-    pub fed: u32,
-    /// Samples that left the delay line without being committed (hand, bench, catch).
-    pub not_fed: u32,
-    /// The gate holds free flight now.
-    pub in_free_flight: bool,
-}
-
-/// Square root of `x > 0` by Newton's iteration (`core` has none); run once, at start-up.
-fn sqrt_pos(x: f32) -> f32 {
-    let mut y = x.max(1.0);
-    for _ in 0..40 {
-        y = 0.5 * (y + x / y);
-    }
-    y
-}
-
-/// A delay that does not wait: for the simulated part, which models no time (it always has
-/// the next sample ready), under QEMU and on the host.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct NoDelay;
-
-impl DelayNs for NoDelay {
-    fn delay_ns(&mut self, _ns: u32) {}
-}
-
-/// Consecutive failures (bus errors, data-ready timeouts, samples the part marked invalid)
-/// after which the sensor is re-initialised.
-pub const REINIT_AFTER: u32 = 5;
-/// Identical consecutive raw samples (all three gyro axes) after which the data counts as
-/// stalled and the sensor is re-initialised. With the part's noise (about 1 count rms at 1 kHz
-/// and 2000 dps, and the accelerometer's noise beside it) twenty repeats of all six axes
-/// practically never happen on live data. Samples with a clipped gyro axis are saturated, not
-/// stalled: they never count toward this (a body spinning beyond the range on all three axes
-/// reads the same clipped counts again and again, and must not reset the part).
-pub const STALLED_AFTER: u32 = 20;
-/// `WHO_AM_I` is checked every this many accepted samples (10 times a second at 1 kHz).
-pub const HEALTH_EVERY: u32 = 100;
-/// The plausibility gate's noise margin, rad/s: about 20 times the gyro's noise at 1 kHz.
-pub const GATE_MARGIN: f32 = 0.02;
-/// Margin on the last accepted rates in the gate's bound, rad/s: `|w_i'| <= (max |w| +
-/// margin)^2` (at most the full-scale bound [`gate_rate_bound`]). With +-2000 dps the
-/// full-scale bound alone (1218 rad/s^2) lets flipped bits up to 1.2 rad/s through.
-pub const GATE_RATE_MARGIN: f32 = 2.0;
-/// Consecutive gate refusals after which the sample is accepted as real motion.
-pub const GATE_RELEARN: u32 = 3;
-
-/// The plausibility gate's bound on the rate of change of each gyro component, rad/s^2, for a
-/// gyro configured with `config`: torque-free, `|w_i'| = |a_i w_j w_k| <= fs^2` since
-/// `|a_i| <= 1` and every rate is within the full scale `fs` (76 rad/s^2 at 500 dps). A sample
-/// whose change from the last accepted one exceeds `bound * (time since it) + GATE_MARGIN`
-/// cannot come from the motion: a flipped bit, a glitch on the bus.
-pub fn gate_rate_bound(config: &Config) -> f32 {
-    let fs = icm42688::raw_to_rad_s(32767, config.full_scale);
-    fs * fs
-}
-
-/// An optional rotor-speed input (reaction wheel, propeller, motor): the board implements it
-/// (from an ESC's telemetry, a Hall sensor, a DShot reply); the QEMU image reads it from the
-/// log. The speed goes with each sample to the estimators that model the rotor's angular
-/// momentum. `None`: not known for this sample (no rotor, or no fresh reading).
-pub trait RotorSpeedSource {
-    /// The rotor's speed about its axis, rad/s, signed, at the time of the current sample.
-    fn rotor_speed_rad_s(&mut self) -> Option<f32>;
-}
-
-/// No rotor input: every sample has `None`.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct NoRotor;
-
-impl RotorSpeedSource for NoRotor {
-    fn rotor_speed_rad_s(&mut self) -> Option<f32> {
-        None
-    }
-}
-
-impl<F: FnMut() -> Option<f32>> RotorSpeedSource for F {
-    fn rotor_speed_rad_s(&mut self) -> Option<f32> {
-        self()
-    }
-}
 
 /// The inputs of the last sample that went to the estimators: what the free-flight gate and
 /// the tensor estimator of identifier-core take per sample.
@@ -199,114 +38,6 @@ pub struct SampleInputs {
     pub saturated: Saturation,
     /// The time step, s.
     pub dt: f32,
-}
-
-/// The loop's time base: a free-running clock in microseconds (wrapping at `2^32`), read once
-/// per sample. Samples lost on the way (data-ready missed, bus errors) then lengthen the next
-/// step instead of shrinking the time base, as counting data-ready events would.
-///
-/// The elapsed time between two samples is rounded to whole sample periods (at least one), so
-/// the clock needs only be good to a fraction of a period. On a board: a timer or the cycle
-/// counter; on the simulated part, which models no time: its count of latched samples times
-/// the period. Any `FnMut(&IF) -> u32` is a clock (the argument is the driver's bus
-/// interface, for the simulated part).
-pub trait SampleClock<IF> {
-    /// Microseconds since an arbitrary origin, wrapping.
-    fn now_us(&mut self, interface: &IF) -> u32;
-}
-
-impl<IF, F: FnMut(&IF) -> u32> SampleClock<IF> for F {
-    fn now_us(&mut self, interface: &IF) -> u32 {
-        self(interface)
-    }
-}
-
-/// The loop's own counters (the identifier keeps finer ones, see [`Counters`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct LoopCounters {
-    /// Gyro samples read, accepted by the gate and given to both identifiers.
-    pub samples: u32,
-    /// Samples the paper's identifier did not integrate: rejected (saturated, non-finite),
-    /// unidentifiable (`|w1 w2 w3| < w_min`), after a gap, or a numerical fault. The anchor
-    /// sample after a start or gap is not counted.
-    pub skipped: u32,
-    /// Bus transfers that failed (status poll, sample read, `WHO_AM_I` check). The loop
-    /// carries on.
-    pub bus_errors: u32,
-    /// Samples the part marked invalid (-32768).
-    pub invalid: u32,
-    /// Data-ready waits that timed out.
-    pub timeouts: u32,
-    /// Samples refused by the plausibility gate ([`gate_rate_bound`]); their time is carried
-    /// to the next accepted sample.
-    pub implausible: u32,
-    /// Sample periods that passed without a sample read (by the [`SampleClock`]).
-    pub missed: u32,
-    /// `WHO_AM_I` read a wrong value (periodic check or re-initialisation).
-    pub wrong_id: u32,
-    /// Stalled data seen ([`STALLED_AFTER`] identical samples).
-    pub stalled: u32,
-    /// Samples with a gyro axis at the clip level (the identifiers reject them as
-    /// saturated). Counted apart from stalled data: they never re-initialise the part.
-    pub saturated: u32,
-    /// Samples with an accelerometer axis at the clip level (a catch, a crash).
-    pub accel_saturated: u32,
-    /// Re-initialisations of the sensor (after [`REINIT_AFTER`] consecutive failures, a wrong
-    /// `WHO_AM_I` or stalled data).
-    pub reinits: u32,
-    /// Initialisation attempts during re-initialisations that failed.
-    pub reinit_failures: u32,
-}
-
-/// The sensor's state in a report.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum SensorStatus {
-    /// Samples are coming in.
-    Ok,
-    /// No sample for more than [`FAILED_REPORT_AFTER`] report periods: bus errors, timeouts,
-    /// invalid samples or re-initialisations. Reports go on at [`REPORT_HZ`] with the
-    /// estimates held and the counters moving.
-    Failed,
-}
-
-/// Report periods without a sample after which a report goes out anyway, marked
-/// [`SensorStatus::Failed`] (1.5: the normal stream is late by half a period).
-pub const FAILED_REPORT_AFTER: f32 = 1.5;
-
-/// What goes out at [`REPORT_HZ`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Report {
-    /// Sample periods since the loop started, by the [`SampleClock`] (lost samples included).
-    pub tick: u32,
-    /// Seconds since the loop started, `tick / odr`.
-    pub t: f32,
-    /// The paper's identifier: estimate `(a1, a2, a3)` of (12).
-    pub a_paper: [f32; 3],
-    /// The paper's accuracy criterion on `a_paper`.
-    pub convergence_paper: Convergence,
-    /// The refined identifier's estimate, open block included ([`Refined::estimate`]).
-    pub a_refined: [f32; 3],
-    /// Standard deviations of `a_refined`.
-    pub std_refined: [f32; 3],
-    /// `A2/A1`, `A3/A1` implied by `a_refined`.
-    pub ratios: Option<InertiaRatios>,
-    /// `a1 + a2 + a3 + a1 a2 a3` of `a_refined` (zero for a rigid body).
-    pub consistency: f32,
-    /// The paper's accuracy criterion on the refined identifier's block estimates.
-    pub convergence_refined: Convergence,
-    /// The loop's counters.
-    pub counters: LoopCounters,
-    /// Samples with a clipped gyro axis since the previous report.
-    pub saturated_recent: u32,
-    /// The sensor's state.
-    pub sensor: SensorStatus,
-    /// The last rotor speed given with a sample, rad/s.
-    pub rotor_rad_s: Option<f32>,
-    /// The free-flight pipeline's tensor estimate.
-    pub tensor: TensorReport,
 }
 
 /// Why the loop could not start.
@@ -907,132 +638,11 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
     }
 }
 
-/// Logs a report as one defmt line (the format the end-to-end check and `scripts/run.sh`
-/// read).
-#[cfg(feature = "defmt")]
-pub fn log_report(r: &Report) {
-    if r.saturated_recent > 0 {
-        defmt::warn!(
-            "{=u32} saturated gyro samples (at the clip level) since the last report; {=u32} in all",
-            r.saturated_recent,
-            r.counters.saturated
-        );
-    }
-    if r.sensor == SensorStatus::Failed {
-        defmt::warn!("sensor failed: no sample for over 150 ms; estimates held");
-    }
-    let (q2, q3) = r
-        .ratios
-        .map_or((f32::NAN, f32::NAN), |q| (q.a2_over_a1, q.a3_over_a1));
-    let c = &r.counters;
-    let (p, f) = (&r.a_paper, &r.a_refined);
-    defmt::info!(
-        "t={=f32}s a_paper=[{=f32}, {=f32}, {=f32}] {} a_refined=[{=f32}, {=f32}, {=f32}] {} A2/A1={=f32} A3/A1={=f32} consistency={=f32} samples={=u32} skipped={=u32} bus_errors={=u32} invalid={=u32} timeouts={=u32} implausible={=u32} missed={=u32} wrong_id={=u32} stalled={=u32} reinits={=u32} reinit_failures={=u32} saturated={=u32} accel_saturated={=u32} sensor={}",
-        r.t,
-        p[0],
-        p[1],
-        p[2],
-        r.convergence_paper,
-        f[0],
-        f[1],
-        f[2],
-        r.convergence_refined,
-        q2,
-        q3,
-        r.consistency,
-        c.samples,
-        c.skipped,
-        c.bus_errors,
-        c.invalid,
-        c.timeouts,
-        c.implausible,
-        c.missed,
-        c.wrong_id,
-        c.stalled,
-        c.reinits,
-        c.reinit_failures,
-        c.saturated,
-        c.accel_saturated,
-        r.sensor
-    );
-}
-
-/// Logs the free-flight pipeline's tensor estimate of a report as one defmt line, `none` for
-/// what is not determined; with `bits`, also the IEEE-754 bits of `a`, `std_a` and `J` (the
-/// replay check compares them with the host tool's).
-#[cfg(feature = "defmt")]
-pub fn log_tensor(r: &Report, bits: bool) {
-    let t = &r.tensor;
-    defmt::info!(
-        "tensor status={} throws={=u32} fed={=u32} not_fed={=u32} in_free_flight={=bool}",
-        t.status,
-        t.throws,
-        t.fed,
-        t.not_fed,
-        t.in_free_flight
-    );
-    match (t.a, t.std_a) {
-        (Some(a), Some(s)) => {
-            defmt::info!(
-                "tensor a=[{=f32}, {=f32}, {=f32}] std_a=[{=f32}, {=f32}, {=f32}]",
-                a[0],
-                a[1],
-                a[2],
-                s[0],
-                s[1],
-                s[2]
-            );
-            if bits {
-                defmt::info!(
-                    "tensor bits_a=[{=u32:#010x}, {=u32:#010x}, {=u32:#010x}] bits_std_a=[{=u32:#010x}, {=u32:#010x}, {=u32:#010x}]",
-                    a[0].to_bits(),
-                    a[1].to_bits(),
-                    a[2].to_bits(),
-                    s[0].to_bits(),
-                    s[1].to_bits(),
-                    s[2].to_bits()
-                );
-            }
-        }
-        _ => defmt::info!("tensor a=none std_a=none"),
-    }
-    match t.tensor {
-        Some(j) => {
-            defmt::info!(
-                "tensor J=[{=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}] kg m^2",
-                j[0][0],
-                j[0][1],
-                j[0][2],
-                j[1][0],
-                j[1][1],
-                j[1][2],
-                j[2][0],
-                j[2][1],
-                j[2][2]
-            );
-            if bits {
-                defmt::info!(
-                    "tensor bits_J=[{=u32:#010x}, {=u32:#010x}, {=u32:#010x}, {=u32:#010x}, {=u32:#010x}, {=u32:#010x}, {=u32:#010x}, {=u32:#010x}, {=u32:#010x}]",
-                    j[0][0].to_bits(),
-                    j[0][1].to_bits(),
-                    j[0][2].to_bits(),
-                    j[1][0].to_bits(),
-                    j[1][1].to_bits(),
-                    j[1][2].to_bits(),
-                    j[2][0].to_bits(),
-                    j[2][1].to_bits(),
-                    j[2][2].to_bits()
-                );
-            }
-        }
-        None => defmt::info!("tensor J=none"),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
+    use crate::app::NoDelay;
     use icm42688::sim::{SampleSource, SimIcm42688};
     use icm42688::SpiInterface;
 
@@ -1156,31 +766,6 @@ mod tests {
     }
 
     #[test]
-    fn refined_settings_follow_the_part_and_the_odr() {
-        let config = Config::identifier();
-        let s = refined_settings(&config);
-        // 2.8 mdps/sqrt(Hz) over 500 Hz: 1.093 mrad/s.
-        let expect = 2.8e-3 * core::f32::consts::PI / 180.0 * 500f32.sqrt();
-        assert!(
-            (s.noise_std - expect).abs() < 1e-6 * expect,
-            "{}",
-            s.noise_std
-        );
-        assert_eq!(s.block, 32);
-        assert!(s.end_correction);
-        assert_eq!(s.full_scale, identifier_settings(&config).full_scale);
-        assert!(Refined::new(s).is_some());
-        let slow = Config {
-            odr: icm42688::GyroOdr::Hz100,
-            ..config
-        };
-        let s = refined_settings(&slow);
-        assert_eq!(s.block, 8);
-        assert!(s.end_correction);
-        assert!(Refined::new(s).is_some());
-    }
-
-    #[test]
     fn reports_carry_both_estimates() {
         let sim = SimIcm42688::new(spin(1000));
         let mut lp = SampleLoop::new(
@@ -1279,17 +864,5 @@ mod tests {
         // About 10 a second once the sensor is silent.
         assert!((30..=60).contains(&failed), "{failed}");
         assert!(lp.counters().timeouts > 0);
-    }
-
-    #[test]
-    fn settings_reject_clipped_readings() {
-        let s = identifier_settings(&Config::identifier());
-        let clip = icm42688::raw_to_rad_s(32767, icm42688::GyroFullScale::Dps2000);
-        assert_eq!(s.full_scale, clip);
-        let mut id = Identifier::new(s).unwrap();
-        assert_eq!(
-            id.step([clip, 1.0, 1.0], 1e-3).status,
-            SampleStatus::Saturated
-        );
     }
 }
