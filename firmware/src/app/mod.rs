@@ -21,15 +21,13 @@ pub mod sample_loop;
 pub mod settings;
 
 pub use clock::{NoDelay, SampleClock};
-pub use health::{SensorStatus, FAILED_REPORT_AFTER, HEALTH_EVERY, REINIT_AFTER, STALLED_AFTER};
+pub use health::{SensorStatus, HEALTH_EVERY, REINIT_AFTER, STALLED_AFTER};
 #[cfg(feature = "defmt")]
 pub use log::{log_report, log_tensor};
 pub use rate_check::{gate_rate_bound, GATE_MARGIN, GATE_RATE_MARGIN, GATE_RELEARN};
-pub use report::{LoopCounters, Report, TensorReport};
+pub use report::{LoopCounters, Report, TensorReport, FAILED_REPORT_AFTER, REPORT_HZ};
 pub use rotor::{NoRotor, RotorConfig, RotorSpeedSource};
-pub use sample_loop::{
-    InitError, Poll, SampleInputs, SampleLoop, INIT_ATTEMPTS, POLL_US, REPORT_HZ,
-};
+pub use sample_loop::{InitError, Poll, SampleInputs, SampleLoop, INIT_ATTEMPTS, POLL_US};
 pub use settings::{
     identifier_settings, pipeline_settings, refined_settings, GYRO_NOISE_DENSITY_DPS,
 };

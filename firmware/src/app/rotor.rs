@@ -5,9 +5,12 @@
 ///
 /// A speed read from telemetry comes in steps (DShot's eRPM: 100 eRPM, `100 / (poles / 2) *
 /// 2 pi / 60` rad/s, 1.75 rad/s for 12 poles): give the pipeline `inertia * step` with
-/// [`PipelineSettings::with_momentum_resolution`](identifier_core::PipelineSettings::with_momentum_resolution) so that the tensor's uncertainty counts the
+/// [`PipelineSettings::with_momentum_resolution`] so that the tensor's uncertainty counts the
 /// steps' error (the QEMU image does, from the replay's header, as `inertia identify` does
 /// from the log).
+///
+/// [`PipelineSettings::with_momentum_resolution`]:
+/// identifier_core::PipelineSettings::with_momentum_resolution
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RotorConfig {

@@ -2,22 +2,22 @@
 //! one beside it); a report of both every 100 ms.
 
 use embedded_hal::delay::DelayNs;
-use icm42688::{Config, Error, Icm42688, RawImu, RegisterInterface, Saturation};
+use icm42688::{Config, Error, Icm42688, RegisterInterface, Saturation};
 use identifier_core::{
     Counters, Estimate, FlightPipeline, Identifier, InertiaRatios, PipelineSettings, Refined,
     SampleStatus, SettingsError,
 };
 
+use super::clock::SampleTime;
+use super::health::SensorHealth;
+use super::rate_check::RateCheck;
+use super::report::ReportSchedule;
 use super::{
-    gate_rate_bound, identifier_settings, pipeline_settings, refined_settings, LoopCounters,
-    NoRotor, Report, RotorConfig, RotorSpeedSource, SampleClock, SensorStatus, TensorReport,
-    FAILED_REPORT_AFTER, GATE_MARGIN, GATE_RATE_MARGIN, GATE_RELEARN, HEALTH_EVERY, REINIT_AFTER,
-    STALLED_AFTER,
+    identifier_settings, pipeline_settings, refined_settings, LoopCounters, NoRotor, Report,
+    RotorConfig, RotorSpeedSource, SampleClock, SensorStatus, TensorReport,
 };
 use crate::bench;
 
-/// Reports per second (one every `odr / REPORT_HZ` sample periods).
-pub const REPORT_HZ: u32 = 10;
 /// Gyro initialisation attempts before giving up.
 pub const INIT_ATTEMPTS: u32 = 5;
 /// Data-ready is polled every this many microseconds, for up to two sample periods.
@@ -89,47 +89,31 @@ pub enum Poll {
 /// a periodic `WHO_AM_I` check.
 pub struct SampleLoop<IF, C, R = NoRotor> {
     gyro: Icm42688<IF>,
-    clock: C,
-    rotor: R,
-    last_inputs: SampleInputs,
-    /// The clock at the last report (stepped or failed).
-    last_report_us: u32,
-    /// Microseconds without a report after which a failed-sensor report goes out.
-    failed_report_us: u32,
-    pending: Option<Report>,
-    saturated_at_report: u32,
+    /// The configuration the gyro is (re-)initialised with.
     config: Config,
+    /// Data-ready polls before a timeout.
+    max_polls: u32,
+    clock: C,
+    time: SampleTime,
+    rotor: R,
+    rotor_config: Option<RotorConfig>,
+    health: SensorHealth,
+    rate_check: RateCheck,
+    last_inputs: SampleInputs,
+    /// The paper's identifier, fed every accepted sample.
     identifier: Identifier,
+    /// The refined identifier beside the paper's, fed the same samples at the same time. The
+    /// pipeline has a `Refined` of its own ([`FlightPipeline::refined`]), but it is another
+    /// estimator: it sees only the free-flight samples its gate lets through, late by the
+    /// delay line, with the gate's bias removed, decimated above 1.5 kHz, not after a rotor
+    /// momentum is seen, and with the pipeline's settings. The reports' `a_refined` is this
+    /// one's.
     refined: Refined,
     pipeline: FlightPipeline,
-    rotor_config: Option<RotorConfig>,
     /// Samples that left the pipeline's delay line unfed.
     not_fed: u32,
     counters: LoopCounters,
-    /// Nominal sample period, s.
-    period: f32,
-    /// Nominal sample period, us.
-    period_us: u32,
-    /// Output data rate, Hz.
-    odr_hz: f32,
-    /// The clock at the last sample read.
-    last_us: u32,
-    tick: u32,
-    since_report: u32,
-    report_every: u32,
-    max_polls: u32,
-    /// Consecutive failures.
-    fails: u32,
-    last_raw: Option<RawImu>,
-    repeats: u32,
-    last_accepted: Option<[f32; 3]>,
-    /// Seconds since the last accepted sample.
-    since_accepted: f32,
-    gate_bound: f32,
-    /// Consecutive gate refusals.
-    refusals: u32,
-    /// Accepted samples since the last `WHO_AM_I` check.
-    since_check: u32,
+    reports: ReportSchedule,
 }
 
 impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
@@ -183,46 +167,29 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
         let identifier =
             Identifier::new(identifier_settings(&config)).map_err(InitError::Settings)?;
         let refined = Refined::new(refined_settings(&config)).ok_or(InitError::RefinedSettings)?;
-        let odr_hz = pipeline.rate_hz;
+        let now_us = clock.now_us(gyro.interface());
+        let time = SampleTime::new(&config, pipeline.rate_hz, now_us);
+        let reports = ReportSchedule::new(&config, now_us);
         let pipeline =
             FlightPipeline::new(pipeline, with_accel).ok_or(InitError::PipelineSettings)?;
-        let odr = config.odr.hz() as u32;
-        let last_us = clock.now_us(gyro.interface());
-        let report_every = (odr / REPORT_HZ).max(1);
-        let report_us = report_every.saturating_mul(config.odr.period_us().max(1));
         Ok(SampleLoop {
             gyro,
-            clock,
-            rotor,
-            last_inputs: SampleInputs::default(),
-            last_report_us: last_us,
-            failed_report_us: (report_us as f32 * FAILED_REPORT_AFTER) as u32,
-            pending: None,
-            saturated_at_report: 0,
             config,
+            // Two sample periods of polling before a timeout.
+            max_polls: (2 * config.odr.period_us() / POLL_US).max(2),
+            clock,
+            time,
+            rotor,
+            rotor_config,
+            health: SensorHealth::default(),
+            rate_check: RateCheck::new(&config),
+            last_inputs: SampleInputs::default(),
             identifier,
             refined,
             pipeline,
-            rotor_config,
             not_fed: 0,
             counters: LoopCounters::default(),
-            period: config.odr.period_s(),
-            period_us: config.odr.period_us().max(1),
-            odr_hz,
-            last_us,
-            tick: 0,
-            since_report: 0,
-            report_every,
-            // Two sample periods of polling before a timeout.
-            max_polls: (2 * config.odr.period_us() / POLL_US).max(2),
-            fails: 0,
-            last_raw: None,
-            repeats: 0,
-            last_accepted: None,
-            since_accepted: 0.0,
-            gate_bound: gate_rate_bound(&config),
-            refusals: 0,
-            since_check: 0,
+            reports,
         })
     }
 
@@ -230,36 +197,21 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
     pub fn with_rotor<R: RotorSpeedSource>(self, rotor: R) -> SampleLoop<IF, C, R> {
         SampleLoop {
             gyro: self.gyro,
-            clock: self.clock,
-            rotor,
-            last_inputs: self.last_inputs,
-            last_report_us: self.last_report_us,
-            failed_report_us: self.failed_report_us,
-            pending: self.pending,
-            saturated_at_report: self.saturated_at_report,
             config: self.config,
+            max_polls: self.max_polls,
+            clock: self.clock,
+            time: self.time,
+            rotor,
+            rotor_config: self.rotor_config,
+            health: self.health,
+            rate_check: self.rate_check,
+            last_inputs: self.last_inputs,
             identifier: self.identifier,
             refined: self.refined,
             pipeline: self.pipeline,
-            rotor_config: self.rotor_config,
             not_fed: self.not_fed,
             counters: self.counters,
-            period: self.period,
-            period_us: self.period_us,
-            odr_hz: self.odr_hz,
-            last_us: self.last_us,
-            tick: self.tick,
-            since_report: self.since_report,
-            report_every: self.report_every,
-            max_polls: self.max_polls,
-            fails: self.fails,
-            last_raw: self.last_raw,
-            repeats: self.repeats,
-            last_accepted: self.last_accepted,
-            since_accepted: self.since_accepted,
-            gate_bound: self.gate_bound,
-            refusals: self.refusals,
-            since_check: self.since_check,
+            reports: self.reports,
         }
     }
 }
@@ -314,36 +266,19 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
         if saturation.accel_any() {
             self.counters.accel_saturated = self.counters.accel_saturated.saturating_add(1);
         }
-        // Stalled data: the same six counts again and again. A clipped gyro axis is
-        // saturation, not a stall: such samples neither count nor break a run.
-        if saturation.gyro_any() {
-            self.repeats = 0;
-            self.last_raw = None;
-        } else if self.last_raw == Some(imu) {
-            self.repeats = self.repeats.saturating_add(1);
-            if self.repeats >= STALLED_AFTER {
-                self.counters.stalled = self.counters.stalled.saturating_add(1);
-                self.reinit(delay);
-                return Poll::Stalled;
-            }
-        } else {
-            self.repeats = 0;
-            self.last_raw = Some(imu);
+        // Stalled data: the same six counts again and again.
+        if self.health.stalled(imu, saturation.gyro_any()) {
+            self.counters.stalled = self.counters.stalled.saturating_add(1);
+            self.reinit(delay);
+            return Poll::Stalled;
         }
 
         // dt from the sample clock, in whole periods.
         let now = self.clock.now_us(self.gyro.interface());
-        let elapsed = now.wrapping_sub(self.last_us);
-        self.last_us = now;
-        let mut periods = elapsed / self.period_us;
-        if elapsed % self.period_us >= self.period_us / 2 {
-            periods = periods.saturating_add(1);
-        }
-        let periods = periods.max(1);
+        let periods = self.time.advance(now);
         self.counters.missed = self.counters.missed.saturating_add(periods - 1);
-        self.tick = self.tick.wrapping_add(periods);
-        self.since_report = self.since_report.saturating_add(periods);
-        let dt = periods as f32 * self.period;
+        self.reports.advance(periods);
+        let dt = self.time.seconds_of(periods);
 
         let omega = icm42688::raw3_to_rad_s(raw, self.gyro.full_scale());
         self.last_inputs = SampleInputs {
@@ -353,35 +288,15 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
             saturated: saturation,
             dt,
         };
-        // The plausibility gate.
-        self.since_accepted += dt;
-        if let Some(prev) = self.last_accepted {
-            // Torque-free, |w_i'| <= |w_j| |w_k|: bounded by the last accepted rates (plus
-            // GATE_RATE_MARGIN for their growth), and by the full scale.
-            let m = prev.iter().fold(0.0f32, |m, p| m.max(p.abs())) + GATE_RATE_MARGIN;
-            let limit = self.gate_bound.min(m * m) * self.since_accepted + GATE_MARGIN;
-            let refused = omega.iter().zip(prev).any(|(w, p)| (w - p).abs() > limit);
-            self.refusals = if refused {
-                self.refusals.saturating_add(1)
-            } else {
-                0
-            };
-            // A glitch is one sample; GATE_RELEARN refusals in a row are a real motion the
-            // bound did not foresee (a torque): accepted, and the gate starts from there.
-            if refused && self.refusals < GATE_RELEARN {
-                // Refused like a non-finite sample: both identifiers carry its time.
-                self.counters.implausible = self.counters.implausible.saturating_add(1);
-                self.identifier.step([f32::NAN; 3], dt);
-                self.refined.step([f32::NAN; 3], dt);
-                return Poll::Implausible;
-            }
-        }
-        self.refusals = 0;
-        self.last_accepted = Some(omega);
-        // The pipeline gets the time since the last sample it was given (refused ones
-        // included), as the identifiers do.
-        let dt_pipeline = self.since_accepted;
-        self.since_accepted = 0.0;
+        // The rate-jump check (the plausibility gate). The pipeline gets the time since the
+        // last sample it was given (refused ones included), as the identifiers do.
+        let Some(dt_pipeline) = self.rate_check.check(omega, dt) else {
+            // Refused like a non-finite sample: both identifiers carry its time.
+            self.counters.implausible = self.counters.implausible.saturating_add(1);
+            self.identifier.step([f32::NAN; 3], dt);
+            self.refined.step([f32::NAN; 3], dt);
+            return Poll::Implausible;
+        };
         self.feed_pipeline(omega, self.last_inputs.accel, dt_pipeline);
 
         bench::step_begin();
@@ -391,22 +306,18 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
         let refined = self.refined.step(omega, dt);
         bench::refined_end();
         self.count(&paper);
-        self.fails = 0;
+        self.health.sample_ok();
 
-        let report = if self.since_report >= self.report_every {
-            self.since_report %= self.report_every;
-            self.last_report_us = now;
+        let report = if self.reports.due(now) {
             let r = self.report();
-            self.saturated_at_report = self.counters.saturated;
+            self.reports.sent(self.counters.saturated);
             Some(r)
         } else {
             None
         };
 
         // Health check: is it still our part?
-        self.since_check = self.since_check.saturating_add(1);
-        if self.since_check >= HEALTH_EVERY {
-            self.since_check = 0;
+        if self.health.check_due() {
             match self.gyro.who_am_i() {
                 Ok(icm42688::registers::WHO_AM_I_VALUE) => {}
                 Ok(_) => {
@@ -425,31 +336,29 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
         }
     }
 
-    /// One more consecutive failure; [`REINIT_AFTER`] of them re-initialise the sensor. When
-    /// no report has gone out for [`FAILED_REPORT_AFTER`] report periods (by the sample
+    /// One more consecutive failure; [`REINIT_AFTER`](super::REINIT_AFTER) of them
+    /// re-initialise the sensor. When no report has gone out for
+    /// [`FAILED_REPORT_AFTER`](super::FAILED_REPORT_AFTER) report periods (by the sample
     /// clock), a report marked [`SensorStatus::Failed`] is queued
     /// ([`SampleLoop::take_failed_report`]): the 10 Hz stream goes on while the sensor is
     /// down.
     fn failure(&mut self, delay: &mut impl DelayNs) {
-        self.fails = self.fails.saturating_add(1);
-        if self.fails >= REINIT_AFTER {
+        if self.health.failure() {
             self.reinit(delay);
         }
         let now = self.clock.now_us(self.gyro.interface());
-        if now.wrapping_sub(self.last_report_us) >= self.failed_report_us {
-            // The next one is due a report period from now.
-            self.last_report_us = now.wrapping_sub(self.failed_report_us / 3);
+        if self.reports.failed_due(now) {
             let mut r = self.report();
             r.sensor = SensorStatus::Failed;
-            self.saturated_at_report = self.counters.saturated;
-            self.pending = Some(r);
+            self.reports.sent(self.counters.saturated);
+            self.reports.queue_failed(r);
         }
     }
 
     /// A report queued while the sensor is failing (see [`SensorStatus::Failed`]), once:
     /// call after every [`SampleLoop::poll`] and send it like a periodic one.
     pub fn take_failed_report(&mut self) -> Option<Report> {
-        self.pending.take()
+        self.reports.take_failed()
     }
 
     /// One sample into the free-flight pipeline: the rotor's momentum from the
@@ -508,15 +417,14 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
             saturated: Saturation::default(),
             dt,
         };
-        self.tick = self.tick.wrapping_add(1);
-        self.since_report = self.since_report.saturating_add(1);
+        self.time.advance_one();
+        self.reports.advance(1);
         let paper = self.identifier.step(omega, dt);
         self.refined.step(omega, dt);
         self.count(&paper);
         self.feed_pipeline(omega, accel, dt);
         bench::loop_end();
-        if self.since_report >= report_every.max(1) {
-            self.since_report = 0;
+        if self.reports.due_every(report_every) {
             Some(self.report())
         } else {
             None
@@ -557,11 +465,8 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
         self.counters.reinits = self.counters.reinits.saturating_add(1);
         self.identifier.restart();
         self.refined.restart();
-        self.last_raw = None;
-        self.repeats = 0;
-        self.last_accepted = None;
-        self.since_accepted = 0.0;
-        self.fails = 0;
+        self.health.restart();
+        self.rate_check.restart();
         for _ in 0..INIT_ATTEMPTS {
             match self.gyro.init(delay, self.config) {
                 Ok(()) => return,
@@ -586,9 +491,8 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
     pub fn report(&self) -> Report {
         let a = self.refined.estimate();
         Report {
-            tick: self.tick,
-            // A division, so whole seconds print as such (3000 / 1000 is exactly 3.0).
-            t: self.tick as f32 / self.odr_hz,
+            tick: self.time.tick(),
+            t: self.time.t(),
             a_paper: self.identifier.estimate(),
             convergence_paper: self.identifier.convergence(),
             a_refined: a,
@@ -597,10 +501,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
             consistency: identifier_core::consistency(a),
             convergence_refined: self.refined.convergence(),
             counters: self.counters,
-            saturated_recent: self
-                .counters
-                .saturated
-                .wrapping_sub(self.saturated_at_report),
+            saturated_recent: self.reports.saturated_recent(self.counters.saturated),
             sensor: SensorStatus::Ok,
             rotor_rad_s: self.last_inputs.rotor_rad_s,
             tensor: self.tensor_report(),
@@ -642,7 +543,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
     use super::*;
-    use crate::app::NoDelay;
+    use crate::app::{NoDelay, GATE_RELEARN};
     use icm42688::sim::{SampleSource, SimIcm42688};
     use icm42688::SpiInterface;
 
