@@ -77,14 +77,14 @@ pub enum Poll {
     BusError,
     /// The part marked the sample invalid; counted, its time carried to the next step.
     Invalid,
-    /// The plausibility gate refused the sample; counted, its time carried to the next step.
+    /// The rate-jump check refused the sample; counted, its time carried to the next step.
     Implausible,
     /// The data stalled; the sensor was re-initialised.
     Stalled,
 }
 
 /// The gyro, the sample clock and the two identifiers, wired together, with the defences
-/// against a misbehaving sensor or bus: a plausibility gate on samples, dt from the sample
+/// against a misbehaving sensor or bus: a rate-jump check on samples, dt from the sample
 /// clock, re-initialisation after repeated failures, a wrong `WHO_AM_I` or stalled data, and
 /// a periodic `WHO_AM_I` check.
 pub struct SampleLoop<IF, C, R = NoRotor> {
@@ -105,9 +105,10 @@ pub struct SampleLoop<IF, C, R = NoRotor> {
     /// The refined identifier beside the paper's, fed the same samples at the same time. The
     /// pipeline has a `Refined` of its own ([`FlightPipeline::refined`]), but it is another
     /// estimator: it sees only the free-flight samples its gate lets through, late by the
-    /// delay line, with the gate's bias removed, decimated above 1.5 kHz, not after a rotor
-    /// momentum is seen, and with the pipeline's settings. The reports' `a_refined` is this
-    /// one's.
+    /// delay line, with the gate's bias removed, decimated above 1.5 kHz, none once a rotor
+    /// momentum is seen, and it restarts when a flight ends. The two agree bit for bit only
+    /// without an accelerometer, a rotor or decimation, until the end of the flight; the
+    /// reports' `a_refined` is this one's.
     refined: Refined,
     pipeline: FlightPipeline,
     /// Samples that left the pipeline's delay line unfed.
@@ -361,9 +362,6 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
         self.reports.take_failed()
     }
 
-    /// One sample into the free-flight pipeline: the rotor's momentum from the
-    /// [`RotorSpeedSource`]'s speed of this sample (zero without a rotor configured or a
-    /// speed), the gate decides, the delay line commits.
     /// Ends the free flight being fed, if any (a replayed log has ended): its trajectory is
     /// fitted now, as at a catch, so the final report includes it. The host tool does the same
     /// at the end of a log, which keeps the two bit for bit equal.
@@ -383,6 +381,9 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
         self.pipeline.fit_ended_flight()
     }
 
+    /// One sample into the free-flight pipeline: the rotor's momentum from the
+    /// [`RotorSpeedSource`]'s speed of this sample (zero without a rotor configured or a
+    /// speed), the pipeline's free-flight gate decides, the delay line commits.
     fn feed_pipeline(&mut self, omega: [f32; 3], accel: [f32; 3], dt: f32) {
         let h = match (self.rotor_config, self.last_inputs.rotor_rad_s) {
             (Some(r), Some(speed)) => r.momentum(speed),
@@ -399,7 +400,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
     /// Replay of a log's own samples at its own rate (QEMU `--replay`, host checks): the
     /// values the host tool `inertia identify` feeds its pipeline (rate rad/s, specific
     /// force m/s^2, time step s) go, with the [`RotorSpeedSource`]'s speed, to this loop's
-    /// pipeline and both identifiers, bypassing the driver, the plausibility gate and the
+    /// pipeline and both identifiers, bypassing the driver, the rate-jump check and the
     /// sample clock (the log's samples were screened on the vehicle that wrote it). A report
     /// is returned every `report_every` samples.
     pub fn replay_sample(
