@@ -130,8 +130,6 @@ pub(crate) struct ReportSchedule {
     last_us: u32,
     /// Microseconds without a report after which a failed-sensor report goes out.
     failed_after_us: u32,
-    /// A failed-sensor report not taken yet.
-    pending: Option<Report>,
     /// The loop's saturated count at the last report.
     saturated_at_last: u32,
 }
@@ -147,7 +145,6 @@ impl ReportSchedule {
             since: 0,
             last_us: now_us,
             failed_after_us: (report_us as f32 * FAILED_REPORT_AFTER) as u32,
-            pending: None,
             saturated_at_last: 0,
         }
     }
@@ -198,15 +195,5 @@ impl ReportSchedule {
     /// A report went out with `saturated` clipped samples in all.
     pub(crate) fn sent(&mut self, saturated: u32) {
         self.saturated_at_last = saturated;
-    }
-
-    /// Queues a failed-sensor report until [`ReportSchedule::take_failed`].
-    pub(crate) fn queue_failed(&mut self, r: Report) {
-        self.pending = Some(r);
-    }
-
-    /// The failed-sensor report queued, once.
-    pub(crate) fn take_failed(&mut self) -> Option<Report> {
-        self.pending.take()
     }
 }

@@ -115,6 +115,9 @@ pub struct SampleLoop<IF, C, R = NoRotor> {
     not_fed: u32,
     counters: LoopCounters,
     reports: ReportSchedule,
+    /// A failed-sensor report not taken yet (kept out of the small `ReportSchedule`, which
+    /// `new_with` builds before the pipeline).
+    pending: Option<Report>,
 }
 
 impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
@@ -168,6 +171,8 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
         let identifier =
             Identifier::new(identifier_settings(&config)).map_err(InitError::Settings)?;
         let refined = Refined::new(refined_settings(&config)).ok_or(InitError::RefinedSettings)?;
+        // The pipeline (36 KB) is made last, right before the loop that holds it: a call
+        // between the two keeps it in a temporary of its own, a second copy on the stack.
         let now_us = clock.now_us(gyro.interface());
         let time = SampleTime::new(&config, pipeline.rate_hz, now_us);
         let reports = ReportSchedule::new(&config, now_us);
@@ -191,6 +196,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
             not_fed: 0,
             counters: LoopCounters::default(),
             reports,
+            pending: None,
         })
     }
 
@@ -213,6 +219,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
             not_fed: self.not_fed,
             counters: self.counters,
             reports: self.reports,
+            pending: self.pending,
         }
     }
 }
@@ -352,14 +359,14 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
             let mut r = self.report();
             r.sensor = SensorStatus::Failed;
             self.reports.sent(self.counters.saturated);
-            self.reports.queue_failed(r);
+            self.pending = Some(r);
         }
     }
 
     /// A report queued while the sensor is failing (see [`SensorStatus::Failed`]), once:
     /// call after every [`SampleLoop::poll`] and send it like a periodic one.
     pub fn take_failed_report(&mut self) -> Option<Report> {
-        self.reports.take_failed()
+        self.pending.take()
     }
 
     /// Ends the free flight being fed, if any (a replayed log has ended): its trajectory is
