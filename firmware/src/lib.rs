@@ -18,8 +18,9 @@
 //!
 //! [`SampleLoop`] guards the identifiers against a misbehaving sensor or bus (measured under
 //! injected faults in `host-tests/tests/robustness_faults.rs`):
-//! * a plausibility gate: a sample whose change from the last accepted one exceeds what the
-//!   torque-free motion within the gyro's full scale allows ([`gate_rate_bound`]) is refused;
+//! * a rate-jump check (plausibility gate, [`app::rate_check`]): a sample whose change from the
+//!   last accepted one exceeds what the torque-free motion within the gyro's full scale allows
+//!   ([`gate_rate_bound`]) is refused;
 //! * dt from a [`SampleClock`] (a timer on the board), so lost samples lengthen the next step
 //!   instead of shrinking the time base;
 //! * re-initialisation of the sensor after consecutive bus errors, data-ready timeouts or

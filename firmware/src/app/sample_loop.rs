@@ -1,0 +1,777 @@
+//! The sample loop: one gyro sample, one step of each identifier (the paper's and the refined
+//! one beside it); a report of both every 100 ms.
+
+use embedded_hal::delay::DelayNs;
+use icm42688::{Config, Error, Icm42688, RegisterInterface, Saturation};
+use identifier_core::{
+    Counters, Estimate, FlightPipeline, Identifier, InertiaRatios, PipelineSettings, Refined,
+    SampleStatus, SettingsError,
+};
+
+use super::clock::SampleTime;
+use super::health::SensorHealth;
+use super::rate_check::RateCheck;
+use super::report::ReportSchedule;
+use super::{
+    identifier_settings, pipeline_settings, refined_settings, LoopCounters, NoRotor, Report,
+    RotorConfig, RotorSpeedSource, SampleClock, SensorStatus, TensorReport,
+};
+use crate::bench;
+
+/// Gyro initialisation attempts before giving up.
+pub const INIT_ATTEMPTS: u32 = 5;
+/// Data-ready is polled every this many microseconds, for up to two sample periods.
+pub const POLL_US: u32 = 10;
+
+/// The inputs of the last sample that went to the estimators: what the free-flight gate and
+/// the tensor estimator of identifier-core take per sample.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SampleInputs {
+    /// Angular rate, rad/s, sensor axes.
+    pub gyro: [f32; 3],
+    /// Specific force, m/s^2, sensor axes (zero in free flight).
+    pub accel: [f32; 3],
+    /// Rotor speed, rad/s, when the board provides one ([`RotorSpeedSource`]).
+    pub rotor_rad_s: Option<f32>,
+    /// Axes at the clip level.
+    pub saturated: Saturation,
+    /// The time step, s.
+    pub dt: f32,
+}
+
+/// Why the loop could not start.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum InitError<E> {
+    /// The gyro: bus, identity, timeout or configuration read-back.
+    Gyro(Error<E>),
+    /// The paper's identifier refused its settings.
+    Settings(SettingsError),
+    /// The refined identifier refused its settings.
+    RefinedSettings,
+    /// The free-flight pipeline refused its settings.
+    PipelineSettings,
+}
+
+/// What one [`SampleLoop::poll`] did.
+// `Stepped` carries the 10 Hz report (with the tensor estimate) by value: a copy of a few
+// hundred bytes per sample, kept for the simple API rather than boxed (no heap).
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Poll {
+    /// A sample went through both identifiers; `report` is set every `odr / REPORT_HZ`
+    /// periods.
+    Stepped {
+        /// The paper's identifier's step.
+        paper: Estimate,
+        /// The refined identifier's step (estimate as of its last completed block).
+        refined: Estimate,
+        /// The periodic report, when due.
+        report: Option<Report>,
+    },
+    /// No data-ready within two sample periods (on the simulated part: the log has ended).
+    Timeout,
+    /// A bus error; counted, the sample's time is carried to the next step.
+    BusError,
+    /// The part marked the sample invalid; counted, its time carried to the next step.
+    Invalid,
+    /// The rate-jump check refused the sample; counted, its time carried to the next step.
+    Implausible,
+    /// The data stalled; the sensor was re-initialised.
+    Stalled,
+}
+
+/// The gyro, the sample clock and the two identifiers, wired together, with the defences
+/// against a misbehaving sensor or bus: a rate-jump check on samples, dt from the sample
+/// clock, re-initialisation after repeated failures, a wrong `WHO_AM_I` or stalled data, and
+/// a periodic `WHO_AM_I` check.
+pub struct SampleLoop<IF, C, R = NoRotor> {
+    gyro: Icm42688<IF>,
+    /// The configuration the gyro is (re-)initialised with.
+    config: Config,
+    /// Data-ready polls before a timeout.
+    max_polls: u32,
+    clock: C,
+    time: SampleTime,
+    rotor: R,
+    rotor_config: Option<RotorConfig>,
+    health: SensorHealth,
+    rate_check: RateCheck,
+    last_inputs: SampleInputs,
+    /// The paper's identifier, fed every accepted sample.
+    identifier: Identifier,
+    /// The refined identifier beside the paper's, fed the same samples at the same time. The
+    /// pipeline has a `Refined` of its own ([`FlightPipeline::refined`]), but it is another
+    /// estimator: it sees only the free-flight samples its gate lets through, late by the
+    /// delay line, with the gate's bias removed, decimated above 1.5 kHz, none once a rotor
+    /// momentum is seen, and it restarts when a flight ends. The two agree bit for bit only
+    /// without an accelerometer, a rotor or decimation, until the end of the flight; the
+    /// reports' `a_refined` is this one's.
+    refined: Refined,
+    pipeline: FlightPipeline,
+    /// Samples that left the pipeline's delay line unfed.
+    not_fed: u32,
+    counters: LoopCounters,
+    reports: ReportSchedule,
+    /// A failed-sensor report not taken yet (kept out of the small `ReportSchedule`, which
+    /// `new_with` builds before the pipeline).
+    pending: Option<Report>,
+}
+
+impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
+    /// Initialises the gyro with `config` (reset, identity, configuration; up to
+    /// [`INIT_ATTEMPTS`] times, since a bus error or a slow reset is transient but a wrong
+    /// identity is not), a fresh paper's identifier with [`identifier_settings`] and a fresh
+    /// refined one with [`refined_settings`]; `clock` is the loop's time base.
+    pub fn new(
+        gyro: Icm42688<IF>,
+        delay: &mut impl DelayNs,
+        config: Config,
+        clock: C,
+    ) -> Result<Self, InitError<IF::Error>> {
+        Self::new_with(
+            gyro,
+            delay,
+            config,
+            clock,
+            NoRotor,
+            pipeline_settings(&config),
+            true,
+            None,
+        )
+    }
+
+    /// [`SampleLoop::new`] with a rotor-speed input (read once per sample), the free-flight
+    /// pipeline's settings (`with_accel = false` takes every sample as free flight; its
+    /// `rate_hz` becomes the reports' time base) and the rotor whose momentum goes with each
+    /// sample, all at once: the loop holds tens of kilobytes (the pipeline's block buffers),
+    /// and building it in one go keeps its copies on the stack few.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new_with<R: RotorSpeedSource>(
+        mut gyro: Icm42688<IF>,
+        delay: &mut impl DelayNs,
+        config: Config,
+        mut clock: C,
+        rotor: R,
+        pipeline: PipelineSettings,
+        with_accel: bool,
+        rotor_config: Option<RotorConfig>,
+    ) -> Result<SampleLoop<IF, C, R>, InitError<IF::Error>> {
+        let mut attempt = 1;
+        loop {
+            match gyro.init(delay, config) {
+                Ok(()) => break,
+                Err(e @ Error::WrongId(_)) => return Err(InitError::Gyro(e)),
+                Err(e) if attempt >= INIT_ATTEMPTS => return Err(InitError::Gyro(e)),
+                Err(_) => attempt += 1,
+            }
+        }
+        let identifier =
+            Identifier::new(identifier_settings(&config)).map_err(InitError::Settings)?;
+        let refined = Refined::new(refined_settings(&config)).ok_or(InitError::RefinedSettings)?;
+        // The pipeline (36 KB) is made last, right before the loop that holds it: a call
+        // between the two keeps it in a temporary of its own, a second copy on the stack.
+        let now_us = clock.now_us(gyro.interface());
+        let time = SampleTime::new(&config, pipeline.rate_hz, now_us);
+        let reports = ReportSchedule::new(&config, now_us);
+        let pipeline =
+            FlightPipeline::new(pipeline, with_accel).ok_or(InitError::PipelineSettings)?;
+        Ok(SampleLoop {
+            gyro,
+            config,
+            // Two sample periods of polling before a timeout.
+            max_polls: (2 * config.odr.period_us() / POLL_US).max(2),
+            clock,
+            time,
+            rotor,
+            rotor_config,
+            health: SensorHealth::default(),
+            rate_check: RateCheck::new(&config),
+            last_inputs: SampleInputs::default(),
+            identifier,
+            refined,
+            pipeline,
+            not_fed: 0,
+            counters: LoopCounters::default(),
+            reports,
+            pending: None,
+        })
+    }
+
+    /// The same loop with a rotor-speed input, read once per sample.
+    pub fn with_rotor<R: RotorSpeedSource>(self, rotor: R) -> SampleLoop<IF, C, R> {
+        SampleLoop {
+            gyro: self.gyro,
+            config: self.config,
+            max_polls: self.max_polls,
+            clock: self.clock,
+            time: self.time,
+            rotor,
+            rotor_config: self.rotor_config,
+            health: self.health,
+            rate_check: self.rate_check,
+            last_inputs: self.last_inputs,
+            identifier: self.identifier,
+            refined: self.refined,
+            pipeline: self.pipeline,
+            not_fed: self.not_fed,
+            counters: self.counters,
+            reports: self.reports,
+            pending: self.pending,
+        }
+    }
+}
+
+impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<IF, C, R> {
+    /// Waits for the next sample, reads it, screens it and steps both identifiers with it;
+    /// re-initialises the sensor when it stops making sense.
+    pub fn poll(&mut self, delay: &mut impl DelayNs) -> Poll {
+        bench::loop_begin();
+        let p = self.poll_once(delay);
+        // Only iterations that stepped end an interval (an unmatched begin is overwritten by
+        // the next): the benchmark's figure is per sample, not per timed-out wait.
+        if matches!(p, Poll::Stepped { .. }) {
+            bench::loop_end();
+        }
+        p
+    }
+
+    fn poll_once(&mut self, delay: &mut impl DelayNs) -> Poll {
+        match self.gyro.wait_data_ready(delay, POLL_US, self.max_polls) {
+            Ok(()) => {}
+            Err(Error::Timeout) => {
+                self.counters.timeouts = self.counters.timeouts.saturating_add(1);
+                self.failure(delay);
+                return Poll::Timeout;
+            }
+            Err(_) => {
+                self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
+                self.failure(delay);
+                return Poll::BusError;
+            }
+        }
+        // Accelerometer and gyro of the same sample, one 12-byte burst.
+        let imu = match self.gyro.read_imu_raw() {
+            Ok(imu) => imu,
+            Err(Error::InvalidSample) => {
+                self.counters.invalid = self.counters.invalid.saturating_add(1);
+                self.failure(delay);
+                return Poll::Invalid;
+            }
+            Err(_) => {
+                self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
+                self.failure(delay);
+                return Poll::BusError;
+            }
+        };
+        let raw = imu.gyro;
+        let saturation = imu.saturation();
+        if saturation.gyro_any() {
+            self.counters.saturated = self.counters.saturated.saturating_add(1);
+        }
+        if saturation.accel_any() {
+            self.counters.accel_saturated = self.counters.accel_saturated.saturating_add(1);
+        }
+        // Stalled data: the same six counts again and again.
+        if self.health.stalled(imu, saturation.gyro_any()) {
+            self.counters.stalled = self.counters.stalled.saturating_add(1);
+            self.reinit(delay);
+            return Poll::Stalled;
+        }
+
+        // dt from the sample clock, in whole periods.
+        let now = self.clock.now_us(self.gyro.interface());
+        let periods = self.time.advance(now);
+        self.counters.missed = self.counters.missed.saturating_add(periods - 1);
+        self.reports.advance(periods);
+        let dt = self.time.seconds_of(periods);
+
+        let omega = icm42688::raw3_to_rad_s(raw, self.gyro.full_scale());
+        self.last_inputs = SampleInputs {
+            gyro: omega,
+            accel: icm42688::raw3_to_m_s2(imu.accel, self.gyro.accel_full_scale()),
+            rotor_rad_s: self.rotor.rotor_speed_rad_s(),
+            saturated: saturation,
+            dt,
+        };
+        // The rate-jump check (the plausibility gate). The pipeline gets the time since the
+        // last sample it was given (refused ones included), as the identifiers do.
+        let Some(dt_pipeline) = self.rate_check.check(omega, dt) else {
+            // Refused like a non-finite sample: both identifiers carry its time.
+            self.counters.implausible = self.counters.implausible.saturating_add(1);
+            self.identifier.step([f32::NAN; 3], dt);
+            self.refined.step([f32::NAN; 3], dt);
+            return Poll::Implausible;
+        };
+        self.feed_pipeline(omega, self.last_inputs.accel, dt_pipeline);
+
+        bench::step_begin();
+        let paper = self.identifier.step(omega, dt);
+        bench::step_end();
+        bench::refined_begin();
+        let refined = self.refined.step(omega, dt);
+        bench::refined_end();
+        self.count(&paper);
+        self.health.sample_ok();
+
+        let report = if self.reports.due(now) {
+            let r = self.report();
+            self.reports.sent(self.counters.saturated);
+            Some(r)
+        } else {
+            None
+        };
+
+        // Health check: is it still our part?
+        if self.health.check_due() {
+            match self.gyro.who_am_i() {
+                Ok(icm42688::registers::WHO_AM_I_VALUE) => {}
+                Ok(_) => {
+                    self.counters.wrong_id = self.counters.wrong_id.saturating_add(1);
+                    self.reinit(delay);
+                }
+                Err(_) => {
+                    self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
+                }
+            }
+        }
+        Poll::Stepped {
+            paper,
+            refined,
+            report,
+        }
+    }
+
+    /// One more consecutive failure; [`REINIT_AFTER`](super::REINIT_AFTER) of them
+    /// re-initialise the sensor. When no report has gone out for
+    /// [`FAILED_REPORT_AFTER`](super::FAILED_REPORT_AFTER) report periods (by the sample
+    /// clock), a report marked [`SensorStatus::Failed`] is queued
+    /// ([`SampleLoop::take_failed_report`]): the 10 Hz stream goes on while the sensor is
+    /// down.
+    fn failure(&mut self, delay: &mut impl DelayNs) {
+        if self.health.failure() {
+            self.reinit(delay);
+        }
+        let now = self.clock.now_us(self.gyro.interface());
+        if self.reports.failed_due(now) {
+            let mut r = self.report();
+            r.sensor = SensorStatus::Failed;
+            self.reports.sent(self.counters.saturated);
+            self.pending = Some(r);
+        }
+    }
+
+    /// A report queued while the sensor is failing (see [`SensorStatus::Failed`]), once:
+    /// call after every [`SampleLoop::poll`] and send it like a periodic one.
+    pub fn take_failed_report(&mut self) -> Option<Report> {
+        self.pending.take()
+    }
+
+    /// Ends the free flight being fed, if any (a replayed log has ended): its trajectory is
+    /// fitted now, as at a catch, so the final report includes it. The host tool does the same
+    /// at the end of a log, which keeps the two bit for bit equal.
+    pub fn end_flight(&mut self) {
+        self.pipeline.end_stretch();
+    }
+
+    /// True when a free flight has ended and its output-error fits wait
+    /// ([`SampleLoop::fit_ended_flight`]).
+    pub fn fits_pending(&self) -> bool {
+        self.pipeline.fits_pending()
+    }
+
+    /// Runs the output-error fits of the flight that ended (up to about 0.3 s at 168 MHz: call
+    /// it between samples, with the watchdog stretched). True when they ran.
+    pub fn fit_ended_flight(&mut self) -> bool {
+        self.pipeline.fit_ended_flight()
+    }
+
+    /// One sample into the free-flight pipeline: the rotor's momentum from the
+    /// [`RotorSpeedSource`]'s speed of this sample (zero without a rotor configured or a
+    /// speed), the pipeline's free-flight gate decides, the delay line commits.
+    fn feed_pipeline(&mut self, omega: [f32; 3], accel: [f32; 3], dt: f32) {
+        let h = match (self.rotor_config, self.last_inputs.rotor_rad_s) {
+            (Some(r), Some(speed)) => r.momentum(speed),
+            _ => [0.0; 3],
+        };
+        let exit = self.pipeline.step(omega, accel, h, dt);
+        if let Some(e) = exit {
+            if e.fed.is_none() {
+                self.not_fed = self.not_fed.saturating_add(1);
+            }
+        }
+    }
+
+    /// Replay of a log's own samples at its own rate (QEMU `--replay`, host checks): the
+    /// values the host tool `inertia identify` feeds its pipeline (rate rad/s, specific
+    /// force m/s^2, time step s) go, with the [`RotorSpeedSource`]'s speed, to this loop's
+    /// pipeline and both identifiers, bypassing the driver, the rate-jump check and the
+    /// sample clock (the log's samples were screened on the vehicle that wrote it). A report
+    /// is returned every `report_every` samples.
+    pub fn replay_sample(
+        &mut self,
+        omega: [f32; 3],
+        accel: [f32; 3],
+        dt: f32,
+        report_every: u32,
+    ) -> Option<Report> {
+        bench::loop_begin();
+        self.last_inputs = SampleInputs {
+            gyro: omega,
+            accel,
+            rotor_rad_s: self.rotor.rotor_speed_rad_s(),
+            saturated: Saturation::default(),
+            dt,
+        };
+        self.time.advance_one();
+        self.reports.advance(1);
+        let paper = self.identifier.step(omega, dt);
+        self.refined.step(omega, dt);
+        self.count(&paper);
+        self.feed_pipeline(omega, accel, dt);
+        bench::loop_end();
+        if self.reports.due_every(report_every) {
+            Some(self.report())
+        } else {
+            None
+        }
+    }
+
+    /// The free-flight pipeline's estimate as reported.
+    pub fn tensor_report(&self) -> TensorReport {
+        let (e, r) = self.pipeline.estimate_and_ratios();
+        TensorReport {
+            status: r.status,
+            a: r.a,
+            std_a: r.std_a,
+            tensor: e.tensor,
+            throws: self.pipeline.throws(),
+            fed: self.pipeline.fed_inputs(),
+            not_fed: self.not_fed,
+            in_free_flight: self.pipeline.in_free_flight(),
+        }
+    }
+
+    /// The free-flight pipeline.
+    pub fn pipeline(&self) -> &FlightPipeline {
+        &self.pipeline
+    }
+
+    /// The inputs of the last sample given to the estimators (gyro, accelerometer, rotor
+    /// speed, saturation, dt).
+    pub fn last_inputs(&self) -> SampleInputs {
+        self.last_inputs
+    }
+
+    /// Resets and reconfigures the part (up to [`INIT_ATTEMPTS`] times; if all fail, the
+    /// next failures bring another attempt). Both identifiers restart their integration but
+    /// keep what they learnt. The clock runs on: the time the re-initialisation took shows in
+    /// `missed`.
+    fn reinit(&mut self, delay: &mut impl DelayNs) {
+        self.counters.reinits = self.counters.reinits.saturating_add(1);
+        self.identifier.restart();
+        self.refined.restart();
+        self.health.restart();
+        self.rate_check.restart();
+        for _ in 0..INIT_ATTEMPTS {
+            match self.gyro.init(delay, self.config) {
+                Ok(()) => return,
+                Err(Error::WrongId(_)) => {
+                    self.counters.wrong_id = self.counters.wrong_id.saturating_add(1);
+                }
+                Err(_) => {}
+            }
+            self.counters.reinit_failures = self.counters.reinit_failures.saturating_add(1);
+        }
+    }
+
+    fn count(&mut self, e: &Estimate) {
+        let c = &mut self.counters;
+        c.samples = c.samples.saturating_add(1);
+        if !e.status.integrated() && e.status != SampleStatus::Anchored {
+            c.skipped = c.skipped.saturating_add(1);
+        }
+    }
+
+    /// The report as of now.
+    pub fn report(&self) -> Report {
+        let a = self.refined.estimate();
+        Report {
+            tick: self.time.tick(),
+            t: self.time.t(),
+            a_paper: self.identifier.estimate(),
+            convergence_paper: self.identifier.convergence(),
+            a_refined: a,
+            std_refined: self.refined.std_a(),
+            ratios: InertiaRatios::from_a(a),
+            consistency: identifier_core::consistency(a),
+            convergence_refined: self.refined.convergence(),
+            counters: self.counters,
+            saturated_recent: self.reports.saturated_recent(self.counters.saturated),
+            sensor: SensorStatus::Ok,
+            rotor_rad_s: self.last_inputs.rotor_rad_s,
+            tensor: self.tensor_report(),
+        }
+    }
+
+    /// The loop's counters.
+    pub fn counters(&self) -> LoopCounters {
+        self.counters
+    }
+
+    /// The paper's identifier's own counters.
+    pub fn identifier_counters(&self) -> Counters {
+        self.identifier.counters()
+    }
+
+    /// The refined identifier's own counters.
+    pub fn refined_counters(&self) -> Counters {
+        self.refined.counters()
+    }
+
+    /// The paper's identifier.
+    pub fn identifier(&self) -> &Identifier {
+        &self.identifier
+    }
+
+    /// The refined identifier.
+    pub fn refined(&self) -> &Refined {
+        &self.refined
+    }
+
+    /// The gyro driver (on QEMU: reaches the simulated part's state).
+    pub fn gyro(&self) -> &Icm42688<IF> {
+        &self.gyro
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+    use super::*;
+    use crate::app::{NoDelay, GATE_RELEARN};
+    use icm42688::sim::{SampleSource, SimIcm42688};
+    use icm42688::SpiInterface;
+
+    /// The simulated part's clock: its latched samples times the period.
+    fn sim_clock<S: SampleSource>(i: &SpiInterface<SimIcm42688<S>>) -> u32 {
+        i.bus()
+            .stats()
+            .samples
+            .wrapping_mul(Config::identifier().odr.period_us())
+    }
+
+    /// A torque-free spin sampled crudely (explicit midpoint at 1 kHz) is enough for the
+    /// loop's bookkeeping; accuracy is tested end to end.
+    fn spin(n: usize) -> impl FnMut() -> Option<[f32; 3]> {
+        let a = [0.9f32, 0.4 / 1.54, -0.94];
+        let mut w = [1.0f32, 1.0, 1.0];
+        let mut k = 0;
+        move || {
+            if k == n {
+                return None;
+            }
+            k += 1;
+            let h = 1e-3f32;
+            let f = |w: [f32; 3]| [a[0] * w[1] * w[2], a[1] * w[2] * w[0], a[2] * w[0] * w[1]];
+            let d = f(w);
+            let m = [
+                w[0] + 0.5 * h * d[0],
+                w[1] + 0.5 * h * d[1],
+                w[2] + 0.5 * h * d[2],
+            ];
+            let d = f(m);
+            w = [w[0] + h * d[0], w[1] + h * d[1], w[2] + h * d[2]];
+            Some(w)
+        }
+    }
+
+    #[test]
+    fn reports_at_10_hz_counts_bus_errors_and_ends_with_timeout() {
+        // Init hits injected errors too, and retries.
+        let sim = SimIcm42688::new(spin(2000)).with_bus_error_every(23);
+        let mut lp = SampleLoop::new(
+            Icm42688::new_spi(sim),
+            &mut NoDelay,
+            Config::identifier(),
+            sim_clock,
+        )
+        .unwrap();
+        let mut reports = 0;
+        let mut last = None;
+        // With a bus error every 23 transfers a 200-poll wait never times out: the end of
+        // the log is seen on the simulated part, as the QEMU firmware does.
+        while !lp.gyro().interface().bus().exhausted() {
+            if let Poll::Stepped {
+                report: Some(r), ..
+            } = lp.poll(&mut NoDelay)
+            {
+                reports += 1;
+                last = Some(r);
+            }
+        }
+        let c = lp.counters();
+        assert!(c.bus_errors > 10, "{c:?}");
+        let r = last.unwrap();
+        assert_eq!(r.tick % 100, 0);
+        assert!((19..=20).contains(&reports), "{reports}");
+        assert!(lp.gyro().interface().bus().exhausted());
+        // Every sample the simulated part latched was either stepped or lost to a bus error.
+        let latched = lp.gyro().interface().bus().stats().samples;
+        assert_eq!(latched, 2000);
+        assert!(c.samples <= latched && c.samples + c.bus_errors >= latched);
+    }
+
+    #[test]
+    fn gate_sample_clock_and_stall_are_counted_and_handled() {
+        // A glitch at sample 500 (a jump no torque-free motion can make in 1 ms), data frozen
+        // for 30 samples from 1000, and the clock jumping 5 periods at sample 2000 (samples
+        // lost on the way).
+        let mut inner = spin(3000);
+        let (mut k, mut held) = (0u32, [0.0f32; 3]);
+        let source = move || {
+            let w = inner()?;
+            k += 1;
+            if k == 1000 {
+                held = w;
+            }
+            Some(match k {
+                500 => [w[0] + 2.0, w[1], w[2]],
+                1000..=1029 => held,
+                _ => w,
+            })
+        };
+        let clock = |i: &SpiInterface<SimIcm42688<_>>| {
+            let n = i.bus().stats().samples;
+            n.wrapping_mul(1000) + if n >= 2000 { 5000 } else { 0 }
+        };
+        let sim = SimIcm42688::new(source);
+        let mut lp = SampleLoop::new(
+            Icm42688::new_spi(sim),
+            &mut NoDelay,
+            Config::identifier(),
+            clock,
+        )
+        .unwrap();
+        while !lp.gyro().interface().bus().exhausted() {
+            lp.poll(&mut NoDelay);
+        }
+        let c = lp.counters();
+        // The glitch, and the return from the frozen data (30 ms of motion in one step),
+        // refused until GATE_RELEARN samples in a row agree.
+        assert!((1..=GATE_RELEARN).contains(&c.implausible), "{c:?}");
+        assert_eq!((c.stalled, c.reinits, c.wrong_id), (1, 1, 0), "{c:?}");
+        assert!(c.missed >= 5, "{c:?}");
+        assert_eq!(c.bus_errors + c.invalid, 0, "{c:?}");
+        // The time base includes the lost periods.
+        let latched = lp.gyro().interface().bus().stats().samples;
+        assert!(lp.report().tick + 5 >= latched, "{}", lp.report().tick);
+        let a = [0.9f32, 0.4 / 1.54, -0.94];
+        for (x, t) in lp.refined().estimate().iter().zip(a) {
+            assert!((x - t).abs() < 1e-2, "{:?}", lp.refined().estimate());
+        }
+    }
+
+    #[test]
+    fn reports_carry_both_estimates() {
+        let sim = SimIcm42688::new(spin(1000));
+        let mut lp = SampleLoop::new(
+            Icm42688::new_spi(sim),
+            &mut NoDelay,
+            Config::identifier(),
+            sim_clock,
+        )
+        .unwrap();
+        while !lp.gyro().interface().bus().exhausted() {
+            lp.poll(&mut NoDelay);
+        }
+        let r = lp.report();
+        assert_eq!(r.a_paper, lp.identifier().estimate());
+        assert_eq!(r.a_refined, lp.refined().estimate());
+        assert_eq!(r.consistency, identifier_core::consistency(r.a_refined));
+        assert_eq!(lp.refined_counters().integrated + 1, r.counters.samples);
+        // The crude 1 kHz midpoint spin is not exactly (1), but close.
+        let a = [0.9f32, 0.4 / 1.54, -0.94];
+        for (x, t) in r.a_refined.iter().zip(a) {
+            assert!((x - t).abs() < 1e-2, "{:?}", r.a_refined);
+        }
+    }
+
+    #[test]
+    fn clipped_readings_on_all_axes_are_saturation_not_stall() {
+        // 200 samples of a spin beyond +-2000 dps on every axis: identical clipped readings.
+        let mut k = 0;
+        let source = move || {
+            k += 1;
+            (k <= 300).then_some(if (50..250).contains(&k) {
+                [40.0, -40.0, 40.0]
+            } else {
+                [1.0 + k as f32 * 1e-3, 1.0, 1.0]
+            })
+        };
+        let mut lp = SampleLoop::new(
+            Icm42688::new_spi(SimIcm42688::new(source)),
+            &mut NoDelay,
+            Config::identifier(),
+            sim_clock,
+        )
+        .unwrap()
+        .with_rotor(|| Some(12.5f32));
+        let mut warned = 0;
+        while !lp.gyro().interface().bus().exhausted() {
+            if let Poll::Stepped {
+                report: Some(r), ..
+            } = lp.poll(&mut NoDelay)
+            {
+                warned += u32::from(r.saturated_recent > 0);
+                assert_eq!(r.sensor, SensorStatus::Ok);
+            }
+        }
+        let c = lp.counters();
+        assert_eq!(c.saturated, 200, "{c:?}");
+        assert_eq!((c.stalled, c.reinits), (0, 0), "{c:?}");
+        assert!(warned >= 2, "{warned}");
+        assert_eq!(lp.last_inputs().rotor_rad_s, Some(12.5));
+        assert_eq!(lp.report().rotor_rad_s, Some(12.5));
+        assert_eq!(lp.last_inputs().accel, [0.0; 3]);
+    }
+
+    #[test]
+    fn reports_go_on_at_10_hz_while_the_sensor_is_dead() {
+        // A clock that runs on while every transfer fails (bus dead after 500 samples).
+        use core::cell::Cell;
+        let t = Cell::new(0u32);
+        let clock = |_: &SpiInterface<SimIcm42688<_>>| {
+            t.set(t.get() + 100);
+            t.get()
+        };
+        let sim = SimIcm42688::new(spin(500));
+        let mut lp = SampleLoop::new(
+            Icm42688::new_spi(sim),
+            &mut NoDelay,
+            Config::identifier(),
+            clock,
+        )
+        .unwrap();
+        let (mut ok, mut failed) = (0, 0);
+        // 50 000 polls at 100 us of clock each: 5 s, most of it after the log ended.
+        for _ in 0..50_000 {
+            if let Poll::Stepped {
+                report: Some(_), ..
+            } = lp.poll(&mut NoDelay)
+            {
+                ok += 1;
+            }
+            if let Some(r) = lp.take_failed_report() {
+                assert_eq!(r.sensor, SensorStatus::Failed);
+                failed += 1;
+            }
+        }
+        assert!(ok >= 1, "{ok}");
+        // About 10 a second once the sensor is silent.
+        assert!((30..=60).contains(&failed), "{failed}");
+        assert!(lp.counters().timeouts > 0);
+    }
+}
