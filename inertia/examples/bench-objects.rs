@@ -65,6 +65,20 @@ struct Row {
     rel: [(f64, f64); 3],
 }
 
+impl Row {
+    /// The throw's line: its errors and each entry's error over its std.
+    fn line(&self) -> String {
+        let z: Vec<String> = self.z.iter().map(|z| format!("{z:+.1}")).collect();
+        format!(
+            "{}: Frobenius {:.2} %, axes {:.2} deg, error/std {}",
+            self.name,
+            self.frob * 100.0,
+            self.axes,
+            z.join(" ")
+        )
+    }
+}
+
 /// Each diagonal entry's error and std relative to the truth.
 fn relative(got: &M3, std: &M3, truth: &M3) -> [(f64, f64); 3] {
     [0, 1, 2].map(|i| (got[i][i] / truth[i][i] - 1.0, std[i][i] / truth[i][i]))
@@ -219,16 +233,7 @@ fn main() {
         let z: Vec<f64> = asm.iter().flat_map(|r| r.z.iter().copied()).collect();
         let frob: Vec<f64> = asm.iter().map(|r| r.frob).collect();
         for r in &asm {
-            println!(
-                "  assembly {name} {}: Frobenius {:.2} %, axes {:.2} deg, error/std {}",
-                r.name,
-                r.frob * 100.0,
-                r.axes,
-                r.z.iter()
-                    .map(|z| format!("{z:+.1}"))
-                    .collect::<Vec<_>>()
-                    .join(" ")
-            );
+            println!("  assembly {name} {}", r.line());
         }
         let asm_refs: Vec<&Row> = asm.iter().collect();
         let asm_len = asm.len();
@@ -270,16 +275,7 @@ fn main() {
         let ok: Vec<&Row> = rows.iter().filter_map(|r| r.as_ref().ok()).collect();
         for r in &rows {
             match r {
-                Ok(r) => println!(
-                    "  {name} {}: Frobenius {:.2} %, axes {:.2} deg, error/std {}",
-                    r.name,
-                    r.frob * 100.0,
-                    r.axes,
-                    r.z.iter()
-                        .map(|z| format!("{z:+.1}"))
-                        .collect::<Vec<_>>()
-                        .join(" ")
-                ),
+                Ok(r) => println!("  {name} {}", r.line()),
                 Err(e) => println!("  {name}: failed: {e}"),
             }
         }

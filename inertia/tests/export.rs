@@ -10,20 +10,10 @@ use inertia::identify::{identify, IdentifyOptions, Rotor};
 use log_writers::blackbox as blackbox_writer;
 
 mod common;
-use common::{betaflight_header, betaflight_throw, without_gyro_filters};
+use common::{
+    betaflight_header, betaflight_throw, without_gyro_filters, MOMENTS, ROTOR, ROTOR_INERTIA,
+};
 
-/// The simulated body's principal moments, kg m^2 (its axes the gyro's).
-const MOMENTS: [f64; 3] = [2.4e-4, 1.5e-4, 3.1e-4];
-/// Its flywheel's inertia about z, kg m^2.
-const ROTOR_INERTIA: f64 = 1.69e-6;
-const ROTOR: [&str; 6] = [
-    "--rotor-inertia",
-    "1.69e-6",
-    "--rotor-axis",
-    "z",
-    "--rotor-poles",
-    "12",
-];
 const MASS: &str = "0.032";
 
 fn out_dir() -> PathBuf {

@@ -7,18 +7,7 @@ use std::process::Command;
 use log_writers::blackbox as blackbox_writer;
 
 mod common;
-use common::{betaflight_header, betaflight_throw};
-
-const MOMENTS: [f64; 3] = [2.4e-4, 1.5e-4, 3.1e-4];
-const ROTOR_INERTIA: f64 = 1.69e-6;
-const ROTOR: [&str; 6] = [
-    "--rotor-inertia",
-    "1.69e-6",
-    "--rotor-axis",
-    "z",
-    "--rotor-poles",
-    "12",
-];
+use common::{betaflight_header, betaflight_throw, MOMENTS, ROTOR, ROTOR_INERTIA};
 
 fn out_dir() -> PathBuf {
     let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("pool");

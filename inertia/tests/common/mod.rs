@@ -175,3 +175,18 @@ pub fn betaflight_log_of(
     }
     frames
 }
+
+/// The simulated body's principal moments, kg m^2 (its axes the gyro's), for the throws of
+/// [`betaflight_throw`] the export and pooling tests share.
+pub const MOMENTS: [f64; 3] = [2.4e-4, 1.5e-4, 3.1e-4];
+/// Its flywheel's inertia about z, kg m^2.
+pub const ROTOR_INERTIA: f64 = 1.69e-6;
+/// The same flywheel as `inertia identify`'s flags.
+pub const ROTOR: [&str; 6] = [
+    "--rotor-inertia",
+    "1.69e-6",
+    "--rotor-axis",
+    "z",
+    "--rotor-poles",
+    "12",
+];
