@@ -441,8 +441,14 @@ pub fn identify_source(
     let (pooled, runs, mut throws) = match &opts.segments {
         Some(segs) => {
             detection = false;
+            let first = segs.iter().map(|s| s.0).fold(f64::INFINITY, f64::min);
+            let bias = if ch.accel {
+                passes::bench_bias(&inputs, settings, first, progress)?
+            } else {
+                None
+            };
             let (p, runs, throws, held) =
-                passes::segments(&inputs, settings, segs, &mut trace, progress)?;
+                passes::segments(&inputs, settings, segs, bias, &mut trace, progress)?;
             for (&(s, e), held) in segs.iter().zip(held) {
                 if !held {
                     warnings.push(format!("segment {s}..{e} s holds no sample of the log"));

@@ -1069,3 +1069,57 @@ fn a_betaflight_log_in_whole_deg_s_after_a_still_bench_is_not_overconfident() {
         assert!(noise > 0.9 * rounding, "no filter named: noise {noise}");
     }
 }
+
+/// The same samples give one answer: a thrown-FC log read whole (the free flight found from
+/// the accelerometer, the bench's gyro bias removed) and with `--segments` set to the window
+/// the whole reading found give the same tensor and the same bias removed.
+#[test]
+fn the_whole_log_and_its_own_window_as_segments_give_one_answer() {
+    let Some(root) = shared() else {
+        eprintln!("../shared/data/thrown-fc absent: skipped");
+        return;
+    };
+    let log = root.join("device_only/LOG00119.BFL");
+    let d = out_dir();
+    let rotor = [
+        "--rotor-inertia",
+        "1.689e-6",
+        "--rotor-axis",
+        "-z",
+        "--rotor-poles",
+        "14",
+    ];
+    let mut args = vec!["--input", log.to_str().unwrap()];
+    args.extend(rotor);
+    let (code, whole, err) = run(&args, &d.join("one-answer-whole.json"));
+    assert_eq!(code, 0, "{err}");
+    let t = &whole["throws"][0];
+    let segs = d.join("one-answer-segments.csv");
+    std::fs::write(
+        &segs,
+        format!(
+            "segment,start,end,keep,comment\n1,{},{},true,the whole reading's window\n",
+            t["start_s"], t["end_s"]
+        ),
+    )
+    .unwrap();
+    args.extend(["--segments", segs.to_str().unwrap()]);
+    let (code, cut, err) = run(&args, &d.join("one-answer-segments.json"));
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(whole["gyro_bias"], cut["gyro_bias"]);
+    assert_eq!(whole["pooled"]["samples"], cut["pooled"]["samples"]);
+    for r in 0..3 {
+        for c in 0..3 {
+            let (a, b) = (
+                whole["pooled"]["tensor_kg_m2"][r][c].as_f64().unwrap(),
+                cut["pooled"]["tensor_kg_m2"][r][c].as_f64().unwrap(),
+            );
+            let s = whole["pooled"]["tensor_std_kg_m2"][r][c].as_f64().unwrap();
+            println!("J[{r}][{c}]: whole {a:.6e}, segments {b:.6e}, std {s:.1e}");
+            assert!(
+                (a - b).abs() <= 0.1 * s,
+                "J[{r}][{c}]: {a} vs {b} (std {s})"
+            );
+        }
+    }
+}

@@ -328,19 +328,46 @@ fn close(
     Ok(())
 }
 
+/// The gyro bias measured on the still bench before `until` (s): the pipeline with its
+/// free-flight gate fed every sample before it, as a reading of the whole log feeds it, so
+/// hand-chosen segments have the bias removed that the whole log's reading removes (one
+/// answer for the same samples). `None` when no still stretch came before.
+pub(crate) fn bench_bias(
+    inputs: &Inputs<'_>,
+    settings: PipelineSettings,
+    until: f64,
+    progress: &mut dyn Progress,
+) -> Result<Option<[f32; 3]>, IdentifyError> {
+    let mut p = FlightPipeline::new(settings, true)
+        .ok_or_else(|| IdentifyError::Settings("invalid pipeline settings".into()))?;
+    let mut step = |x: &Input| -> Result<Flow, IdentifyError> {
+        if x.t >= until {
+            return Ok(Flow::Stop);
+        }
+        p.step(x.gyro, x.accel, x.h, x.dt);
+        Ok(Flow::Continue)
+    };
+    inputs.read_ahead_with(&mut step, &mut |f| progress.update(f))?;
+    Ok(p.measured_bias())
+}
+
 /// The hand-chosen segments' readings: the pooled pipeline fed each segment's samples in the
 /// order of the segments (one reading per stretch of segments that follow each other in
-/// time), per-segment pipelines beside it (no bias). Returns the runs of the segments that
-/// held samples and, per segment, whether it held any.
+/// time), per-segment pipelines beside it, `bias` (measured on the bench, [`bench_bias`])
+/// removed from every sample. Returns the runs of the segments that held samples and, per
+/// segment, whether it held any.
 pub(crate) fn segments(
     inputs: &Inputs<'_>,
     settings: PipelineSettings,
     segs: &[(f64, f64)],
+    bias: Option<[f32; 3]>,
     trace: &mut Option<Trace>,
     progress: &mut dyn Progress,
 ) -> Result<(Pooled, Vec<Run>, Throws, Vec<bool>), IdentifyError> {
     let mut pooled = FlightPipeline::new(settings, false)
         .ok_or_else(|| IdentifyError::Settings("invalid estimator settings".into()))?;
+    pooled.set_bias_removed(bias.is_some());
+    let b = bias.unwrap_or([0.0; 3]);
     // Segments read in one reading: each starts at or after the previous one's end.
     let mut groups: Vec<Range<usize>> = Vec::new();
     for (k, s) in segs.iter().enumerate() {
@@ -371,11 +398,12 @@ pub(crate) fn segments(
                     }
                     if !held[cur] {
                         held[cur] = true;
-                        let r = Run::new(runs.len(), None);
+                        let r = Run::new(runs.len(), bias);
                         pool.start(r.ordinal, r.bias)?;
                         runs.push(r);
                     }
-                    pooled.step(x.gyro, [0.0; 3], x.h, x.dt);
+                    let w = [x.gyro[0] - b[0], x.gyro[1] - b[1], x.gyro[2] - b[2]];
+                    pooled.step(w, [0.0; 3], x.h, x.dt);
                     if let Some(r) = runs.last_mut() {
                         r.add(x.i, x.t);
                         pool.feed(r.ordinal, fed(x))?;
@@ -400,7 +428,7 @@ pub(crate) fn segments(
                 t.done = true;
             }
         }
-        let p = Pooled::of(&pooled, None);
+        let p = Pooled::of(&pooled, bias);
         Ok((p, runs, pool.join()?, held))
     })
 }

@@ -99,10 +99,25 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
     let detection;
     if let Some(segs) = &opts.segments {
         detection = false;
-        bias = [0.0; 3];
-        bias_measured = false;
+        // The bias measured on the bench before the first segment, as the whole log's
+        // reading measures it (`passes::bench_bias`).
+        let measured = match rec.accel.as_ref() {
+            Some(accel) => {
+                let first = segs.iter().map(|s| s.0).fold(f64::INFINITY, f64::min);
+                let mut p = FlightPipeline::new(settings, true)
+                    .ok_or_else(|| IdentifyError::Settings("invalid pipeline settings".into()))?;
+                for i in (0..n).take_while(|&i| rec.t[i] < first) {
+                    p.step(rec.gyro[i], accel[i], h[i], dt_of(i));
+                }
+                p.measured_bias()
+            }
+            None => None,
+        };
+        bias = measured.unwrap_or([0.0; 3]);
+        bias_measured = measured.is_some();
         let mut pooled = FlightPipeline::new(settings, false)
             .ok_or_else(|| IdentifyError::Settings("invalid estimator settings".into()))?;
+        pooled.set_bias_removed(bias_measured);
         for &(s, e) in segs {
             let idx: Vec<usize> = (0..n).filter(|&i| rec.t[i] >= s && rec.t[i] <= e).collect();
             if idx.is_empty() {
@@ -110,7 +125,9 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
                 continue;
             }
             for &i in &idx {
-                pooled.step(rec.gyro[i], [0.0; 3], h[i], dt_of(i));
+                let w = rec.gyro[i];
+                let w = [w[0] - bias[0], w[1] - bias[1], w[2] - bias[2]];
+                pooled.step(w, [0.0; 3], h[i], dt_of(i));
             }
             pooled.end_stretch();
             fed_runs.push(idx);
