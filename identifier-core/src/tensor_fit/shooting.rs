@@ -17,13 +17,17 @@
 //! the Gauss-Newton equations of the entries with every initial rate eliminated (the Schur
 //! complement); each evaluation first takes Gauss-Newton steps of every segment's initial
 //! rate with the entries held (while they lower the segment's cost), so the Levenberg-
-//! Marquardt loop of `output_error` runs on the six entries alone (variable projection). Each segment is an ordinary
-//! stretch for [`normal`] (its own first block, the rotor momentum from its own blocks).
+//! Marquardt loop of `output_error` runs on the six entries alone (variable projection). Each
+//! segment is an ordinary stretch for [`normal`] (its own first block, the rotor momentum from
+//! its own blocks).
 //!
 //! The covariance is the sandwich over the segments ((F10) with the segments as its batches):
 //! the reduced scores `g_s` of neighbouring segments share no trajectory, so `V = S/(S-1) sum_s
 //! g_s g_s^T` estimates the score's covariance from the residual actually seen, its level and
-//! its correlation within a segment alike.
+//! its correlation within a segment alike; never less than the first-order autoregressive
+//! inflation of the segments' own residual. The caller ([`fit_stretch`]) holds it at least at
+//! the single trajectory's covariance: the sandwich sees the residual within one flight, not
+//! what moves a whole flight's answer.
 
 use super::*;
 use core::cell::Cell;
