@@ -525,14 +525,30 @@ fn residual_lag1<const P: usize>(
     }
 }
 
-/// Blocks per batch of [`score_inflation`] for block residuals of lag-1 autocorrelation `rho`
-/// over `n` blocks: twice the residual's correlation length `(1 + rho) / (1 - rho)` (the
-/// variance of the mean of a first-order autoregressive series over a white one's; `rho` taken
-/// in `[0, 0.98]`), so that neighbouring batches' sums are nearly independent, but no more
-/// than `n / 8` (eight batches at least).
-fn batch_len(rho: f32, n: usize) -> usize {
+/// The correlation length, in blocks, of block residuals of lag-1 autocorrelation `rho`:
+/// `(1 + rho) / (1 - rho)`, `rho` taken in `[0, 0.98]` (so in `[1, 99]`). It is also the
+/// variance of the mean of a first-order autoregressive series over a white one's: the least
+/// the residual's correlation inflates a variance by ((F10)).
+fn correlation_length(rho: f32) -> f32 {
     let r = rho.clamp(0.0, 0.98);
-    let len = 2.0 * (1.0 + r) / (1.0 - r);
+    (1.0 + r) / (1.0 - r)
+}
+
+/// (F10)'s `k_i` from the variance `seen` (the sandwich's) and `white` (the white residual's):
+/// their ratio, never below `floor`.
+fn inflation_of(seen: f32, white: f32, floor: f32) -> f32 {
+    if white > 0.0 && seen.is_finite() && seen > floor * white {
+        seen / white
+    } else {
+        floor
+    }
+}
+
+/// Blocks per batch of [`score_inflation`] for block residuals of lag-1 autocorrelation `rho`
+/// over `n` blocks: twice the residual's [`correlation_length`], so that neighbouring batches'
+/// sums are nearly independent, but no more than `n / 8` (eight batches at least).
+fn batch_len(rho: f32, n: usize) -> usize {
+    let len = 2.0 * correlation_length(rho);
     let cap = (n / MIN_BATCHES).max(1);
     // `len` is in [2, 198]: the cast is exact for its ceiling.
     let l = (len + 0.999) as usize;
@@ -597,16 +613,15 @@ fn score_inflation<const P: usize, const M: usize>(
     sums.flush();
     let k = sums.batches as f32;
     let s2 = if dof > 0.0 { cost / dof } else { 0.0 };
-    let r = rho.clamp(0.0, 0.98);
-    let ar1 = (1.0 + r) / (1.0 - r);
+    let ar1 = correlation_length(rho);
     let inflation = core::array::from_fn(|i| {
         let white = s2 * finv.get(i).and_then(|r| r.get(i)).copied().unwrap_or(0.0);
-        let seen = sums.acc.get(i).copied().unwrap_or(0.0) * k / (k - 1.0);
-        if ok && k > 1.0 && white > 0.0 && seen.is_finite() && seen > ar1 * white {
-            seen / white
+        let seen = if ok && k > 1.0 {
+            sums.acc.get(i).copied().unwrap_or(0.0) * k / (k - 1.0)
         } else {
-            ar1
-        }
+            0.0
+        };
+        inflation_of(seen, white, ar1)
     });
     (inflation, rho)
 }

@@ -82,12 +82,18 @@ impl Segments {
 }
 
 /// Segment length in blocks for block residuals of lag-1 autocorrelation `rho` at a single
-/// trajectory's optimum: the residual's correlation length `(1 + rho) / (1 - rho)` (`rho`
-/// taken in `[0, 0.98]`), over which a model error is one slow excursion.
+/// trajectory's optimum: the residual's [`correlation_length`], over which a model error is
+/// one slow excursion.
 fn segment_len(rho: f32) -> usize {
-    let r = rho.clamp(0.0, 0.98);
     // In [1, 99]: the cast of its ceiling is exact.
-    ((1.0 + r) / (1.0 - r) + 0.999) as usize
+    (correlation_length(rho) + 0.999) as usize
+}
+
+/// What [`reduced`] leaves per segment for the covariance: its reduced score `g_s` of (F11)
+/// and its cost.
+struct SegmentSums {
+    scores: [[f32; 6]; MAX_SEGMENTS],
+    costs: [f32; MAX_SEGMENTS],
 }
 
 /// Entry `(i, j)` of `m`, 0 outside it.
@@ -111,14 +117,14 @@ fn rate_of_theta(th: &[f32; P0]) -> [f32; 3] {
 
 /// The entries' reduced normal equations (F11) at `j6`, the segments' initial rates taken
 /// from and returned to `rates` (one Gauss-Newton step each, see the module docs), and each
-/// segment's reduced score into `scores` when given.
+/// segment's reduced score and cost into `sums` when given.
 fn reduced(
     blocks: &[Block<6>],
     rule: &StepRule,
     segs: &Segments,
     j6: &[f32; 6],
     rates: &Cell<[[f32; 3]; MAX_SEGMENTS]>,
-    mut scores: Option<&mut [[f32; 6]; MAX_SEGMENTS]>,
+    mut sums: Option<&mut SegmentSums>,
 ) -> Option<Normal<6>> {
     let mut w0 = rates.get();
     let mut cost = 0.0f32;
@@ -181,8 +187,11 @@ fn reduced(
             }
             *gi += score.get(i).copied().unwrap_or(0.0);
         }
-        if let Some(slot) = scores.as_deref_mut().and_then(|sc| sc.get_mut(s)) {
-            *slot = score;
+        if let Some(out) = sums.as_deref_mut() {
+            if let (Some(g), Some(cs)) = (out.scores.get_mut(s), out.costs.get_mut(s)) {
+                *g = score;
+                *cs = c;
+            }
         }
         cost += c;
     }
@@ -221,33 +230,30 @@ pub(super) fn fit_segments(
         TOLERANCE,
         Start::Cold,
     )?;
-    let mut scores = [[0.0f32; 6]; MAX_SEGMENTS];
-    let (cost, a, _) = reduced(blocks, &rule, segs, &j6, &rates, Some(&mut scores))?;
+    let mut sums = SegmentSums {
+        scores: [[0.0; 6]; MAX_SEGMENTS],
+        costs: [0.0; MAX_SEGMENTS],
+    };
+    let (cost, a, _) = reduced(blocks, &rule, segs, &j6, &rates, Some(&mut sums))?;
     let ainv = scaled_inverse(&a)?;
-    // The residual's lag-1 autocorrelation within the segments (their rates at the optimum).
+    // The residual's lag-1 autocorrelation within the segments (their rates at the optimum),
+    // each segment's weighted by its cost.
     let w0 = rates.get();
     let (mut num, mut den) = (0.0f32, 0.0f32);
-    for (s, (lo, hi)) in segs.ranges().enumerate() {
+    for (s, ((lo, hi), c)) in segs.ranges().zip(sums.costs).enumerate() {
         let seg = blocks.get(lo..hi)?;
         let r = w0.get(s).copied().unwrap_or([0.0; 3]);
-        let th = with_rate(&j6, r);
-        let rho = residual_lag1(seg, &rule, &th, 0.0, &Cells::NONE);
-        let c = normal::<P0>(seg, &rule, seg.len(), &th, 0.0, &Cells::NONE).map_or(0.0, |n| n.0);
+        let rho = residual_lag1(seg, &rule, &with_rate(&j6, r), 0.0, &Cells::NONE);
         num += rho * c;
         den += c;
     }
-    let rho = if den > 0.0 {
-        (num / den).clamp(0.0, 0.98)
-    } else {
-        0.0
-    };
-    let ar1 = (1.0 + rho) / (1.0 - rho);
+    let ar1 = correlation_length(if den > 0.0 { num / den } else { 0.0 });
     // (F10) over the segments: `A^-1 V A^-1` against the white `s^2 A^-1`.
     let k = segs.count as f32;
     let s2 = if dof > 0.0 { cost / dof } else { 0.0 };
     let inflation: [f32; 6] = core::array::from_fn(|i| {
         let mut seen = 0.0f32;
-        for sc in scores.iter().take(segs.count) {
+        for sc in sums.scores.iter().take(segs.count) {
             let x: f32 = sc
                 .iter()
                 .enumerate()
@@ -255,13 +261,7 @@ pub(super) fn fit_segments(
                 .sum();
             seen += x * x;
         }
-        let seen = seen * k / (k - 1.0);
-        let white = s2 * at(&ainv, i, i);
-        if white > 0.0 && seen.is_finite() && seen > ar1 * white {
-            seen / white
-        } else {
-            ar1
-        }
+        inflation_of(seen * k / (k - 1.0), s2 * at(&ainv, i, i), ar1)
     });
     Some(StretchResult {
         p: j6,
