@@ -34,7 +34,7 @@ use crate::identify::{identify, IdentifyOptions, Rotor};
 use crate::recording::Recording;
 
 /// The entries of a tensor in the order of its covariance: xx, yy, zz, xy, xz, yz.
-const ENTRIES: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
+pub(crate) const ENTRIES: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
 
 /// Rotor inertia used for the unit identification (rescaled afterwards).
 pub const UNIT_J: f32 = 1e-6;

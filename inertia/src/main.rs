@@ -6,7 +6,9 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use inertia::close_loop;
 use inertia::export::{ExportError, ExportFormat, ExportOptions};
-use inertia::identify::{identify_source, parse_axis, IdentifyOptions, Progress, Rotor, RotorHold};
+use inertia::identify::{
+    identify_source, parse_axis, IdentifyError, IdentifyOptions, Progress, Report, Rotor, RotorHold,
+};
 use inertia::{read, AccelUnit, Format, GyroUnit, ReadOptions, TimeUnit};
 
 mod replay;
@@ -448,11 +450,8 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
         [one] => one.clone(),
         many => return run_identify_many(many, &args, &opts, &iopts),
     };
-    let src = inertia::source::open(&input, &opts).map_err(|e| e.to_string())?;
-    let mut bar = Bar::new(&input);
-    let report = identify_source(&*src, &iopts, &mut bar).map_err(|e| e.to_string());
-    bar.clear();
-    let mut report = report?;
+    let (src, report) = open_and_identify(&input, &opts, &iopts)?;
+    let mut report = report.map_err(|e| e.to_string())?;
     if let Some(tol) = args.gyro_scale_tolerance {
         eprintln!("identifying the log three more times, one gyro axis scaled by {tol} % each");
         // The estimate stands without it: a re-identification that fails is a warning.
@@ -513,6 +512,23 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// A log opened for reading (any format `identify` reads).
+type LogSource = Box<dyn inertia::source::Source>;
+
+/// Opens `input` and identifies it with a progress bar: the source (for further readings) and
+/// the identification's outcome; an error when the log cannot be opened.
+fn open_and_identify(
+    input: &std::path::Path,
+    opts: &ReadOptions,
+    iopts: &IdentifyOptions,
+) -> Result<(LogSource, Result<Report, IdentifyError>), String> {
+    let src = inertia::source::open(input, opts).map_err(|e| e.to_string())?;
+    let mut bar = Bar::new(input);
+    let report = identify_source(&*src, iopts, &mut bar);
+    bar.clear();
+    Ok((src, report))
+}
+
 /// `inertia identify` with several `--input`: each log identified on its own, their tensors
 /// pooled ([`inertia::pool`]). Exit 3 for a log that cannot be read or gives no tensor in
 /// kg m^2.
@@ -531,12 +547,8 @@ fn run_identify_many(
     }
     let mut reports = Vec::new();
     for input in inputs {
-        let src = inertia::source::open(input, opts).map_err(|e| e.to_string())?;
-        let mut bar = Bar::new(input);
-        let report = identify_source(&*src, iopts, &mut bar)
-            .map_err(|e| format!("{}: {e}", input.display()));
-        bar.clear();
-        reports.push(report?);
+        let (_, report) = open_and_identify(input, opts, iopts)?;
+        reports.push(report.map_err(|e| format!("{}: {e}", input.display()))?);
     }
     let pooled = inertia::pool::pool(reports)?;
     for w in &pooled.warnings {

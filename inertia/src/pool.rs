@@ -19,10 +19,8 @@
 
 use serde::Serialize;
 
+use crate::calibrate::ENTRIES;
 use crate::identify::{EstimateJson, Report};
-
-/// Entries `(xx, yy, zz, xy, xz, yz)` of a symmetric 3x3 matrix.
-const ENTRIES: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
 
 /// How the logs' tensors scatter about the pooled one ((P2)).
 #[derive(Clone, Debug, Serialize, PartialEq)]

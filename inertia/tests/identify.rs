@@ -337,6 +337,16 @@ fn entries(j: &serde_json::Value) -> Vec<f64> {
         .collect()
 }
 
+/// The thrown-FC rig's flywheel (data README): the anchor's inertia, about -z, a 14-pole motor.
+const THROWN_FC_ROTOR: [&str; 6] = [
+    "--rotor-inertia",
+    "1.689e-6",
+    "--rotor-axis",
+    "-z",
+    "--rotor-poles",
+    "14",
+];
+
 fn shared() -> Option<PathBuf> {
     let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data/thrown-fc");
     p.is_dir().then_some(p)
@@ -367,19 +377,9 @@ fn thrown_fc_free_flights_found_hand_and_catch_excluded() {
             "{}.json",
             log.file_name().unwrap().to_string_lossy()
         ));
-        let (code, v, err) = run(
-            &[
-                "--input",
-                log.to_str().unwrap(),
-                "--rotor-inertia",
-                "1.689e-6",
-                "--rotor-axis",
-                "-z",
-                "--rotor-poles",
-                "14",
-            ],
-            &json,
-        );
+        let mut args = vec!["--input", log.to_str().unwrap()];
+        args.extend(THROWN_FC_ROTOR);
+        let (code, v, err) = run(&args, &json);
         assert_eq!(code, 0, "{err}");
         let throws = v["throws"].as_array().unwrap();
         assert!(!throws.is_empty());
@@ -668,14 +668,7 @@ fn a_blackbox_gyro_in_the_wrong_unit_is_named_and_not_trusted() {
     let d = out_dir();
     let p = d.join("betaflight-named.BFL");
     std::fs::write(&p, &edited).unwrap();
-    let rotor = [
-        "--rotor-inertia",
-        "1.689e-6",
-        "--rotor-axis",
-        "-z",
-        "--rotor-poles",
-        "14",
-    ];
+    let rotor = THROWN_FC_ROTOR;
     let mut args = vec!["--input", p.to_str().unwrap()];
     args.extend(rotor);
     let (_, v, err) = run(&args, &d.join("betaflight-named.json"));
@@ -1081,14 +1074,7 @@ fn the_whole_log_and_its_own_window_as_segments_give_one_answer() {
     };
     let log = root.join("device_only/LOG00119.BFL");
     let d = out_dir();
-    let rotor = [
-        "--rotor-inertia",
-        "1.689e-6",
-        "--rotor-axis",
-        "-z",
-        "--rotor-poles",
-        "14",
-    ];
+    let rotor = THROWN_FC_ROTOR;
     let mut args = vec!["--input", log.to_str().unwrap()];
     args.extend(rotor);
     let (code, whole, err) = run(&args, &d.join("one-answer-whole.json"));
