@@ -33,7 +33,7 @@ use super::*;
 use core::cell::Cell;
 
 /// Most segments of one flight.
-pub(super) const MAX_SEGMENTS: usize = 32;
+const MAX_SEGMENTS: usize = 32;
 
 /// Fewest blocks in a segment: its initial rate is three parameters.
 const MIN_SEGMENT_BLOCKS: usize = 4;
