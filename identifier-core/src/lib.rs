@@ -96,6 +96,7 @@ mod pipeline;
 mod ratio_fit;
 mod refined;
 mod refined_bias;
+mod rotors;
 mod settings;
 mod status;
 pub mod symmetric;
@@ -120,6 +121,7 @@ pub use pipeline::{
 pub use ratio_fit::{FlightRatioFit, RatioFit, RatioFitEstimate};
 pub use refined::{Refined, RefinedSettings};
 pub use refined_bias::RefinedBias;
+pub use rotors::{Rotor, RotorError, Rotors, AXIS_UNIT_TOLERANCE, MAX_ROTORS};
 pub use settings::{GainMatrix, Settings, SettingsError, SignChangeCorrection};
 pub use status::{Counters, Estimate, SampleStatus};
 pub use status::{Exposure, Trust, Verdict};

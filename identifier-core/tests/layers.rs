@@ -4,7 +4,7 @@
 //!
 //! | layer | modules | what they hold |
 //! |---|---|---|
-//! | 1 | `linalg`, `symmetric`, `exact`, `inertia`, `convergence` | arithmetic, ratios, the convergence criterion |
+//! | 1 | `linalg`, `symmetric`, `exact`, `inertia`, `convergence`, `rotors` | arithmetic, ratios, the convergence criterion, the rotors' momentum |
 //! | 2 | `settings`, `invariant`, `status` | the paper's functions and settings, the statuses |
 //! | 3 | `identifier`, `refined`, `refined_bias`, `extended`, `tensor`, `output_error` | the per-sample estimators and the fits' shared machinery |
 //! | 4 | `ratio_fit`, `tensor_fit` | the end-of-flight fits |
@@ -15,7 +15,14 @@
 use std::path::{Path, PathBuf};
 
 const LAYERS: [&[&str]; 6] = [
-    &["linalg", "symmetric", "exact", "inertia", "convergence"],
+    &[
+        "linalg",
+        "symmetric",
+        "exact",
+        "inertia",
+        "convergence",
+        "rotors",
+    ],
     &["settings", "invariant", "status"],
     &[
         "identifier",
