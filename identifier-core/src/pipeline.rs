@@ -719,6 +719,15 @@ impl<const N: usize> Pipeline<N> {
     /// integrals in both estimators; what they learnt is kept. Samples still in the delay line
     /// are unaffected.
     pub fn end_stretch(&mut self) {
+        self.close_stretch();
+        self.fit_ended_flight();
+    }
+
+    /// [`Pipeline::end_stretch`] without running the fits: the stretch being fed ends and its
+    /// output-error fits wait ([`Pipeline::fits_pending`]) as when the gate ends a flight, so
+    /// that a caller with a sample path to keep runs them elsewhere (on a copy, then
+    /// [`Pipeline::adopt_fits`]). The next fed sample runs them itself if nobody did.
+    pub fn close_stretch(&mut self) {
         if self.feeding {
             self.estimator.end_stretch();
             self.refined.restart();
@@ -726,7 +735,24 @@ impl<const N: usize> Pipeline<N> {
             self.fits_pending = true;
             self.feeding = false;
         }
-        self.fit_ended_flight();
+    }
+
+    /// Takes the fits of the flight that ended from `fitted`: a copy of this pipeline made
+    /// while its fits were pending, on which [`Pipeline::fit_ended_flight`] has run since.
+    /// Samples this pipeline was given meanwhile and did not feed leave the fits' inputs as
+    /// they were, so the result is the same bits as running the fits here at the time the
+    /// copy was made. Refused (false, nothing changed) when this pipeline's fits are not
+    /// pending, `fitted`'s are, or the two have not fed the same flights (another flight began
+    /// here meanwhile and ran the fits itself, or `fitted` is not a copy of this pipeline).
+    pub fn adopt_fits(&mut self, fitted: &Self) -> bool {
+        let same = self.throws == fitted.throws && self.fed_inputs == fitted.fed_inputs;
+        if !self.fits_pending || fitted.fits_pending || self.feeding || !same {
+            return false;
+        }
+        self.trajectory = fitted.trajectory;
+        self.tensor_fit = fitted.tensor_fit;
+        self.fits_pending = false;
+        true
     }
 
     /// Runs the output-error fits of the free flight that ended, if they have not run yet;
