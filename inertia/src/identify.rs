@@ -87,6 +87,16 @@ pub struct Rotor {
     pub poles: Option<u32>,
 }
 
+impl Rotor {
+    /// This rotor as the core's [`identifier_core::Rotors`], whose `momentum` the firmware
+    /// uses too (same bits on host and MCU), or why it is refused (inertia not positive and
+    /// finite, axis not a unit vector).
+    pub fn rotors(&self) -> Result<identifier_core::Rotors, String> {
+        identifier_core::Rotors::new(&[identifier_core::Rotor::new(self.inertia, self.axis)])
+            .map_err(|e| format!("the rotor is refused: {e:?}"))
+    }
+}
+
 /// Parses `x|y|z|-x|-y|-z`.
 pub fn parse_axis(s: &str) -> Result<[f32; 3], String> {
     match s.trim() {

@@ -10,6 +10,8 @@ use crate::readers::ReadError;
 use crate::source::{Flow, Sample, Source};
 use crate::unhold::{Plan, Unhold, LOOKAHEAD};
 
+use identifier_core::Rotors;
+
 use super::{IdentifyError, Rotor};
 
 /// One sample's inputs.
@@ -59,17 +61,15 @@ struct Emit<'v, 'w> {
     i: usize,
     prev_t: Option<f64>,
     dt_med: f64,
-    rotor: Option<Rotor>,
+    /// The rotor's momentum function ((R1) of `identifier_core::Rotors`; none: zero).
+    rotors: Rotors,
     visit: &'v mut (dyn FnMut(&Input) -> Result<Flow, ReadError> + 'w),
 }
 
 impl Emit<'_, '_> {
     #[inline]
     fn emit(&mut self, s: &Sample, speed: f32) -> Result<Flow, ReadError> {
-        let h = match &self.rotor {
-            Some(r) => r.axis.map(|a| a * r.inertia * speed),
-            None => [0.0; 3],
-        };
+        let h = self.rotors.momentum(&[speed]);
         let dt = match self.prev_t {
             None => self.dt_med as f32,
             Some(p) => (s.t - p) as f32,
@@ -200,11 +200,18 @@ impl Inputs<'_> {
             .and_then(|r| r.plan)
             .map(|p| Unhold::<Sample>::new(p, LOOKAHEAD));
         let factor = self.rotor.and_then(|r| r.factor);
+        let rotors = match self.rotor {
+            Some(r) => r
+                .rotor
+                .rotors()
+                .map_err(|e| ReadError::new(Path::new(&self.src.name()), e))?,
+            None => Rotors::NONE,
+        };
         let mut out = Emit {
             i: 0,
             prev_t: None,
             dt_med: self.dt_med,
-            rotor: self.rotor.map(|r| r.rotor),
+            rotors,
             visit,
         };
         let mut stopped = false;

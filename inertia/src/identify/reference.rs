@@ -62,10 +62,8 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
             } else {
                 speed
             };
-            speed
-                .iter()
-                .map(|s| r.axis.map(|a| a * r.inertia * s))
-                .collect()
+            let rotors = r.rotors().map_err(IdentifyError::Rotor)?;
+            speed.iter().map(|s| rotors.momentum(&[*s])).collect()
         }
     };
     if opts.rotor.is_none() && rec.rotor.is_some() {
