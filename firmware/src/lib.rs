@@ -67,7 +67,7 @@ pub mod uplink;
 pub mod stack;
 
 pub use app::{
-    gate_rate_bound, identifier_settings, pipeline_settings, refined_settings, InitError,
-    LoopCounters, NoDelay, NoRotor, Poll, Report, RotorConfig, RotorSpeedSource, SampleClock,
-    SampleInputs, SampleLoop, SensorStatus, TensorReport,
+    gate_rate_bound, identifier_settings, pipeline_settings, refined_settings, BoardInputs,
+    InitError, LoopCounters, NoBoardInputs, NoDelay, Poll, Report, SampleClock, SampleInputs,
+    SampleLoop, SampleRecord, SensorStatus, TensorReport,
 };

@@ -42,6 +42,7 @@ fn counters(c: &LoopCounters) -> telemetry::Counters {
         reinit_failures: c.reinit_failures,
         saturated: c.saturated,
         accel_saturated: c.accel_saturated,
+        held_out: c.held_out,
     }
 }
 
@@ -68,7 +69,7 @@ pub fn to_telemetry(r: &Report, restored: Option<telemetry::Estimate>) -> teleme
         },
         counters: counters(&r.counters),
         saturated_recent: r.saturated_recent,
-        rotor_rad_s: r.rotor_rad_s,
+        momentum: r.momentum,
         restored,
         tensor: tensor(t),
     }

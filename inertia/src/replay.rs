@@ -1,16 +1,18 @@
 //! `inertia export-replay`: the per-sample `f32` inputs `inertia identify` gives its
-//! `FlightPipeline` (rate, specific force, rotor speed, time step) and the pipeline's
-//! settings, written as the replay file the QEMU firmware reads (`firmware-qemu --replay`,
-//! `scripts/run.sh --log`). The layout is documented in `firmware/src/replay_format.rs`.
+//! `FlightPipeline` (rate, specific force, rotor speeds, time step), the rotor table and the
+//! pipeline's settings, written as the replay file the QEMU firmware reads (`firmware-qemu
+//! --replay`, `scripts/run.sh --log`). The layout (version 5) is documented in
+//! `firmware/src/replay_format.rs`.
 //!
 //! Every value is computed as in `identify` (same expressions, same order): the rate is
 //! `1 / median dt` of the `f64` log times, the rotor speed `unhold` of the channel (as logged
 //! with `--rotor-raw`), the noise from `estimate_noise` unless given, the
 //! full scale the recording's, `dt` of sample 0 the median and of sample `i` `t[i] - t[i-1]`
 //! rounded once to `f32`, the rotor speed's resolution the smallest change of the channel
-//! (`inertia::survey::RotorStep`). The firmware turns the rotor speed into momentum with the
-//! same `axis_i * inertia * speed` as `identify`, and the resolution into the momentum's
-//! quantum with the same `inertia * resolution`.
+//! (`inertia::survey::RotorStep`). The firmware turns the rotor speeds into momentum with the
+//! same `identifier_core::Rotors::momentum` as `identify`; the momentum's quantum is written
+//! as `identify` computes it (`inertia * resolution`). No sample is flagged as actuated (a
+//! log says nothing of actuators).
 
 use std::io::Write;
 use std::path::Path;
@@ -79,33 +81,49 @@ pub fn export(
             (rec.t[i] - rec.t[i - 1]) as f32
         }
     };
+    if let Some(r) = &rotor {
+        // The same check `identify` makes of its rotor.
+        r.rotors()?;
+    }
     let with_accel = rec.accel.is_some();
-    let mut b: Vec<u8> = Vec::with_capacity(56 + 32 * n);
+    let rotors = u32::from(rotor.is_some());
+    let mut b: Vec<u8> = Vec::with_capacity(44 + 16 + (32 + 4) * n);
+    // Fixed part (44 bytes).
     b.extend_from_slice(b"IRPL");
-    b.extend_from_slice(&4u32.to_le_bytes());
+    b.extend_from_slice(&5u32.to_le_bytes());
     b.extend_from_slice(&rate.to_le_bytes());
     b.extend_from_slice(&noise.to_le_bytes());
     b.extend_from_slice(&rec.gyro_full_scale.to_le_bytes());
-    let flags = u32::from(with_accel) | (u32::from(rotor.is_some()) << 1);
-    b.extend_from_slice(&flags.to_le_bytes());
-    let (j, axis) = rotor.map_or((0.0f32, [0.0f32; 3]), |r| (r.inertia, r.axis));
-    b.extend_from_slice(&j.to_le_bytes());
-    for a in axis {
-        b.extend_from_slice(&a.to_le_bytes());
-    }
-    let resolution = step.unwrap_or(0.0);
-    b.extend_from_slice(&resolution.to_le_bytes());
+    b.extend_from_slice(&u32::from(with_accel).to_le_bytes());
+    // The momentum's quantum as `identify` computes it (`momentum_quantum`).
+    let quantum = match (&rotor, step) {
+        (Some(r), Some(q)) => r.inertia * q,
+        _ => 0.0f32,
+    };
+    b.extend_from_slice(&quantum.to_le_bytes());
     b.extend_from_slice(&rec.gyro_averaging.to_le_bytes());
     b.extend_from_slice(&rec.gyro_smoothing().to_le_bytes());
+    b.extend_from_slice(&rotors.to_le_bytes());
     b.extend_from_slice(&(n as u32).to_le_bytes());
+    // The rotor table (16 bytes a rotor).
+    if let Some(r) = &rotor {
+        b.extend_from_slice(&r.inertia.to_le_bytes());
+        for a in r.axis {
+            b.extend_from_slice(&a.to_le_bytes());
+        }
+    }
+    // The samples (32 bytes and 4 a rotor each).
     for i in 0..n {
         let f = rec.accel.as_ref().map(|a| a[i]).unwrap_or([0.0; 3]);
-        let s = speed.as_ref().map(|s| s[i]).unwrap_or(0.0);
         for x in rec.gyro[i].iter().chain(f.iter()) {
             b.extend_from_slice(&x.to_le_bytes());
         }
-        b.extend_from_slice(&s.to_le_bytes());
         b.extend_from_slice(&dt_of(i).to_le_bytes());
+        // Sample flags: nothing actuated.
+        b.extend_from_slice(&0u32.to_le_bytes());
+        if let Some(s) = &speed {
+            b.extend_from_slice(&s[i].to_le_bytes());
+        }
     }
     let mut file = std::fs::File::create(out).map_err(|e| format!("{}: {e}", out.display()))?;
     file.write_all(&b)

@@ -22,7 +22,7 @@ extern crate std;
 use serde::{Deserialize, Serialize};
 
 /// Format version carried in every report; bumped on any change of [`Report`].
-pub const VERSION: u8 = 2;
+pub const VERSION: u8 = 3;
 
 /// Longest frame: the largest serialised [`Report`] (varints at their longest) plus COBS
 /// overhead and the terminating zero.
@@ -120,6 +120,7 @@ pub struct Counters {
     pub reinit_failures: u32,
     pub saturated: u32,
     pub accel_saturated: u32,
+    pub held_out: u32,
 }
 
 /// One report, 10 per second.
@@ -139,8 +140,8 @@ pub struct Report {
     pub counters: Counters,
     /// Gyro samples at the clip level since the previous report.
     pub saturated_recent: u32,
-    /// Last rotor speed, rad/s.
-    pub rotor_rad_s: Option<f32>,
+    /// The rotors' momentum given with the last sample, kg m^2/s.
+    pub momentum: Option<[f32; 3]>,
     /// The estimate restored from flash at boot, if any.
     pub restored: Option<Estimate>,
     /// The free-flight pipeline's tensor estimate.
@@ -250,7 +251,7 @@ mod tests {
                 ..Counters::default()
             },
             saturated_recent: k,
-            rotor_rad_s: k.is_multiple_of(3).then_some(-123.25),
+            momentum: k.is_multiple_of(3).then_some([-123.25, 0.5, 1e-3]),
             restored: (k == 1).then_some(estimate),
             tensor: Tensor {
                 status: (k % 8) as u8,
@@ -306,10 +307,11 @@ mod tests {
             reinit_failures: u32::MAX,
             saturated: u32::MAX,
             accel_saturated: u32::MAX,
+            held_out: u32::MAX,
         };
         r.tick = u32::MAX;
         r.saturated_recent = u32::MAX;
-        r.rotor_rad_s = Some(1.0);
+        r.momentum = Some([1.0, -2.0, 3.0]);
         let big = Tensor {
             status: 7,
             a: Some([1.0; 3]),

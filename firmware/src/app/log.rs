@@ -22,7 +22,7 @@ pub fn log_report(r: &Report) {
     let c = &r.counters;
     let (p, f) = (&r.a_paper, &r.a_refined);
     defmt::info!(
-        "t={=f32}s a_paper=[{=f32}, {=f32}, {=f32}] {} a_refined=[{=f32}, {=f32}, {=f32}] {} A2/A1={=f32} A3/A1={=f32} consistency={=f32} samples={=u32} skipped={=u32} bus_errors={=u32} invalid={=u32} timeouts={=u32} implausible={=u32} missed={=u32} wrong_id={=u32} stalled={=u32} reinits={=u32} reinit_failures={=u32} saturated={=u32} accel_saturated={=u32} sensor={}",
+        "t={=f32}s a_paper=[{=f32}, {=f32}, {=f32}] {} a_refined=[{=f32}, {=f32}, {=f32}] {} A2/A1={=f32} A3/A1={=f32} consistency={=f32} samples={=u32} skipped={=u32} bus_errors={=u32} invalid={=u32} timeouts={=u32} implausible={=u32} missed={=u32} wrong_id={=u32} stalled={=u32} reinits={=u32} reinit_failures={=u32} saturated={=u32} accel_saturated={=u32} held_out={=u32} sensor={}",
         r.t,
         p[0],
         p[1],
@@ -48,6 +48,7 @@ pub fn log_report(r: &Report) {
         c.reinit_failures,
         c.saturated,
         c.accel_saturated,
+        c.held_out,
         r.sensor
     );
 }

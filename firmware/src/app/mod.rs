@@ -3,14 +3,16 @@
 //!
 //! One concern per module, all re-exported here (`crate::app::X`):
 //! * [`settings`]: the estimators' settings for the configured gyro;
-//! * [`rotor`]: the optional rotor-speed input and its momentum;
+//! * [`rotor`]: the board's inputs besides the IMU (rotor speeds, actuator flags);
 //! * [`clock`]: the sample clock and a delay that does not wait;
 //! * [`health`]: when the sensor is re-initialised or checked;
 //! * [`rate_check`]: the rate-jump check on samples (the plausibility gate);
 //! * [`sample_loop`]: the loop itself;
+//! * [`fits`]: the end-of-flight fits off the sample path (a fit slot, a stepper);
 //! * [`report`]: what it reports; `log` writes a report as defmt lines.
 
 pub mod clock;
+pub mod fits;
 pub mod health;
 #[cfg(feature = "defmt")]
 pub mod log;
@@ -21,13 +23,16 @@ pub mod sample_loop;
 pub mod settings;
 
 pub use clock::{NoDelay, SampleClock};
+pub use fits::{FitJob, FitKind, FitScheduler, StepStats, Stepper};
 pub use health::{SensorStatus, HEALTH_EVERY, REINIT_AFTER, STALLED_AFTER};
 #[cfg(feature = "defmt")]
 pub use log::{log_report, log_tensor};
 pub use rate_check::{gate_rate_bound, GATE_MARGIN, GATE_RATE_MARGIN, GATE_RELEARN};
 pub use report::{LoopCounters, Report, TensorReport, FAILED_REPORT_AFTER, REPORT_HZ};
-pub use rotor::{NoRotor, RotorConfig, RotorSpeedSource};
-pub use sample_loop::{InitError, Poll, SampleInputs, SampleLoop, INIT_ATTEMPTS, POLL_US};
+pub use rotor::{BoardInputs, NoBoardInputs};
+pub use sample_loop::{
+    InitError, Poll, SampleInputs, SampleLoop, SampleRecord, INIT_ATTEMPTS, POLL_US,
+};
 pub use settings::{
     identifier_settings, pipeline_settings, refined_settings, GYRO_NOISE_DENSITY_DPS,
 };

@@ -40,6 +40,24 @@ pub struct TensorReport {
     pub in_free_flight: bool,
 }
 
+impl TensorReport {
+    /// The report of `pipeline`'s estimate (`not_fed`: the loop's count of samples that left
+    /// its delay line unfed).
+    pub fn of(pipeline: &identifier_core::FlightPipeline, not_fed: u32) -> Self {
+        let (e, r) = pipeline.estimate_and_ratios();
+        TensorReport {
+            status: r.status,
+            a: r.a,
+            std_a: r.std_a,
+            tensor: e.tensor,
+            throws: pipeline.throws(),
+            fed: pipeline.fed_inputs(),
+            not_fed,
+            in_free_flight: pipeline.in_free_flight(),
+        }
+    }
+}
+
 /// The loop's own counters (the identifier keeps finer ones, see
 /// [`Counters`](identifier_core::Counters)).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -79,6 +97,9 @@ pub struct LoopCounters {
     pub reinits: u32,
     /// Initialisation attempts during re-initialisations that failed.
     pub reinit_failures: u32,
+    /// Samples the board flagged with an actuator acting on the body
+    /// ([`BoardInputs::actuated`](super::BoardInputs::actuated)), kept out of the estimators.
+    pub held_out: u32,
 }
 
 /// What goes out at [`REPORT_HZ`].
@@ -111,8 +132,9 @@ pub struct Report {
     pub saturated_recent: u32,
     /// The sensor's state.
     pub sensor: SensorStatus,
-    /// The last rotor speed given with a sample, rad/s.
-    pub rotor_rad_s: Option<f32>,
+    /// The rotors' momentum given with the last sample, kg m^2/s (`None`: no rotors, or no
+    /// speeds for it).
+    pub momentum: Option<[f32; 3]>,
     /// The free-flight pipeline's tensor estimate.
     pub tensor: TensorReport,
 }

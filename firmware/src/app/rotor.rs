@@ -1,54 +1,57 @@
-//! The optional rotor: its speed input and the momentum it adds.
+//! What the board knows about the body besides the IMU, per sample: the speeds of its known
+//! rotors (reaction wheels, a flywheel, motors) and whether an actuator acts on it.
+//!
+//! The rotors themselves are an [`identifier_core::Rotors`] (inertia and axis of each, up to
+//! [`MAX_ROTORS`]): the loop turns the speeds into the momentum `h = sum_i j_i W_i g_i` with
+//! [`Rotors::momentum`], the function `inertia identify` uses, so host and MCU give the same
+//! bits.
+//!
+//! A speed read from telemetry comes in steps (DShot's eRPM: 100 eRPM, `100 / (poles / 2) *
+//! 2 pi / 60` rad/s, 1.75 rad/s for 12 poles): give the pipeline the momentum's quantum
+//! (`inertia * step`) with [`PipelineSettings::with_momentum_resolution`] so that the tensor's
+//! uncertainty counts the steps' error (the QEMU image takes it from the replay's header, as
+//! `inertia identify` computes it from the log).
+//!
+//! [`PipelineSettings::with_momentum_resolution`]:
+//! identifier_core::PipelineSettings::with_momentum_resolution
 
-/// A rotor whose angular momentum goes with each sample to the free-flight pipeline:
-/// `h = axis * inertia * speed` (kg m^2/s), the speed from the [`RotorSpeedSource`].
-///
-/// A speed read from telemetry comes in steps (DShot's eRPM: 100 eRPM, `100 / (poles / 2) *
-/// 2 pi / 60` rad/s, 1.75 rad/s for 12 poles): give the pipeline `inertia * step` with
-/// [`PipelineSettings::with_momentum_resolution`] so that the tensor's uncertainty counts the
-/// steps' error (the QEMU image does, from the replay's header, as `inertia identify` does
-/// from the log).
-///
-/// [`PipelineSettings::with_momentum_resolution`]:
-/// identifier_core::PipelineSettings::with_momentum_resolution
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct RotorConfig {
-    /// Inertia about the rotor's axis, kg m^2.
-    pub inertia: f32,
-    /// Unit axis in the gyro frame, the direction of positive speed.
-    pub axis: [f32; 3],
-}
+use identifier_core::{Rotors, MAX_ROTORS};
 
-impl RotorConfig {
-    /// The rotor momentum at `speed` rad/s, in the order of operations `inertia identify`
-    /// uses (`axis_i * inertia * speed`).
-    pub fn momentum(&self, speed: f32) -> [f32; 3] {
-        self.axis.map(|a| a * self.inertia * speed)
+/// The board's per-sample inputs besides the IMU: it implements this (from ESC telemetry, Hall
+/// sensors, a DShot reply, the attitude controller's actuator commands); the QEMU image reads
+/// them from the replayed log. Both are read once per sample, at the time of the sample.
+pub trait BoardInputs {
+    /// Fills `speeds` with the rotors' speeds for the current sample, rad/s relative to the
+    /// body, positive along each rotor's axis, in the order of the loop's [`Rotors`] (entries
+    /// past their number are ignored). False when they are not known for this sample (no
+    /// rotor, no fresh reading): the momentum is then zero.
+    fn wheel_speeds(&mut self, speeds: &mut [f32; MAX_ROTORS]) -> bool;
+
+    /// True when thrusters, magnetorquers or anything else put a torque on the body during
+    /// the current sample: the sample is kept out of the estimators that assume a torque-free
+    /// body (the free-flight pipeline's stretch ends before it; see
+    /// [`SampleLoop`](super::SampleLoop)).
+    fn actuated(&mut self) -> bool {
+        false
     }
 }
 
-/// An optional rotor-speed input (reaction wheel, propeller, motor): the board implements it
-/// (from an ESC's telemetry, a Hall sensor, a DShot reply); the QEMU image reads it from the
-/// log. The speed goes with each sample to the estimators that model the rotor's angular
-/// momentum. `None`: not known for this sample (no rotor, or no fresh reading).
-pub trait RotorSpeedSource {
-    /// The rotor's speed about its axis, rad/s, signed, at the time of the current sample.
-    fn rotor_speed_rad_s(&mut self) -> Option<f32>;
-}
-
-/// No rotor input: every sample has `None`.
+/// No rotor and no actuator: every sample is torque-free with zero momentum.
 #[derive(Clone, Copy, Debug, Default)]
-pub struct NoRotor;
+pub struct NoBoardInputs;
 
-impl RotorSpeedSource for NoRotor {
-    fn rotor_speed_rad_s(&mut self) -> Option<f32> {
-        None
+impl BoardInputs for NoBoardInputs {
+    fn wheel_speeds(&mut self, _speeds: &mut [f32; MAX_ROTORS]) -> bool {
+        false
     }
 }
 
-impl<F: FnMut() -> Option<f32>> RotorSpeedSource for F {
-    fn rotor_speed_rad_s(&mut self) -> Option<f32> {
-        self()
+/// The momentum of `rotors` at the speeds the board gives for this sample (`None` when there
+/// are no rotors or it gives no speeds: zero goes to the pipeline).
+pub(crate) fn momentum_of<B: BoardInputs>(board: &mut B, rotors: &Rotors) -> Option<[f32; 3]> {
+    let mut speeds = [0.0f32; MAX_ROTORS];
+    if rotors.is_empty() || !board.wheel_speeds(&mut speeds) {
+        return None;
     }
+    Some(rotors.momentum(&speeds))
 }

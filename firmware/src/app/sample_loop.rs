@@ -5,16 +5,17 @@ use embedded_hal::delay::DelayNs;
 use icm42688::{Config, Error, Icm42688, RegisterInterface, Saturation};
 use identifier_core::{
     Counters, Estimate, FlightPipeline, Identifier, InertiaRatios, PipelineSettings, Refined,
-    SampleStatus, SettingsError,
+    Rotors, SampleStatus, SettingsError, MAX_ROTORS,
 };
 
 use super::clock::SampleTime;
 use super::health::SensorHealth;
 use super::rate_check::RateCheck;
 use super::report::ReportSchedule;
+use super::rotor::momentum_of;
 use super::{
-    identifier_settings, pipeline_settings, refined_settings, LoopCounters, NoRotor, Report,
-    RotorConfig, RotorSpeedSource, SampleClock, SensorStatus, TensorReport,
+    identifier_settings, pipeline_settings, refined_settings, BoardInputs, LoopCounters,
+    NoBoardInputs, Report, SampleClock, SensorStatus, TensorReport,
 };
 use crate::bench;
 
@@ -32,12 +33,34 @@ pub struct SampleInputs {
     pub gyro: [f32; 3],
     /// Specific force, m/s^2, sensor axes (zero in free flight).
     pub accel: [f32; 3],
-    /// Rotor speed, rad/s, when the board provides one ([`RotorSpeedSource`]).
-    pub rotor_rad_s: Option<f32>,
+    /// The rotors' momentum `h`, kg m^2/s, when the board gave their speeds
+    /// ([`BoardInputs::wheel_speeds`]; zero went to the pipeline otherwise).
+    pub momentum: Option<[f32; 3]>,
+    /// The board flagged an actuator acting on the body ([`BoardInputs::actuated`]): the
+    /// sample was kept out of the estimators.
+    pub actuated: bool,
     /// Axes at the clip level.
     pub saturated: Saturation,
     /// The time step, s.
     pub dt: f32,
+}
+
+/// One sample as the sample path delivers it to the loop ([`SampleLoop::step_record`]): read
+/// and screened by an interrupt on the board, or taken from a replayed log.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SampleRecord {
+    /// Angular rate, rad/s, sensor axes.
+    pub omega: [f32; 3],
+    /// Specific force, m/s^2, sensor axes.
+    pub accel: [f32; 3],
+    /// The time since the previous sample, s.
+    pub dt: f32,
+    /// The rotors' speeds, rad/s, in the order of the loop's [`Rotors`].
+    pub speeds: [f32; MAX_ROTORS],
+    /// The speeds are known for this sample (else the momentum is zero).
+    pub speeds_known: bool,
+    /// An actuator acted on the body ([`BoardInputs::actuated`]).
+    pub actuated: bool,
 }
 
 /// Why the loop could not start.
@@ -79,6 +102,9 @@ pub enum Poll {
     Invalid,
     /// The rate-jump check refused the sample; counted, its time carried to the next step.
     Implausible,
+    /// The board flagged an actuator acting on the body ([`BoardInputs::actuated`]): the
+    /// sample was kept out of the estimators; counted.
+    HeldOut,
     /// The data stalled; the sensor was re-initialised.
     Stalled,
 }
@@ -87,7 +113,7 @@ pub enum Poll {
 /// against a misbehaving sensor or bus: a rate-jump check on samples, dt from the sample
 /// clock, re-initialisation after repeated failures, a wrong `WHO_AM_I` or stalled data, and
 /// a periodic `WHO_AM_I` check.
-pub struct SampleLoop<IF, C, R = NoRotor> {
+pub struct SampleLoop<IF, C, R = NoBoardInputs> {
     gyro: Icm42688<IF>,
     /// The configuration the gyro is (re-)initialised with.
     config: Config,
@@ -95,8 +121,9 @@ pub struct SampleLoop<IF, C, R = NoRotor> {
     max_polls: u32,
     clock: C,
     time: SampleTime,
-    rotor: R,
-    rotor_config: Option<RotorConfig>,
+    board: R,
+    /// The known rotors whose momentum goes with each sample.
+    rotors: Rotors,
     health: SensorHealth,
     rate_check: RateCheck,
     last_inputs: SampleInputs,
@@ -113,6 +140,10 @@ pub struct SampleLoop<IF, C, R = NoRotor> {
     pipeline: FlightPipeline,
     /// Samples that left the pipeline's delay line unfed.
     not_fed: u32,
+    /// The previous sample was flagged ([`BoardInputs::actuated`]).
+    was_actuated: bool,
+    /// The pipeline gates free flights by the accelerometer (else: continuous mode).
+    with_accel: bool,
     counters: LoopCounters,
     reports: ReportSchedule,
     /// A failed-sensor report not taken yet (kept out of the small `ReportSchedule`, which
@@ -120,7 +151,7 @@ pub struct SampleLoop<IF, C, R = NoRotor> {
     pending: Option<Report>,
 }
 
-impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
+impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoBoardInputs> {
     /// Initialises the gyro with `config` (reset, identity, configuration; up to
     /// [`INIT_ATTEMPTS`] times, since a bus error or a slow reset is transient but a wrong
     /// identity is not), a fresh paper's identifier with [`identifier_settings`] and a fresh
@@ -136,28 +167,29 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
             delay,
             config,
             clock,
-            NoRotor,
+            NoBoardInputs,
             pipeline_settings(&config),
             true,
-            None,
+            Rotors::NONE,
         )
     }
 
-    /// [`SampleLoop::new`] with a rotor-speed input (read once per sample), the free-flight
-    /// pipeline's settings (`with_accel = false` takes every sample as free flight; its
-    /// `rate_hz` becomes the reports' time base) and the rotor whose momentum goes with each
-    /// sample, all at once: the loop holds tens of kilobytes (the pipeline's block buffers),
-    /// and building it in one go keeps its copies on the stack few.
+    /// [`SampleLoop::new`] with the board's inputs (rotor speeds and actuator flags, read once
+    /// per sample), the free-flight pipeline's settings (`with_accel = false` takes every
+    /// sample as free flight, the continuous mode of a satellite; its `rate_hz` becomes the
+    /// reports' time base) and the rotors whose momentum goes with each sample, all at once:
+    /// the loop holds tens of kilobytes (the pipeline's block buffers), and building it in one
+    /// go keeps its copies on the stack few.
     #[allow(clippy::too_many_arguments)]
-    pub fn new_with<R: RotorSpeedSource>(
+    pub fn new_with<R: BoardInputs>(
         mut gyro: Icm42688<IF>,
         delay: &mut impl DelayNs,
         config: Config,
         mut clock: C,
-        rotor: R,
+        board: R,
         pipeline: PipelineSettings,
         with_accel: bool,
-        rotor_config: Option<RotorConfig>,
+        rotors: Rotors,
     ) -> Result<SampleLoop<IF, C, R>, InitError<IF::Error>> {
         let mut attempt = 1;
         loop {
@@ -185,8 +217,8 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
             max_polls: (2 * config.odr.period_us() / POLL_US).max(2),
             clock,
             time,
-            rotor,
-            rotor_config,
+            board,
+            rotors,
             health: SensorHealth::default(),
             rate_check: RateCheck::new(&config),
             last_inputs: SampleInputs::default(),
@@ -194,22 +226,25 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
             refined,
             pipeline,
             not_fed: 0,
+            was_actuated: false,
+            with_accel,
             counters: LoopCounters::default(),
             reports,
             pending: None,
         })
     }
 
-    /// The same loop with a rotor-speed input, read once per sample.
-    pub fn with_rotor<R: RotorSpeedSource>(self, rotor: R) -> SampleLoop<IF, C, R> {
+    /// The same loop with the board's inputs (rotor speeds, actuator flags) for the rotors
+    /// `rotors`, read once per sample.
+    pub fn with_board<R: BoardInputs>(self, board: R, rotors: Rotors) -> SampleLoop<IF, C, R> {
         SampleLoop {
             gyro: self.gyro,
             config: self.config,
             max_polls: self.max_polls,
             clock: self.clock,
             time: self.time,
-            rotor,
-            rotor_config: self.rotor_config,
+            board,
+            rotors,
             health: self.health,
             rate_check: self.rate_check,
             last_inputs: self.last_inputs,
@@ -217,6 +252,8 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
             refined: self.refined,
             pipeline: self.pipeline,
             not_fed: self.not_fed,
+            was_actuated: self.was_actuated,
+            with_accel: self.with_accel,
             counters: self.counters,
             reports: self.reports,
             pending: self.pending,
@@ -224,7 +261,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoRotor> {
     }
 }
 
-impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<IF, C, R> {
+impl<IF: RegisterInterface, C: SampleClock<IF>, R: BoardInputs> SampleLoop<IF, C, R> {
     /// Waits for the next sample, reads it, screens it and steps both identifiers with it;
     /// re-initialises the sensor when it stops making sense.
     pub fn poll(&mut self, delay: &mut impl DelayNs) -> Poll {
@@ -289,13 +326,16 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
         let dt = self.time.seconds_of(periods);
 
         let omega = icm42688::raw3_to_rad_s(raw, self.gyro.full_scale());
+        let momentum = momentum_of(&mut self.board, &self.rotors);
         self.last_inputs = SampleInputs {
             gyro: omega,
             accel: icm42688::raw3_to_m_s2(imu.accel, self.gyro.accel_full_scale()),
-            rotor_rad_s: self.rotor.rotor_speed_rad_s(),
+            momentum,
+            actuated: self.board.actuated(),
             saturated: saturation,
             dt,
         };
+
         // The rate-jump check (the plausibility gate). The pipeline gets the time since the
         // last sample it was given (refused ones included), as the identifiers do.
         let Some(dt_pipeline) = self.rate_check.check(omega, dt) else {
@@ -305,6 +345,10 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
             self.refined.step([f32::NAN; 3], dt);
             return Poll::Implausible;
         };
+        if self.last_inputs.actuated {
+            self.hold_out();
+            return Poll::HeldOut;
+        }
         self.feed_pipeline(omega, self.last_inputs.accel, dt_pipeline);
 
         bench::step_begin();
@@ -388,14 +432,12 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
         self.pipeline.fit_ended_flight()
     }
 
-    /// One sample into the free-flight pipeline: the rotor's momentum from the
-    /// [`RotorSpeedSource`]'s speed of this sample (zero without a rotor configured or a
-    /// speed), the pipeline's free-flight gate decides, the delay line commits.
+    /// One sample into the free-flight pipeline: the rotors' momentum from the board's speeds
+    /// of this sample (zero without rotors or speeds), the pipeline's free-flight gate decides,
+    /// the delay line commits.
     fn feed_pipeline(&mut self, omega: [f32; 3], accel: [f32; 3], dt: f32) {
-        let h = match (self.rotor_config, self.last_inputs.rotor_rad_s) {
-            (Some(r), Some(speed)) => r.momentum(speed),
-            _ => [0.0; 3],
-        };
+        self.was_actuated = false;
+        let h = self.last_inputs.momentum.unwrap_or([0.0; 3]);
         let exit = self.pipeline.step(omega, accel, h, dt);
         if let Some(e) = exit {
             if e.fed.is_none() {
@@ -404,33 +446,50 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
         }
     }
 
-    /// Replay of a log's own samples at its own rate (QEMU `--replay`, host checks): the
-    /// values the host tool `inertia identify` feeds its pipeline (rate rad/s, specific
-    /// force m/s^2, time step s) go, with the [`RotorSpeedSource`]'s speed, to this loop's
-    /// pipeline and both identifiers, bypassing the driver, the rate-jump check and the
-    /// sample clock (the log's samples were screened on the vehicle that wrote it). A report
-    /// is returned every `report_every` samples.
-    pub fn replay_sample(
-        &mut self,
-        omega: [f32; 3],
-        accel: [f32; 3],
-        dt: f32,
-        report_every: u32,
-    ) -> Option<Report> {
+    /// A sample the board flagged ([`BoardInputs::actuated`]): a torque acts on the body, so
+    /// neither the identifiers nor the free-flight pipeline take it. At the first of a run of
+    /// them the identifiers restart their integration (keeping what they learnt) and the
+    /// pipeline's stretch ends ([`FlightPipeline::close_stretch`]): its fits wait, as at a
+    /// catch, and the next unflagged sample starts a new stretch.
+    fn hold_out(&mut self) {
+        self.counters.held_out = self.counters.held_out.saturating_add(1);
+        if !self.was_actuated {
+            self.identifier.restart();
+            self.refined.restart();
+            self.pipeline.close_stretch();
+            self.was_actuated = true;
+        }
+    }
+
+    /// One sample as the board's sample path delivers it (an interrupt that read the sensor
+    /// and the board's inputs, [`SampleRecord`]) or as a replayed log gives it (QEMU
+    /// `--replay`, host checks: the values the host tool `inertia identify` feeds its
+    /// pipeline): to this loop's pipeline and both identifiers, bypassing the driver, the
+    /// rate-jump check and the sample clock (screened where the sample was read). The rotors'
+    /// momentum is [`Rotors::momentum`] of the record's speeds. A report is returned every
+    /// `report_every` samples.
+    pub fn step_record(&mut self, rec: &SampleRecord, report_every: u32) -> Option<Report> {
         bench::loop_begin();
+        let momentum = (rec.speeds_known && !self.rotors.is_empty())
+            .then(|| self.rotors.momentum(&rec.speeds));
         self.last_inputs = SampleInputs {
-            gyro: omega,
-            accel,
-            rotor_rad_s: self.rotor.rotor_speed_rad_s(),
+            gyro: rec.omega,
+            accel: rec.accel,
+            momentum,
+            actuated: rec.actuated,
             saturated: Saturation::default(),
-            dt,
+            dt: rec.dt,
         };
         self.time.advance_one();
         self.reports.advance(1);
-        let paper = self.identifier.step(omega, dt);
-        self.refined.step(omega, dt);
-        self.count(&paper);
-        self.feed_pipeline(omega, accel, dt);
+        if rec.actuated {
+            self.hold_out();
+        } else {
+            let paper = self.identifier.step(rec.omega, rec.dt);
+            self.refined.step(rec.omega, rec.dt);
+            self.count(&paper);
+            self.feed_pipeline(rec.omega, rec.accel, rec.dt);
+        }
         bench::loop_end();
         if self.reports.due_every(report_every) {
             Some(self.report())
@@ -441,17 +500,31 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
 
     /// The free-flight pipeline's estimate as reported.
     pub fn tensor_report(&self) -> TensorReport {
-        let (e, r) = self.pipeline.estimate_and_ratios();
-        TensorReport {
-            status: r.status,
-            a: r.a,
-            std_a: r.std_a,
-            tensor: e.tensor,
-            throws: self.pipeline.throws(),
-            fed: self.pipeline.fed_inputs(),
-            not_fed: self.not_fed,
-            in_free_flight: self.pipeline.in_free_flight(),
-        }
+        TensorReport::of(&self.pipeline, self.not_fed)
+    }
+
+    /// Copies the free-flight pipeline into `slot` (a fit's own copy, [`super::fits`]): a
+    /// straight copy of its tens of kilobytes, not through the stack.
+    pub fn copy_pipeline_into(&self, slot: &mut FlightPipeline) {
+        *slot = self.pipeline;
+    }
+
+    /// Takes the ended flight's fits from `fitted`, a copy made by
+    /// [`SampleLoop::copy_pipeline_into`] while they were pending, on which they have run
+    /// ([`FlightPipeline::adopt_fits`]); false when refused.
+    pub fn adopt_fits(&mut self, fitted: &FlightPipeline) -> bool {
+        self.pipeline.adopt_fits(fitted)
+    }
+
+    /// The samples of the loop that left the pipeline's delay line unfed.
+    pub fn not_fed(&self) -> u32 {
+        self.not_fed
+    }
+
+    /// True when the pipeline has an accelerometer's free-flight gate; false in the continuous
+    /// mode, where every unflagged sample is fed.
+    pub fn with_accel(&self) -> bool {
+        self.with_accel
     }
 
     /// The free-flight pipeline.
@@ -511,7 +584,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: RotorSpeedSource> SampleLoop<
             counters: self.counters,
             saturated_recent: self.reports.saturated_recent(self.counters.saturated),
             sensor: SensorStatus::Ok,
-            rotor_rad_s: self.last_inputs.rotor_rad_s,
+            momentum: self.last_inputs.momentum,
             tensor: self.tensor_report(),
         }
     }
@@ -699,6 +772,16 @@ mod tests {
         }
     }
 
+    /// One wheel at a constant speed.
+    struct OneWheel(f32);
+
+    impl BoardInputs for OneWheel {
+        fn wheel_speeds(&mut self, speeds: &mut [f32; MAX_ROTORS]) -> bool {
+            speeds[0] = self.0;
+            true
+        }
+    }
+
     #[test]
     fn clipped_readings_on_all_axes_are_saturation_not_stall() {
         // 200 samples of a spin beyond +-2000 dps on every axis: identical clipped readings.
@@ -718,7 +801,10 @@ mod tests {
             sim_clock,
         )
         .unwrap()
-        .with_rotor(|| Some(12.5f32));
+        .with_board(
+            OneWheel(12.5),
+            Rotors::new(&[identifier_core::Rotor::new(2.0, [0.0, 0.0, -1.0])]).unwrap(),
+        );
         let mut warned = 0;
         while !lp.gyro().interface().bus().exhausted() {
             if let Poll::Stepped {
@@ -733,8 +819,8 @@ mod tests {
         assert_eq!(c.saturated, 200, "{c:?}");
         assert_eq!((c.stalled, c.reinits), (0, 0), "{c:?}");
         assert!(warned >= 2, "{warned}");
-        assert_eq!(lp.last_inputs().rotor_rad_s, Some(12.5));
-        assert_eq!(lp.report().rotor_rad_s, Some(12.5));
+        assert_eq!(lp.last_inputs().momentum, Some([0.0, 0.0, -25.0]));
+        assert_eq!(lp.report().momentum, Some([0.0, 0.0, -25.0]));
         assert_eq!(lp.last_inputs().accel, [0.0; 3]);
     }
 
