@@ -77,7 +77,7 @@ for f in "${logs[@]}"; do
     set +e
     "$INERTIA" identify --input "$f" "${rotor[@]}" --json "$d/identify.json" 2>"$d/identify.err"
     id_rc=$?
-    scripts/run.sh --log "$f" "${rotor[@]}" --json "$d/firmware.json" >"$d/run.txt" 2>&1
+    scripts/run.sh --log "$f" "${rotor[@]}" --lossless --json "$d/firmware.json" >"$d/run.txt" 2>&1
     fw_rc=$?
     set -e
     cp target/firmware-run/defmt.txt "$d/defmt.txt" 2>/dev/null || true

@@ -5,6 +5,8 @@
 #   scripts/run.sh [gen-log options, e.g. --duration 30 --noise 2e-3 --seed 3 --bus-error-every 50] [--json OUT.json]
 #   scripts/run.sh --log FILE [--rotor-inertia KG_M2 --rotor-axis x|y|z|-x|-y|-z [--rotor-poles N] [--rotor-raw | --rotor-unhold]]
 #                  [--noise-std RAD_S] [--gyro-unit rad/s|deg/s] [--time-unit s|ms|us] [--json OUT.json]
+#                  [--refit-every N] [--lossless]
+#   scripts/run.sh --replay FILE.irpl [--refit-every N] [--lossless] [--json OUT.json]
 #   scripts/run.sh --help
 #
 # Without --log (a simulated spinning body):
@@ -29,6 +31,15 @@
 # unchanged). The final on-board estimate (status, a, std_a, tensor_kg_m2 or null,
 # throws_detected, the counters) is decoded from the UART capture and written to --json;
 # scripts/replay-check.sh compares it with `inertia identify`'s pooled result bit for bit.
+# The samples come at the log's own rate from a timer interrupt (SysTick, QEMU run with
+# `-icount $ICOUNT`, deterministic virtual time; default shift=3,sleep=off: 8 ns per
+# instruction) into a ring, a lower-priority interrupt steps the loop, and the fits run in
+# thread mode (docs/firmware.md, "Fits off the sample path"). --refit-every N: continuous
+# mode's re-fit every N samples fed (docs/firmware.md, "Continuous mode"). --lossless: a
+# sample that finds the ring full waits for the next tick instead of being lost (a file can
+# wait, a sensor cannot; scripts/replay-check.sh uses it for the bit-for-bit comparison).
+# --replay FILE.irpl runs a replay file written elsewhere (`inertia export-replay`,
+# `host-tests gen-satellite`).
 #
 # Options take `--opt value` or `--opt=value`. Anything a run cannot honour is refused before
 # anything is built or run.
@@ -38,7 +49,7 @@ usage() { sed -n '2,/^set -euo/p' "${BASH_SOURCE[0]}" | sed '$d; s/^# \{0,1\}//'
 
 die() { echo "run.sh: $*" >&2; echo "run.sh: see scripts/run.sh --help" >&2; exit 2; }
 
-log_file="" json="" rotor_inertia="" rotor_axis="" rotor_poles="" rotor_hold="" noise_std=""
+log_file="" replay_file="" refit_every="" lossless="" json="" rotor_inertia="" rotor_axis="" rotor_poles="" rotor_hold="" noise_std=""
 gyro_unit="" time_unit=""
 gen_args=()
 bus_every=0
@@ -56,6 +67,9 @@ while [ $# -gt 0 ]; do
     case "$1" in
         -h | --help) usage; exit 0 ;;
         --log) need "$@"; log_file="$2"; shift 2 ;;
+        --replay) need "$@"; replay_file="$2"; shift 2 ;;
+        --refit-every) need "$@"; refit_every="$2"; shift 2 ;;
+        --lossless) lossless=1; shift ;;
         --json) need "$@"; json="$2"; shift 2 ;;
         --rotor-inertia) need "$@"; rotor_inertia="$2"; shift 2 ;;
         --rotor-axis) need "$@"; rotor_axis="$2"; shift 2 ;;
@@ -71,8 +85,16 @@ while [ $# -gt 0 ]; do
 done
 
 # Refuse what cannot be honoured, before anything runs.
+if [ -n "$replay_file" ]; then
+    [ -z "$log_file" ] || die "--replay and --log exclude each other"
+    [ -f "$replay_file" ] && [ -r "$replay_file" ] || die "--replay $replay_file: no such readable file"
+fi
+if [ -n "$refit_every" ]; then
+    [ -n "$log_file$replay_file" ] || die "--refit-every applies to a replayed log: give --log or --replay"
+    [[ "$refit_every" =~ ^[0-9]+$ ]] || die "--refit-every $refit_every: not a whole number of samples"
+fi
 is_num() { [[ "$1" =~ ^[+]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][-+]?[0-9]+)?$ ]]; }
-if [ -z "$log_file" ]; then
+if [ -z "$log_file" ] && [ -z "$replay_file" ]; then
     for o in rotor_inertia rotor_axis rotor_poles noise_std gyro_unit time_unit; do
         [ -z "${!o}" ] || die "--${o//_/-} applies to a replayed log: give --log FILE"
     done
@@ -107,12 +129,17 @@ fi
 # Absolute paths: the script changes to the repository root.
 abspath() { case "$1" in /*) echo "$1" ;; *) echo "$PWD/$1" ;; esac; }
 [ -z "$log_file" ] || log_file="$(abspath "$log_file")"
+[ -z "$replay_file" ] || replay_file="$(abspath "$replay_file")"
 [ -z "$json" ] || json="$(abspath "$json")"
 
 source "$(dirname "${BASH_SOURCE[0]}")/setup.sh"
 cd "$ROOT"
 
 OUT=target/firmware-run
+# QEMU's instruction counting for the paced replay: virtual time advances 2^shift ns per
+# instruction (shift 3: 125 M instructions/s, about a 168 MHz Cortex-M4F's rate with flash wait
+# states), and idles jump to the next timer (sleep=off): the same run gives the same figures.
+ICOUNT="${ICOUNT:-shift=3,sleep=off}"
 TD="${CARGO_TARGET_DIR:-target}"
 # The ELF under the target directory cargo uses (CARGO_TARGET_DIR when set).
 ELF="$TD/thumbv7em-none-eabihf/firmware/firmware-qemu"
@@ -131,7 +158,7 @@ build_firmware() {
         --target thumbv7em-none-eabihf --profile firmware
 }
 
-if [ -n "$log_file" ]; then
+if [ -n "$log_file$replay_file" ]; then
     # First the export: it refuses a log it cannot read or a rotor the log has no channel for.
     log "exporting the log's pipeline inputs (inertia export-replay)"
     ex=(--input "$log_file" --out "$OUT/replay.bin")
@@ -141,14 +168,22 @@ if [ -n "$log_file" ]; then
     [ -z "$noise_std" ] || ex+=(--noise-std "$noise_std")
     [ -z "$gyro_unit" ] || ex+=(--gyro-unit "$gyro_unit")
     [ -z "$time_unit" ] || ex+=(--time-unit "$time_unit")
-    "$INERTIA" export-replay "${ex[@]}" || { echo "run.sh: the log cannot be replayed (above)" >&2; exit 3; }
+    if [ -n "$replay_file" ]; then
+        cp "$replay_file" "$OUT/replay.bin"
+    else
+        "$INERTIA" export-replay "${ex[@]}" || { echo "run.sh: the log cannot be replayed (above)" >&2; exit 3; }
+    fi
     build_firmware
     log "replaying it through the firmware under QEMU (telemetry captured from USART1)"
     set +e
-    SERIAL="$OUT/uart.bin" scripts/firmware-qemu.sh "$ELF" --replay "$OUT/replay.bin" >"$OUT/defmt.txt"
+    refit=()
+    [ -z "$refit_every" ] || refit=(--refit-every "$refit_every")
+    [ -z "$lossless" ] || refit+=(--lossless)
+    SERIAL="$OUT/uart.bin" scripts/firmware-qemu.sh "$ELF" --replay "$OUT/replay.bin" ${refit[@]+"${refit[@]}"} \
+        -- -icount "$ICOUNT" >"$OUT/defmt.txt"
     rc=$?
     set -e
-    grep -E ' replay |ERROR|WARN' "$OUT/defmt.txt" || true
+    grep -E ' replay |ERROR|WARN| paced ' "$OUT/defmt.txt" || true
     # The tensor estimate once a second of log time.
     awk '/ t=[0-9]+\.[0-9]*s a_paper=/ { t = $0; sub(".* t=", "", t); sub("s .*", "", t); keep = 0 }
          / tensor status=/ { st = $0; sub(".*tensor ", "", st) }

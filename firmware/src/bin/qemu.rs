@@ -16,21 +16,31 @@
 #![no_std]
 #![no_main]
 
+use core::cell::RefCell;
 use core::ffi::CStr;
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
-use cortex_m_rt::entry;
+use cortex_m_rt::{entry, exception};
+use critical_section::Mutex;
 use defmt_semihosting as _;
+use firmware::app::{FitJob, FitKind, Stepper};
 use firmware::log_format::{decode_sample, Header, HEADER_LEN, SAMPLE_LEN};
 use firmware::replay_format::{self, ReplayHeader};
 use firmware::uplink::{send_report, ByteSink};
-use firmware::{stack, InitError, NoDelay, Poll, RotorConfig, SampleLoop};
+use firmware::{
+    stack, InitError, NoBoardInputs, NoDelay, Poll, Report, SampleLoop, SampleRecord, TensorReport,
+};
+use heapless::spsc::{Consumer, Producer, Queue};
 use icm42688::sim::{SampleSource, SimIcm42688};
 use icm42688::{Config, GyroOdr, Icm42688, SpiInterface};
+use identifier_core::{FlightPipeline, Rotors};
 use semihosting::fs::File;
 use semihosting::io::Read;
 
 /// Samples read per semihosting call.
 const CHUNK: usize = 64;
+/// Replay samples read per semihosting call (up to 64 bytes each).
+const REPLAY_CHUNK: usize = 16;
 
 /// Samples from the log file, read in chunks.
 struct LogSource {
@@ -171,10 +181,26 @@ fn main() -> ! {
     let mut uart = Usart1::init();
     if path == "--replay" {
         let Some(Ok(file)) = it.next() else {
-            defmt::error!("usage: firmware-qemu --replay <replay file>");
+            defmt::error!("usage: firmware-qemu --replay <replay file> [--refit-every N]");
             exit(3)
         };
-        replay(file, &mut uart)
+        let (mut refit_every, mut lossless) = (0u32, false);
+        while let Some(a) = it.next() {
+            match (a, &mut it) {
+                (Ok("--lossless"), _) => lossless = true,
+                (Ok("--refit-every"), it) => match it.next().map(|n| n.map(str::parse::<u32>)) {
+                    Some(Ok(Ok(n))) => refit_every = n,
+                    _ => exit(3),
+                },
+                _ => {
+                    defmt::error!(
+                        "usage: firmware-qemu --replay <replay file> [--refit-every N] [--lossless]"
+                    );
+                    exit(3)
+                }
+            }
+        }
+        replay(file, refit_every, lossless, &mut uart)
     }
     let fail_every = match it.next() {
         Some(Ok(n)) => match n.parse::<u32>() {
@@ -330,30 +356,35 @@ fn run_log(path: &str, fail_every: u32, uart: &mut Usart1) -> ! {
 /// The replay file's samples, read in chunks.
 struct ReplayReader {
     file: File,
-    buf: [u8; CHUNK * replay_format::SAMPLE_LEN],
+    buf: [u8; REPLAY_CHUNK * replay_format::SAMPLE_MAX_LEN],
     len: usize,
     pos: usize,
+    /// Bytes of one sample.
+    sample_len: usize,
+    /// Rotors per sample.
+    rotors: usize,
 }
 
 impl ReplayReader {
     fn next(&mut self) -> Option<replay_format::ReplaySample> {
-        const L: usize = replay_format::SAMPLE_LEN;
-        if self.len - self.pos < L {
+        let l = self.sample_len;
+        if self.len - self.pos < l {
             let rest = self.len - self.pos;
             self.buf.copy_within(self.pos..self.len, 0);
             self.len = rest;
             self.pos = 0;
-            while self.len < L {
-                match self.file.read(&mut self.buf[self.len..]) {
+            // Whole samples only, so that a chunk never ends inside one.
+            let want = (self.buf.len() / l) * l;
+            while self.len < l {
+                match self.file.read(&mut self.buf[self.len..want]) {
                     Ok(0) | Err(_) => return None,
                     Ok(n) => self.len += n,
                 }
             }
         }
-        let mut s = [0u8; L];
-        s.copy_from_slice(&self.buf[self.pos..self.pos + L]);
-        self.pos += L;
-        Some(replay_format::decode_sample(&s))
+        let s = replay_format::decode_sample(&self.buf[self.pos..self.pos + l], self.rotors);
+        self.pos += l;
+        Some(s)
     }
 }
 
@@ -366,11 +397,165 @@ fn no_samples() -> Option<[f32; 3]> {
 /// The simulated part's bus interface in replay mode.
 type ReplayBus = SpiInterface<SimIcm42688<fn() -> Option<[f32; 3]>>>;
 
-/// `--replay`: the log's samples into the sample loop at the log's own rate.
+/// The sample loop in replay mode.
+type ReplayLoop = SampleLoop<ReplayBus, fn(&ReplayBus) -> u32, NoBoardInputs>;
+
+/// The replay mode's clock: unused (the replay gives each sample's dt).
+fn no_clock(_: &ReplayBus) -> u32 {
+    0
+}
+
+/// The ring between the sample interrupt and the stepper: 63 samples (about 8 ms at 8 kHz; at
+/// 10 Hz, 6 s, longer than any fit waits).
+const RING: usize = 64;
+/// Reports waiting for thread mode (which sends them between fits).
+const REPORTS: usize = 8;
+
+/// Samples the sample interrupt read from the log and offered to the ring.
+static DELIVERED: AtomicU32 = AtomicU32::new(0);
+/// Samples that found the ring full (their time goes to the next sample's dt).
+static DROPPED: AtomicU32 = AtomicU32::new(0);
+/// Ticks on which a sample waited for room in the ring (`--lossless`).
+static WAITS: AtomicU32 = AtomicU32::new(0);
+/// The ring's largest occupancy seen right after a push.
+static PEAK: AtomicU32 = AtomicU32::new(0);
+/// The log has ended (or could not be read further): no more samples come.
+static ENDED: AtomicBool = AtomicBool::new(false);
+
+/// The sample interrupt's state, handed to it once.
+struct Sampler {
+    reader: ReplayReader,
+    ring: Producer<'static, SampleRecord>,
+    left: u32,
+    /// Time of dropped samples, carried into the next one's dt.
+    carry: f32,
+    /// Wait instead of dropping (`--lossless`).
+    lossless: bool,
+    /// A sample that waits for room in the ring (lossless).
+    waiting: Option<SampleRecord>,
+}
+
+/// The stepper's state, handed to `PendSV` once and handed back at the end.
+struct StepCtx {
+    lp: &'static mut ReplayLoop,
+    stepper: Stepper<'static>,
+    ring: Consumer<'static, SampleRecord>,
+    jobs: Producer<'static, FitJob<'static>>,
+    done: Consumer<'static, FitJob<'static>>,
+    reports: Producer<'static, Report>,
+}
+
+static SAMPLER: Mutex<RefCell<Option<&'static mut Sampler>>> = Mutex::new(RefCell::new(None));
+static STEP: Mutex<RefCell<Option<StepCtx>>> = Mutex::new(RefCell::new(None));
+/// The stepper's state once the log has ended and every sample was stepped.
+static BACK: Mutex<RefCell<Option<StepCtx>>> = Mutex::new(RefCell::new(None));
+
+/// The sample path, at the higher interrupt priority: the sensor's data-ready on a board;
+/// here SysTick at the log's rate (deterministic under QEMU's `-icount`). Reads one sample
+/// (through semihosting, which takes no virtual time; a board's SPI burst takes a few
+/// microseconds), pushes it into the ring, and pends the stepper.
+#[exception]
+fn SysTick() {
+    static mut S: Option<&'static mut Sampler> = None;
+    if S.is_none() {
+        *S = critical_section::with(|cs| SAMPLER.borrow_ref_mut(cs).take());
+    }
+    let Some(s) = S.as_deref_mut() else { return };
+    if let Some(w) = s.waiting.take() {
+        if let Err(w) = s.ring.enqueue(w) {
+            s.waiting = Some(w);
+            WAITS.fetch_add(1, Ordering::Relaxed);
+            cortex_m::peripheral::SCB::set_pendsv();
+            return;
+        }
+    }
+    let sample = if s.left > 0 { s.reader.next() } else { None };
+    let Some(x) = sample else {
+        if s.waiting.is_some() {
+            return;
+        }
+        // The log has ended: no more ticks.
+        // SAFETY: SysTick's control register; only this handler and start-up touch it.
+        unsafe { (*cortex_m::peripheral::SYST::PTR).csr.write(0) };
+        ENDED.store(true, Ordering::Release);
+        cortex_m::peripheral::SCB::set_pendsv();
+        return;
+    };
+    s.left -= 1;
+    let rec = SampleRecord {
+        omega: x.omega,
+        accel: x.accel,
+        dt: x.dt + s.carry,
+        speeds: x.speeds,
+        speeds_known: true,
+        actuated: x.actuated,
+    };
+    DELIVERED.fetch_add(1, Ordering::Relaxed);
+    match s.ring.enqueue(rec) {
+        Ok(()) => {
+            s.carry = 0.0;
+            let n = s.ring.len() as u32;
+            if n > PEAK.load(Ordering::Relaxed) {
+                PEAK.store(n, Ordering::Relaxed);
+            }
+        }
+        Err(w) if s.lossless => {
+            s.waiting = Some(w);
+            WAITS.fetch_add(1, Ordering::Relaxed);
+        }
+        Err(lost) => {
+            s.carry = lost.dt;
+            DROPPED.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+    cortex_m::peripheral::SCB::set_pendsv();
+}
+
+/// The stepper, below the sample path and above thread mode: steps what waits in the ring,
+/// hands fit jobs to thread mode and adopts their results. Hands its state back once the log
+/// has ended and every sample was stepped.
+#[exception]
+fn PendSV() {
+    static mut C: Option<StepCtx> = None;
+    if C.is_none() {
+        *C = critical_section::with(|cs| STEP.borrow_ref_mut(cs).take());
+    }
+    let Some(c) = C else { return };
+    let now = DELIVERED.load(Ordering::Relaxed);
+    c.stepper.run(
+        c.lp,
+        &mut c.ring,
+        &mut c.jobs,
+        &mut c.done,
+        &mut c.reports,
+        now,
+    );
+    if ENDED.load(Ordering::Acquire) && c.ring.is_empty() && !c.stepper.job_out() {
+        let back = C.take();
+        critical_section::with(|cs| *BACK.borrow_ref_mut(cs) = back);
+    }
+}
+
+/// A `'static` reference to `x`.
+///
+/// # Safety
+/// `x` is a local of a function that never returns, and that function does not use it again
+/// except through the reference returned.
+unsafe fn forever<T>(x: &mut T) -> &'static mut T {
+    // SAFETY: the caller's frame outlives the program (see above); no other reference is used.
+    unsafe { &mut *(x as *mut T) }
+}
+
+/// `--replay`: the log's samples into the sample loop at the log's own rate, delivered by the
+/// SysTick interrupt into a ring, stepped by PendSV, the fits in thread mode on a copy of the
+/// pipeline ([`firmware::app::fits`]). `refit_every`: continuous mode's re-fit period in
+/// samples fed (0: none). `lossless`: a sample that finds the ring full waits for the next
+/// tick instead of being lost (a file can wait, a sensor cannot: for the bit-for-bit checks
+/// on logs whose flights follow each other faster than a fit runs).
 // Not inlined into `main`: the loop is tens of kilobytes, and the two modes' loops in one
 // frame would need stack for both.
 #[inline(never)]
-fn replay(path: &str, uart: &mut Usart1) -> ! {
+fn replay(path: &str, refit_every: u32, lossless: bool, uart: &mut Usart1) -> ! {
     let mut name = [0u8; 256];
     let bytes = path.as_bytes();
     if bytes.len() >= name.len() {
@@ -385,12 +570,8 @@ fn replay(path: &str, uart: &mut Usart1) -> ! {
         exit(2)
     };
     let mut h = [0u8; replay_format::HEADER_LEN];
-    let mut got = 0;
-    while got < h.len() {
-        match file.read(&mut h[got..]) {
-            Ok(0) | Err(_) => exit(2),
-            Ok(n) => got += n,
-        }
+    if !read_exact(&mut file, &mut h) {
+        exit(2)
     }
     let header = match ReplayHeader::decode(&h) {
         Ok(hd) => hd,
@@ -399,45 +580,65 @@ fn replay(path: &str, uart: &mut Usart1) -> ! {
             exit(2)
         }
     };
+    let mut table = [0u8; replay_format::ROTOR_LEN * identifier_core::MAX_ROTORS];
+    if !read_exact(&mut file, &mut table[..header.table_len()]) {
+        exit(2)
+    }
+    let n_rotors = header.rotors as usize;
+    let mut list = [identifier_core::Rotor::new(0.0, [0.0; 3]); identifier_core::MAX_ROTORS];
+    for (i, r) in list.iter_mut().take(n_rotors).enumerate() {
+        *r = replay_format::decode_rotor(&table, i);
+    }
+    let rotors = match Rotors::new(&list[..n_rotors]) {
+        Ok(r) => r,
+        Err(e) => {
+            defmt::error!("replay rotors refused: {}", e);
+            exit(3)
+        }
+    };
     defmt::info!(
-        "replay {=str}: {=u32} samples at {=f32} Hz, noise {=f32} rad/s, full scale {=f32} rad/s, accelerometer {=bool}, rotor {}",
+        "replay {=str}: {=u32} samples at {=f32} Hz, noise {=f32} rad/s, full scale {=f32} rad/s, accelerometer {=bool}, rotors {=u32}, momentum quantum {=f32} kg m^2/s, re-fit every {=u32} samples",
         path,
         header.samples,
         header.rate_hz,
         header.noise_std,
         header.full_scale,
         header.with_accel,
-        header.rotor
+        header.rotors,
+        header.momentum_quantum,
+        refit_every
     );
-    // The rotor momentum's quantum as `inertia identify` computes it: inertia times the
-    // speed's resolution.
-    let quantum = header
-        .rotor
-        .map_or(0.0, |(inertia, _)| inertia * header.rotor_resolution);
+    for r in list.iter().take(n_rotors) {
+        defmt::info!(
+            "rotor inertia={=f32} kg m^2 axis=[{=f32}, {=f32}, {=f32}]",
+            r.inertia_kg_m2,
+            r.axis[0],
+            r.axis[1],
+            r.axis[2]
+        );
+    }
     let settings = identifier_core::PipelineSettings::for_rate(header.rate_hz, header.noise_std)
         .with_full_scale(header.full_scale)
-        .with_momentum_resolution(quantum)
+        .with_momentum_resolution(header.momentum_quantum)
         .with_averaging_gyro(header.gyro_averaging)
         .with_filtered_gyro(header.gyro_smoothing);
-    let rotor = header
-        .rotor
-        .map(|(inertia, axis)| RotorConfig { inertia, axis });
-    let speed = core::cell::Cell::new(None::<f32>);
     let mut delay = NoDelay;
     let sim = SimIcm42688::new(no_samples as fn() -> Option<[f32; 3]>);
-    let clock = |_: &ReplayBus| 0u32;
-    // Built in one go (rotor input, the log's pipeline settings): the loop is tens of
+    // Built in one go (the log's pipeline settings and rotors): the loop is tens of
     // kilobytes, and each move of it by value is a copy on the stack.
-    let mut app = match SampleLoop::new_with(
+    // Matched by reference, not moved out of the `Result`: a move would be a second copy of
+    // the loop in this frame.
+    let mut built = SampleLoop::new_with(
         Icm42688::new_spi(sim),
         &mut delay,
         Config::identifier(),
-        clock,
-        || speed.get(),
+        no_clock as fn(&ReplayBus) -> u32,
+        NoBoardInputs,
         settings,
         header.with_accel,
-        rotor,
-    ) {
+        rotors,
+    );
+    let app: &mut ReplayLoop = match &mut built {
         Ok(app) => app,
         Err(InitError::PipelineSettings) => {
             defmt::error!("pipeline settings refused");
@@ -448,8 +649,9 @@ fn replay(path: &str, uart: &mut Usart1) -> ! {
             exit(1)
         }
     };
+    // The fit slot: the fits' own copy of the pipeline.
+    let mut slot: FlightPipeline = *app.pipeline();
     let loop_depth = stack::depth();
-    stack::paint();
     let report_every = {
         let r = header.rate_hz / 10.0;
         if (1.0..1e6).contains(&r) {
@@ -458,55 +660,199 @@ fn replay(path: &str, uart: &mut Usart1) -> ! {
             1
         }
     };
-    let mut reader = ReplayReader {
-        file,
-        buf: [0; CHUNK * replay_format::SAMPLE_LEN],
-        len: 0,
-        pos: 0,
+    let (Some(ring), Some(jobs), Some(done), Some(reports)) = (
+        cortex_m::singleton!(: Queue<SampleRecord, RING> = Queue::new()),
+        cortex_m::singleton!(: Queue<FitJob<'static>, 2> = Queue::new()),
+        cortex_m::singleton!(: Queue<FitJob<'static>, 2> = Queue::new()),
+        cortex_m::singleton!(: Queue<Report, REPORTS> = Queue::new()),
+    ) else {
+        exit(3)
     };
-    let mut n = 0u32;
-    while n < header.samples {
-        let Some(s) = reader.next() else { break };
-        n += 1;
-        speed.set(rotor.map(|_| s.rotor_rad_s));
-        if let Some(r) = app.replay_sample(s.omega, s.accel, s.dt, report_every) {
+    let (ring_p, ring_c) = ring.split();
+    let (jobs_p, mut jobs_c) = jobs.split();
+    let (mut done_p, done_c) = done.split();
+    let (reports_p, mut reports_c) = reports.split();
+    let mut sampler = Sampler {
+        reader: ReplayReader {
+            file,
+            buf: [0; REPLAY_CHUNK * replay_format::SAMPLE_MAX_LEN],
+            len: 0,
+            pos: 0,
+            sample_len: header.sample_len(),
+            rotors: n_rotors,
+        },
+        ring: ring_p,
+        left: header.samples,
+        carry: 0.0,
+        lossless,
+        waiting: None,
+    };
+    // SAFETY: `app` and `slot` are locals of this function, which never returns; from here on
+    // it reaches them only through what the stepper hands back at the end.
+    let (lp, slot, sampler) = unsafe { (forever(app), forever(&mut slot), forever(&mut sampler)) };
+    critical_section::with(|cs| {
+        *SAMPLER.borrow_ref_mut(cs) = Some(sampler);
+        *STEP.borrow_ref_mut(cs) = Some(StepCtx {
+            lp,
+            stepper: Stepper::new(slot, refit_every, report_every),
+            ring: ring_c,
+            jobs: jobs_p,
+            done: done_c,
+            reports: reports_p,
+        });
+    });
+    stack::paint();
+    start_sample_timer(header.rate_hz);
+
+    // Thread mode: the fits, and sending the reports between them.
+    let rate = header.rate_hz;
+    let mut latest: Option<TensorReport> = None;
+    let mut fits = 0u32;
+    let mut worst = (0u32, 0u32);
+    let back = loop {
+        if let Some(mut job) = jobs_c.dequeue() {
+            job.run(|| DELIVERED.load(Ordering::Relaxed));
+            let l = job.latency();
+            fits += 1;
+            let which = if job.kind == FitKind::Refit { 1 } else { 0 };
+            if which == 0 {
+                worst.0 = worst.0.max(l);
+            } else {
+                worst.1 = worst.1.max(l);
+            }
+            defmt::info!(
+                "fit {=u32} kind={} started at sample {=u32} latency {=u32} samples {=f32} s fed={=u32}",
+                fits,
+                job.kind,
+                job.started,
+                l,
+                l as f32 / rate,
+                job.report.map_or(0, |t| t.fed)
+            );
+            if refit_every > 0 {
+                latest = job.report;
+            }
+            if done_p.enqueue(job).is_err() {
+                defmt::error!("fit job queue full");
+            }
+            cortex_m::peripheral::SCB::set_pendsv();
+            continue;
+        }
+        if let Some(mut r) = reports_c.dequeue() {
+            // Continuous mode reports the latest fit of the window so far.
+            if let Some(t) = latest {
+                r.tensor = t;
+            }
             firmware::app::log_report(&r);
             firmware::app::log_tensor(&r, false);
             send_report(uart, &r, None);
+            continue;
         }
-        // A free flight ended: its output-error fits run here, between samples, as on the
-        // board.
-        if app.fits_pending() {
-            app.fit_ended_flight();
+        if let Some(back) = critical_section::with(|cs| BACK.borrow_ref_mut(cs).take()) {
+            break back;
         }
+        // Sleep until an interrupt, checked with interrupts masked so that none is missed
+        // between the checks above and the sleep (WFI wakes on a pending interrupt).
+        critical_section::with(|cs| {
+            if !jobs_c.ready() && !reports_c.ready() && BACK.borrow_ref(cs).is_none() {
+                cortex_m::asm::wfi();
+            }
+        });
+    };
+    let StepCtx { lp, stepper, .. } = back;
+    while let Some(r) = reports_c.dequeue() {
+        firmware::app::log_report(&r);
+        firmware::app::log_tensor(&r, false);
+        send_report(uart, &r, None);
     }
-    // The log has ended: a flight still being fed ends with it and its fits run, as
-    // `inertia identify` does at the end of a log, so that no flight is reported without its
-    // fits.
-    app.end_flight();
-    let r = app.report();
+    // The log has ended: a flight still being fed ends with it and its fits run (here, in
+    // thread mode: no sample comes any more), as `inertia identify` does at the end of a log,
+    // so that no flight is reported without its fits.
+    lp.end_flight();
+    let r = lp.report();
     firmware::app::log_report(&r);
+    let n = stepper.stats.stepped;
     defmt::info!("final replay samples={=u32}", n);
     firmware::app::log_tensor(&r, true);
     send_report(uart, &r, None);
+    let st = stepper.stats;
+    defmt::info!(
+        "paced rate={=f32} Hz delivered={=u32} stepped={=u32} dropped={=u32} waits={=u32} ring_peak={=u32} ring_capacity={=u32} holds={=u32} fit_jobs={=u32} adopted={=u32} inline_fits={=u32} reports_dropped={=u32} worst_fit_latency={=u32} samples {=f32} s worst_refit_latency={=u32} samples {=f32} s",
+        rate,
+        DELIVERED.load(Ordering::Relaxed),
+        st.stepped,
+        DROPPED.load(Ordering::Relaxed),
+        WAITS.load(Ordering::Relaxed),
+        PEAK.load(Ordering::Relaxed),
+        (RING - 1) as u32,
+        st.holds,
+        st.jobs,
+        st.adopted,
+        st.inline_fits,
+        st.reports_dropped,
+        worst.0,
+        worst.0 as f32 / rate,
+        worst.1,
+        worst.1 as f32 / rate
+    );
     let hw = stack::high_water();
     defmt::info!(
-        "stack: {=usize} bytes reserved; high-water {=usize} bytes during the replay loop ({=usize} of them below main's frame); sample loop state {=usize} bytes (pipeline {=usize})",
+        "stack: {=usize} bytes reserved; high-water {=usize} bytes during the replay ({=usize} of them below the replay's frame); sample loop state {=usize} bytes (pipeline {=usize}), fit slot {=usize} bytes, ring {=usize} bytes",
         stack::size(),
         hw,
         hw.saturating_sub(loop_depth),
-        core::mem::size_of_val(&app),
-        core::mem::size_of::<identifier_core::FlightPipeline>()
+        core::mem::size_of::<ReplayLoop>(),
+        core::mem::size_of::<FlightPipeline>(),
+        core::mem::size_of::<FlightPipeline>(),
+        core::mem::size_of::<Queue<SampleRecord, RING>>()
     );
-    if n != header.samples {
+    if DELIVERED.load(Ordering::Relaxed) != header.samples {
         defmt::error!(
             "the replay ended after {=u32} of {=u32} samples",
-            n,
+            DELIVERED.load(Ordering::Relaxed),
             header.samples
         );
         exit(4)
     }
     exit(0)
+}
+
+/// Reads exactly `buf.len()` bytes; false at the end of the file or on an error.
+fn read_exact(file: &mut File, buf: &mut [u8]) -> bool {
+    let mut got = 0;
+    while got < buf.len() {
+        match file.read(&mut buf[got..]) {
+            Ok(0) | Err(_) => return false,
+            Ok(n) => got += n,
+        }
+    }
+    true
+}
+
+/// SysTick at `rate_hz` from the reference clock (the core's clock / 8, 21 MHz on the
+/// STM32F405 at 168 MHz, as QEMU's netduinoplus2 models it), its interrupt above PendSV.
+fn start_sample_timer(rate_hz: f32) {
+    const REFCLK_HZ: f32 = 21_000_000.0;
+    let ticks = REFCLK_HZ / rate_hz + 0.5;
+    let reload = if (2.0..16_777_216.0).contains(&ticks) {
+        ticks as u32 - 1
+    } else {
+        defmt::error!("sample rate {=f32} Hz out of SysTick's range", rate_hz);
+        exit(3)
+    };
+    // SAFETY: the system handler priorities and SysTick's registers, set once here before
+    // the timer runs; lower numbers preempt higher ones.
+    unsafe {
+        let scb = &*cortex_m::peripheral::SCB::PTR;
+        // SHPR3: PendSV (bits 16-23) 0xC0, SysTick (bits 24-31) 0x40.
+        scb.shpr[10].write(0xC0);
+        scb.shpr[11].write(0x40);
+        let syst = &*cortex_m::peripheral::SYST::PTR;
+        syst.rvr.write(reload);
+        syst.cvr.write(0);
+        // Reference clock (CLKSOURCE = 0), interrupt, enable.
+        syst.csr.write(0b111);
+    }
 }
 
 #[panic_handler]
