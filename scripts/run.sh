@@ -101,7 +101,10 @@ if [ -z "$log_file" ] && [ -z "$replay_file" ]; then
     [ -z "$rotor_hold" ] || die "$rotor_hold applies to a replayed log: give --log FILE"
 else
     [ ${#gen_args[@]} -eq 0 ] || die "${gen_args[0]} applies to the simulated run, not to --log"
-    [ -f "$log_file" ] && [ -r "$log_file" ] || die "--log $log_file: no such readable file"
+    [ -n "$replay_file" ] || { [ -f "$log_file" ] && [ -r "$log_file" ]; } || die "--log $log_file: no such readable file"
+    if [ -n "$replay_file" ] && [ -n "$rotor_inertia$rotor_axis$rotor_poles$rotor_hold$noise_std$gyro_unit$time_unit" ]; then
+        die "the --rotor-*, --noise-std, --gyro-unit and --time-unit options apply to --log: a replay file carries its own"
+    fi
     if [ -n "$rotor_axis$rotor_poles$rotor_hold" ]; then
         [ -n "$rotor_inertia" ] || die "--rotor-axis, --rotor-poles, --rotor-raw and --rotor-unhold need --rotor-inertia"
     fi

@@ -80,6 +80,9 @@ scripts/firmware-e2e.sh
 
 log "logs replayed through the firmware under QEMU: on-board == inertia identify pooled (bit for bit), UART telemetry == defmt"
 scripts/replay-check.sh
+
+log "fits off the sample path under QEMU: 8 kHz throw and 10 Hz satellite paced by SysTick, no sample dropped"
+scripts/firmware-paced.sh --quick
 # ---- end of firmware section ----
 
 # ---- benchmarks, quick mode: every estimator and the Cramer-Rao bound on 8 seeds -------------

@@ -433,6 +433,8 @@ struct Sampler {
     lossless: bool,
     /// A sample that waits for room in the ring (lossless).
     waiting: Option<SampleRecord>,
+    /// SysTick ticks since the last sample.
+    tick: u32,
 }
 
 /// The stepper's state, handed to `PendSV` once and handed back at the end.
@@ -461,6 +463,11 @@ fn SysTick() {
         *S = critical_section::with(|cs| SAMPLER.borrow_ref_mut(cs).take());
     }
     let Some(s) = S.as_deref_mut() else { return };
+    s.tick += 1;
+    if s.tick < TICKS_PER_SAMPLE.load(Ordering::Relaxed) {
+        return;
+    }
+    s.tick = 0;
     if let Some(w) = s.waiting.take() {
         if let Err(w) = s.ring.enqueue(w) {
             s.waiting = Some(w);
@@ -686,6 +693,7 @@ fn replay(path: &str, refit_every: u32, lossless: bool, uart: &mut Usart1) -> ! 
         carry: 0.0,
         lossless,
         waiting: None,
+        tick: 0,
     };
     // SAFETY: `app` and `slot` are locals of this function, which never returns; from here on
     // it reaches them only through what the stepper hands back at the end.
@@ -777,7 +785,7 @@ fn replay(path: &str, refit_every: u32, lossless: bool, uart: &mut Usart1) -> ! 
     send_report(uart, &r, None);
     let st = stepper.stats;
     defmt::info!(
-        "paced rate={=f32} Hz delivered={=u32} stepped={=u32} dropped={=u32} waits={=u32} ring_peak={=u32} ring_capacity={=u32} holds={=u32} fit_jobs={=u32} adopted={=u32} inline_fits={=u32} reports_dropped={=u32} worst_fit_latency={=u32} samples {=f32} s worst_refit_latency={=u32} samples {=f32} s",
+        "paced rate={=f32} Hz delivered={=u32} stepped={=u32} dropped={=u32} waits={=u32} ring_peak={=u32} ring_capacity={=u32} holds={=u32} held_for_fit={=u32} fit_jobs={=u32} adopted={=u32} inline_fits={=u32} reports_dropped={=u32} worst_fit_latency={=u32} samples {=f32} s worst_refit_latency={=u32} samples {=f32} s",
         rate,
         DELIVERED.load(Ordering::Relaxed),
         st.stepped,
@@ -786,6 +794,7 @@ fn replay(path: &str, refit_every: u32, lossless: bool, uart: &mut Usart1) -> ! 
         PEAK.load(Ordering::Relaxed),
         (RING - 1) as u32,
         st.holds,
+        st.held_for_fit,
         st.jobs,
         st.adopted,
         st.inline_fits,
@@ -829,17 +838,25 @@ fn read_exact(file: &mut File, buf: &mut [u8]) -> bool {
     true
 }
 
-/// SysTick at `rate_hz` from the reference clock (the core's clock / 8, 21 MHz on the
-/// STM32F405 at 168 MHz, as QEMU's netduinoplus2 models it), its interrupt above PendSV.
+/// The core's clock, Hz: the STM32F405 at 168 MHz, as QEMU's netduinoplus2 models it (its
+/// SysTick reference clock is not modelled, so SysTick runs from the core's clock).
+const CPU_HZ: f32 = 168_000_000.0;
+
+/// SysTick ticks per sample (SysTick's 24-bit reload holds at most 0.1 s at 168 MHz: a slower
+/// rate takes several ticks a sample).
+static TICKS_PER_SAMPLE: AtomicU32 = AtomicU32::new(1);
+
+/// SysTick at a whole multiple of `rate_hz` from the core's clock, its interrupt above
+/// PendSV; the sample interrupt takes a sample every [`TICKS_PER_SAMPLE`] ticks.
 fn start_sample_timer(rate_hz: f32) {
-    const REFCLK_HZ: f32 = 21_000_000.0;
-    let ticks = REFCLK_HZ / rate_hz + 0.5;
-    let reload = if (2.0..16_777_216.0).contains(&ticks) {
-        ticks as u32 - 1
-    } else {
+    let cycles = CPU_HZ / rate_hz;
+    if !(cycles >= 64.0 && cycles < 1e12) {
         defmt::error!("sample rate {=f32} Hz out of SysTick's range", rate_hz);
         exit(3)
-    };
+    }
+    let k = (cycles / 16_777_216.0) as u32 + 1;
+    let reload = (cycles / k as f32 + 0.5) as u32 - 1;
+    TICKS_PER_SAMPLE.store(k, Ordering::Relaxed);
     // SAFETY: the system handler priorities and SysTick's registers, set once here before
     // the timer runs; lower numbers preempt higher ones.
     unsafe {
@@ -850,7 +867,7 @@ fn start_sample_timer(rate_hz: f32) {
         let syst = &*cortex_m::peripheral::SYST::PTR;
         syst.rvr.write(reload);
         syst.cvr.write(0);
-        // Reference clock (CLKSOURCE = 0), interrupt, enable.
+        // The core's clock (CLKSOURCE = 1), interrupt, enable.
         syst.csr.write(0b111);
     }
 }

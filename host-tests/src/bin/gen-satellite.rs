@@ -117,8 +117,9 @@ fn main() -> anyhow::Result<()> {
         h
     };
     let torque_axis = [0.6, 0.0, 0.8];
-    let actuated =
-        |t: f64| a.actuate_every > 0.0 && t > 0.0 && (t % a.actuate_every) < a.actuate_for;
+    let actuated = |t: f64| {
+        a.actuate_every > 0.0 && t >= a.actuate_every && (t % a.actuate_every) < a.actuate_for
+    };
     let n = (a.hours * 3600.0 * a.rate).round() as usize;
     let dt = 1.0 / a.rate;
     let sub = 20;
