@@ -374,9 +374,11 @@ mod tests {
                 omega: w.map(|x| x as f32),
                 accel: [0.0; 3],
                 dt: dt as f32,
+                pipeline_dt: dt as f32,
                 speeds,
                 speeds_known: true,
                 actuated,
+                read_at_us: None,
             });
             for _ in 0..sub {
                 // L' = L x w in the body frame, midpoint steps.

@@ -31,7 +31,7 @@ pub use rate_check::{gate_rate_bound, GATE_MARGIN, GATE_RATE_MARGIN, GATE_RELEAR
 pub use report::{LoopCounters, Report, TensorReport, FAILED_REPORT_AFTER, REPORT_HZ};
 pub use rotor::{BoardInputs, NoBoardInputs};
 pub use sample_loop::{
-    InitError, Poll, SampleInputs, SampleLoop, SampleRecord, INIT_ATTEMPTS, POLL_US,
+    InitError, Poll, SampleInputs, SampleLoop, SampleRecord, Unread, INIT_ATTEMPTS, POLL_US,
 };
 pub use settings::{
     identifier_settings, pipeline_settings, refined_settings, GYRO_NOISE_DENSITY_DPS,

@@ -46,12 +46,13 @@ impl BoardInputs for NoBoardInputs {
     }
 }
 
-/// The momentum of `rotors` at the speeds the board gives for this sample (`None` when there
-/// are no rotors or it gives no speeds: zero goes to the pipeline).
-pub(crate) fn momentum_of<B: BoardInputs>(board: &mut B, rotors: &Rotors) -> Option<[f32; 3]> {
+/// The rotors' speeds the board gives for this sample, and whether it gave them (never
+/// without rotors).
+pub(crate) fn speeds_of<B: BoardInputs>(
+    board: &mut B,
+    rotors: &Rotors,
+) -> ([f32; MAX_ROTORS], bool) {
     let mut speeds = [0.0f32; MAX_ROTORS];
-    if rotors.is_empty() || !board.wheel_speeds(&mut speeds) {
-        return None;
-    }
-    Some(rotors.momentum(&speeds))
+    let known = !rotors.is_empty() && board.wheel_speeds(&mut speeds);
+    (speeds, known)
 }

@@ -12,7 +12,7 @@ use super::clock::SampleTime;
 use super::health::SensorHealth;
 use super::rate_check::RateCheck;
 use super::report::ReportSchedule;
-use super::rotor::momentum_of;
+use super::rotor::speeds_of;
 use super::{
     identifier_settings, pipeline_settings, refined_settings, BoardInputs, LoopCounters,
     NoBoardInputs, Report, SampleClock, SensorStatus, TensorReport,
@@ -53,14 +53,20 @@ pub struct SampleRecord {
     pub omega: [f32; 3],
     /// Specific force, m/s^2, sensor axes.
     pub accel: [f32; 3],
-    /// The time since the previous sample, s.
+    /// The time since the previous sample, s (the identifiers').
     pub dt: f32,
+    /// The time since the previous sample given to the pipeline, s: `dt`, or longer after
+    /// samples the rate-jump check refused.
+    pub pipeline_dt: f32,
     /// The rotors' speeds, rad/s, in the order of the loop's [`Rotors`].
     pub speeds: [f32; MAX_ROTORS],
     /// The speeds are known for this sample (else the momentum is zero).
     pub speeds_known: bool,
     /// An actuator acted on the body ([`BoardInputs::actuated`]).
     pub actuated: bool,
+    /// The sample clock when this loop read it, us ([`SampleLoop::read_record`]); `None` for
+    /// a replayed sample.
+    pub read_at_us: Option<u32>,
 }
 
 /// Why the loop could not start.
@@ -109,6 +115,34 @@ pub enum Poll {
     Stalled,
 }
 
+/// Why [`SampleLoop::read_record`] gave no record: [`Poll`]'s outcomes other than a step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Unread {
+    /// [`Poll::Timeout`].
+    Timeout,
+    /// [`Poll::BusError`].
+    BusError,
+    /// [`Poll::Invalid`].
+    Invalid,
+    /// [`Poll::Implausible`].
+    Implausible,
+    /// [`Poll::Stalled`].
+    Stalled,
+}
+
+impl From<Unread> for Poll {
+    fn from(u: Unread) -> Poll {
+        match u {
+            Unread::Timeout => Poll::Timeout,
+            Unread::BusError => Poll::BusError,
+            Unread::Invalid => Poll::Invalid,
+            Unread::Implausible => Poll::Implausible,
+            Unread::Stalled => Poll::Stalled,
+        }
+    }
+}
+
 /// The gyro, the sample clock and the two identifiers, wired together, with the defences
 /// against a misbehaving sensor or bus: a rate-jump check on samples, dt from the sample
 /// clock, re-initialisation after repeated failures, a wrong `WHO_AM_I` or stalled data, and
@@ -142,6 +176,8 @@ pub struct SampleLoop<IF, C, R = NoBoardInputs> {
     not_fed: u32,
     /// The previous sample was flagged ([`BoardInputs::actuated`]).
     was_actuated: bool,
+    /// The sensor's identity is to be checked before the next sample.
+    check_identity: bool,
     /// The pipeline gates free flights by the accelerometer (else: continuous mode).
     with_accel: bool,
     counters: LoopCounters,
@@ -208,8 +244,10 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoBoardInputs>
         let now_us = clock.now_us(gyro.interface());
         let time = SampleTime::new(&config, pipeline.rate_hz, now_us);
         let reports = ReportSchedule::new(&config, now_us);
-        let pipeline =
-            FlightPipeline::new(pipeline, with_accel).ok_or(InitError::PipelineSettings)?;
+        // `let ... else`, not `ok_or()?`: one temporary of the pipeline fewer in this frame.
+        let Some(pipeline) = FlightPipeline::new(pipeline, with_accel) else {
+            return Err(InitError::PipelineSettings);
+        };
         Ok(SampleLoop {
             gyro,
             config,
@@ -227,6 +265,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoBoardInputs>
             pipeline,
             not_fed: 0,
             was_actuated: false,
+            check_identity: false,
             with_accel,
             counters: LoopCounters::default(),
             reports,
@@ -253,6 +292,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoBoardInputs>
             pipeline: self.pipeline,
             not_fed: self.not_fed,
             was_actuated: self.was_actuated,
+            check_identity: self.check_identity,
             with_accel: self.with_accel,
             counters: self.counters,
             reports: self.reports,
@@ -276,17 +316,55 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: BoardInputs> SampleLoop<IF, C
     }
 
     fn poll_once(&mut self, delay: &mut impl DelayNs) -> Poll {
+        let rec = match self.read_record(delay) {
+            Ok(rec) => rec,
+            Err(u) => return u.into(),
+        };
+        match self.step(&rec, 0) {
+            Some((paper, refined, report)) => Poll::Stepped {
+                paper,
+                refined,
+                report,
+            },
+            None => Poll::HeldOut,
+        }
+    }
+
+    /// The sample path's first half, [`SampleLoop::poll`] up to the estimators: waits for the
+    /// next sample, reads it with the board's inputs, screens it (saturation, stalled data,
+    /// the sample clock, the rate-jump check) and re-initialises the sensor when it stops
+    /// making sense. The record goes to [`SampleLoop::step_record`], at once or through a
+    /// ring (a board whose sample interrupt reads the sensor, `firmware::app::fits`); `Err`
+    /// says what happened instead (a refused sample's time is carried to the next record),
+    /// as [`SampleLoop::poll`] would have.
+    pub fn read_record(&mut self, delay: &mut impl DelayNs) -> Result<SampleRecord, Unread> {
+        // The health check the previous sample made due: is it still our part? (Done here,
+        // before the next wait, so that its transfers come where `poll` has always made
+        // them.)
+        if self.check_identity {
+            self.check_identity = false;
+            match self.gyro.who_am_i() {
+                Ok(icm42688::registers::WHO_AM_I_VALUE) => {}
+                Ok(_) => {
+                    self.counters.wrong_id = self.counters.wrong_id.saturating_add(1);
+                    self.reinit(delay);
+                }
+                Err(_) => {
+                    self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
+                }
+            }
+        }
         match self.gyro.wait_data_ready(delay, POLL_US, self.max_polls) {
             Ok(()) => {}
             Err(Error::Timeout) => {
                 self.counters.timeouts = self.counters.timeouts.saturating_add(1);
                 self.failure(delay);
-                return Poll::Timeout;
+                return Err(Unread::Timeout);
             }
             Err(_) => {
                 self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
                 self.failure(delay);
-                return Poll::BusError;
+                return Err(Unread::BusError);
             }
         }
         // Accelerometer and gyro of the same sample, one 12-byte burst.
@@ -295,12 +373,12 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: BoardInputs> SampleLoop<IF, C
             Err(Error::InvalidSample) => {
                 self.counters.invalid = self.counters.invalid.saturating_add(1);
                 self.failure(delay);
-                return Poll::Invalid;
+                return Err(Unread::Invalid);
             }
             Err(_) => {
                 self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
                 self.failure(delay);
-                return Poll::BusError;
+                return Err(Unread::BusError);
             }
         };
         let raw = imu.gyro;
@@ -315,7 +393,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: BoardInputs> SampleLoop<IF, C
         if self.health.stalled(imu, saturation.gyro_any()) {
             self.counters.stalled = self.counters.stalled.saturating_add(1);
             self.reinit(delay);
-            return Poll::Stalled;
+            return Err(Unread::Stalled);
         }
 
         // dt from the sample clock, in whole periods.
@@ -326,7 +404,8 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: BoardInputs> SampleLoop<IF, C
         let dt = self.time.seconds_of(periods);
 
         let omega = icm42688::raw3_to_rad_s(raw, self.gyro.full_scale());
-        let momentum = momentum_of(&mut self.board, &self.rotors);
+        let (speeds, speeds_known) = speeds_of(&mut self.board, &self.rotors);
+        let momentum = speeds_known.then(|| self.rotors.momentum(&speeds));
         self.last_inputs = SampleInputs {
             gyro: omega,
             accel: icm42688::raw3_to_m_s2(imu.accel, self.gyro.accel_full_scale()),
@@ -343,49 +422,18 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: BoardInputs> SampleLoop<IF, C
             self.counters.implausible = self.counters.implausible.saturating_add(1);
             self.identifier.step([f32::NAN; 3], dt);
             self.refined.step([f32::NAN; 3], dt);
-            return Poll::Implausible;
+            return Err(Unread::Implausible);
         };
-        if self.last_inputs.actuated {
-            self.hold_out();
-            return Poll::HeldOut;
-        }
-        self.feed_pipeline(omega, self.last_inputs.accel, dt_pipeline);
-
-        bench::step_begin();
-        let paper = self.identifier.step(omega, dt);
-        bench::step_end();
-        bench::refined_begin();
-        let refined = self.refined.step(omega, dt);
-        bench::refined_end();
-        self.count(&paper);
-        self.health.sample_ok();
-
-        let report = if self.reports.due(now) {
-            let r = self.report();
-            self.reports.sent(self.counters.saturated);
-            Some(r)
-        } else {
-            None
-        };
-
-        // Health check: is it still our part?
-        if self.health.check_due() {
-            match self.gyro.who_am_i() {
-                Ok(icm42688::registers::WHO_AM_I_VALUE) => {}
-                Ok(_) => {
-                    self.counters.wrong_id = self.counters.wrong_id.saturating_add(1);
-                    self.reinit(delay);
-                }
-                Err(_) => {
-                    self.counters.bus_errors = self.counters.bus_errors.saturating_add(1);
-                }
-            }
-        }
-        Poll::Stepped {
-            paper,
-            refined,
-            report,
-        }
+        Ok(SampleRecord {
+            omega,
+            accel: self.last_inputs.accel,
+            dt,
+            pipeline_dt: dt_pipeline,
+            speeds,
+            speeds_known,
+            actuated: self.last_inputs.actuated,
+            read_at_us: Some(now),
+        })
     }
 
     /// One more consecutive failure; [`REINIT_AFTER`](super::REINIT_AFTER) of them
@@ -461,41 +509,74 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: BoardInputs> SampleLoop<IF, C
         }
     }
 
-    /// One sample as the board's sample path delivers it (an interrupt that read the sensor
-    /// and the board's inputs, [`SampleRecord`]) or as a replayed log gives it (QEMU
-    /// `--replay`, host checks: the values the host tool `inertia identify` feeds its
-    /// pipeline): to this loop's pipeline and both identifiers, bypassing the driver, the
-    /// rate-jump check and the sample clock (screened where the sample was read). The rotors'
-    /// momentum is [`Rotors::momentum`] of the record's speeds. A report is returned every
-    /// `report_every` samples.
+    /// One sample as the sample path delivers it: read by this loop
+    /// ([`SampleLoop::read_record`]: on a board whose sample interrupt reads the sensor and
+    /// steps the ring) or taken from a replayed log (QEMU `--replay`, host checks: the values
+    /// the host tool `inertia identify` feeds its pipeline, bypassing the driver, the rate-jump
+    /// check and the sample clock). To the pipeline and both identifiers, or held out when
+    /// flagged ([`BoardInputs::actuated`]); the rotors' momentum is [`Rotors::momentum`] of the
+    /// record's speeds. A report is returned when due: by the sample clock for a record read
+    /// here, every `report_every` samples for a replayed one.
     pub fn step_record(&mut self, rec: &SampleRecord, report_every: u32) -> Option<Report> {
-        bench::loop_begin();
-        let momentum = (rec.speeds_known && !self.rotors.is_empty())
-            .then(|| self.rotors.momentum(&rec.speeds));
-        self.last_inputs = SampleInputs {
-            gyro: rec.omega,
-            accel: rec.accel,
-            momentum,
-            actuated: rec.actuated,
-            saturated: Saturation::default(),
-            dt: rec.dt,
-        };
-        self.time.advance_one();
-        self.reports.advance(1);
-        if rec.actuated {
+        self.step(rec, report_every).and_then(|(_, _, r)| r)
+    }
+
+    /// [`SampleLoop::step_record`] with both identifiers' steps; `None` when held out.
+    fn step(
+        &mut self,
+        rec: &SampleRecord,
+        report_every: u32,
+    ) -> Option<(Estimate, Estimate, Option<Report>)> {
+        if rec.read_at_us.is_none() {
+            bench::loop_begin();
+            let momentum = (rec.speeds_known && !self.rotors.is_empty())
+                .then(|| self.rotors.momentum(&rec.speeds));
+            self.last_inputs = SampleInputs {
+                gyro: rec.omega,
+                accel: rec.accel,
+                momentum,
+                actuated: rec.actuated,
+                saturated: Saturation::default(),
+                dt: rec.dt,
+            };
+            self.time.advance_one();
+            self.reports.advance(1);
+        }
+        let estimates = if rec.actuated {
             self.hold_out();
-        } else {
-            let paper = self.identifier.step(rec.omega, rec.dt);
-            self.refined.step(rec.omega, rec.dt);
-            self.count(&paper);
-            self.feed_pipeline(rec.omega, rec.accel, rec.dt);
-        }
-        bench::loop_end();
-        if self.reports.due_every(report_every) {
-            Some(self.report())
-        } else {
             None
-        }
+        } else {
+            self.feed_pipeline(rec.omega, rec.accel, rec.pipeline_dt);
+            bench::step_begin();
+            let paper = self.identifier.step(rec.omega, rec.dt);
+            bench::step_end();
+            bench::refined_begin();
+            let refined = self.refined.step(rec.omega, rec.dt);
+            bench::refined_end();
+            self.count(&paper);
+            Some((paper, refined))
+        };
+        let report = match rec.read_at_us {
+            Some(now) => {
+                let (paper, refined) = estimates?;
+                self.health.sample_ok();
+                let report = if self.reports.due(now) {
+                    let r = self.report();
+                    self.reports.sent(self.counters.saturated);
+                    Some(r)
+                } else {
+                    None
+                };
+                // Is it still our part? Asked before the next sample's wait.
+                self.check_identity = self.health.check_due();
+                return Some((paper, refined, report));
+            }
+            None => {
+                bench::loop_end();
+                self.reports.due_every(report_every).then(|| self.report())
+            }
+        };
+        estimates.map(|(p, r)| (p, r, report))
     }
 
     /// The free-flight pipeline's estimate as reported.

@@ -257,7 +257,10 @@ fn run_log(path: &str, fail_every: u32, uart: &mut Usart1) -> ! {
     let clock = move |i: &SpiInterface<SimIcm42688<LogSource>>| {
         i.bus().stats().samples.wrapping_mul(period_us)
     };
-    let mut app = match SampleLoop::new(Icm42688::new_spi(sim), &mut delay, config, clock) {
+    // Matched by reference, not moved out of the `Result`: a move would be a second copy of
+    // the loop in this frame.
+    let mut built = SampleLoop::new(Icm42688::new_spi(sim), &mut delay, config, clock);
+    let app = match &mut built {
         Ok(app) => app,
         Err(e) => {
             defmt::error!("init failed: {}", e);
@@ -339,7 +342,7 @@ fn run_log(path: &str, fail_every: u32, uart: &mut Usart1) -> ! {
         hw.saturating_sub(loop_depth),
         core::mem::size_of::<identifier_core::Identifier>(),
         core::mem::size_of::<identifier_core::Refined>(),
-        core::mem::size_of_val(&app)
+        core::mem::size_of_val(&*app)
     );
     let latched = app.gyro().interface().bus().stats().samples;
     if latched != header.samples {
@@ -493,9 +496,11 @@ fn SysTick() {
         omega: x.omega,
         accel: x.accel,
         dt: x.dt + s.carry,
+        pipeline_dt: x.dt + s.carry,
         speeds: x.speeds,
         speeds_known: true,
         actuated: x.actuated,
+        read_at_us: None,
     };
     DELIVERED.fetch_add(1, Ordering::Relaxed);
     match s.ring.enqueue(rec) {
@@ -551,6 +556,28 @@ fn PendSV() {
 unsafe fn forever<T>(x: &mut T) -> &'static mut T {
     // SAFETY: the caller's frame outlives the program (see above); no other reference is used.
     unsafe { &mut *(x as *mut T) }
+}
+
+/// The replay mode's loop, built in one go with the log's pipeline settings and rotors. Not
+/// inlined: the construction's temporaries (a pipeline of tens of kilobytes among them) live
+/// in this frame, gone once it returns, not in [`replay`]'s for good.
+#[inline(never)]
+fn build_replay_loop(
+    settings: identifier_core::PipelineSettings,
+    with_accel: bool,
+    rotors: Rotors,
+) -> Result<ReplayLoop, InitError<<ReplayBus as icm42688::RegisterInterface>::Error>> {
+    let sim = SimIcm42688::new(no_samples as fn() -> Option<[f32; 3]>);
+    SampleLoop::new_with(
+        Icm42688::new_spi(sim),
+        &mut NoDelay,
+        Config::identifier(),
+        no_clock as fn(&ReplayBus) -> u32,
+        NoBoardInputs,
+        settings,
+        with_accel,
+        rotors,
+    )
 }
 
 /// `--replay`: the log's samples into the sample loop at the log's own rate, delivered by the
@@ -629,22 +656,9 @@ fn replay(path: &str, refit_every: u32, lossless: bool, uart: &mut Usart1) -> ! 
         .with_momentum_resolution(header.momentum_quantum)
         .with_averaging_gyro(header.gyro_averaging)
         .with_filtered_gyro(header.gyro_smoothing);
-    let mut delay = NoDelay;
-    let sim = SimIcm42688::new(no_samples as fn() -> Option<[f32; 3]>);
-    // Built in one go (the log's pipeline settings and rotors): the loop is tens of
-    // kilobytes, and each move of it by value is a copy on the stack.
     // Matched by reference, not moved out of the `Result`: a move would be a second copy of
     // the loop in this frame.
-    let mut built = SampleLoop::new_with(
-        Icm42688::new_spi(sim),
-        &mut delay,
-        Config::identifier(),
-        no_clock as fn(&ReplayBus) -> u32,
-        NoBoardInputs,
-        settings,
-        header.with_accel,
-        rotors,
-    );
+    let mut built = build_replay_loop(settings, header.with_accel, rotors);
     let app: &mut ReplayLoop = match &mut built {
         Ok(app) => app,
         Err(InitError::PipelineSettings) => {
@@ -656,8 +670,27 @@ fn replay(path: &str, refit_every: u32, lossless: bool, uart: &mut Usart1) -> ! 
             exit(1)
         }
     };
+    // SAFETY: `built` is a local of this function, which never returns (`paced` does not);
+    // from here on it is reached only through `lp`.
+    let lp = unsafe { forever(app) };
+    paced(lp, file, &header, refit_every, lossless, uart)
+}
+
+/// The paced replay of [`replay`] once its loop is built: the fit slot, the queues, the two
+/// interrupts and thread mode's fits. A function of its own so that its frame (the slot) and
+/// the loop's construction (in [`replay`]'s) are not on the stack at the same time.
+#[inline(never)]
+fn paced(
+    lp: &'static mut ReplayLoop,
+    file: File,
+    header: &ReplayHeader,
+    refit_every: u32,
+    lossless: bool,
+    uart: &mut Usart1,
+) -> ! {
+    let n_rotors = header.rotors as usize;
     // The fit slot: the fits' own copy of the pipeline.
-    let mut slot: FlightPipeline = *app.pipeline();
+    let mut slot: FlightPipeline = *lp.pipeline();
     let loop_depth = stack::depth();
     let report_every = {
         let r = header.rate_hz / 10.0;
@@ -695,9 +728,9 @@ fn replay(path: &str, refit_every: u32, lossless: bool, uart: &mut Usart1) -> ! 
         waiting: None,
         tick: 0,
     };
-    // SAFETY: `app` and `slot` are locals of this function, which never returns; from here on
-    // it reaches them only through what the stepper hands back at the end.
-    let (lp, slot, sampler) = unsafe { (forever(app), forever(&mut slot), forever(&mut sampler)) };
+    // SAFETY: `slot` and `sampler` are locals of this function, which never returns; from here
+    // on it reaches them only through the interrupts and what the stepper hands back.
+    let (slot, sampler) = unsafe { (forever(&mut slot), forever(&mut sampler)) };
     critical_section::with(|cs| {
         *SAMPLER.borrow_ref_mut(cs) = Some(sampler);
         *STEP.borrow_ref_mut(cs) = Some(StepCtx {
@@ -850,7 +883,7 @@ static TICKS_PER_SAMPLE: AtomicU32 = AtomicU32::new(1);
 /// PendSV; the sample interrupt takes a sample every [`TICKS_PER_SAMPLE`] ticks.
 fn start_sample_timer(rate_hz: f32) {
     let cycles = CPU_HZ / rate_hz;
-    if !(cycles >= 64.0 && cycles < 1e12) {
+    if !(64.0..1e12).contains(&cycles) {
         defmt::error!("sample rate {=f32} Hz out of SysTick's range", rate_hz);
         exit(3)
     }
