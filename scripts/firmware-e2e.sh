@@ -104,6 +104,15 @@ for k in samples skipped bus_errors; do
     check "counter $k" "$([ "$(fin "$k")" = "$(ref "$k")" ] && echo 1 || echo 0)" \
         "firmware $(fin "$k"), host $(ref "$k")"
 done
+# The stack's painted high-water at least 1 KiB below its reservation (at the reservation it
+# ran into the statics below it: nothing on the MCU stops it).
+stack_line="$(grep -m1 ' stack: ' "$OUT/defmt.txt" || true)"
+reserved="$(sed -n 's/.*stack: \([0-9]*\) bytes reserved.*/\1/p' <<<"$stack_line")"
+high="$(sed -n 's/.*high-water \([0-9]*\) bytes during start-up and init, \([0-9]*\) bytes during the sample loop.*/\1 \2/p' <<<"$stack_line")"
+worst="$(tr ' ' '\n' <<<"$high" | sort -n | tail -n 1)"
+check "stack high-water below its reservation" \
+    "$([ -n "$worst" ] && [ -n "$reserved" ] && [ $((worst + 1024)) -le "$reserved" ] && echo 1 || echo 0)" \
+    "high-water $worst of $reserved bytes (init and loop: $high)"
 truth="$(ref truth)"
 for id in paper refined; do
     tol="$TRUTH_TOL"

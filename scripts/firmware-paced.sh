@@ -16,7 +16,8 @@
 #
 # Checks, per log (non-zero exit on any failure): QEMU exit 0; samples delivered = the log's;
 # stepped = delivered; dropped = 0; the ring's peak below its capacity; no fit run by the
-# stepper itself (inline_fits = 0); at least one fit. Printed: each fit's latency in samples
+# stepper itself (inline_fits = 0); at least one fit; the stack's painted high-water at least
+# 1 KiB below its reservation (at the reservation it ran into the statics below it). Printed: each fit's latency in samples
 # and in virtual seconds, and a summary table.
 #
 #   scripts/firmware-paced.sh [--quick]
@@ -97,6 +98,14 @@ for name, rc in (("throw8k", rc_drone), ("satellite", rc_sat)):
         ("no fit in the stepper (inline_fits = 0)", g("inline_fits") == 0),
         ("at least one fit off the sample path", len(fits) >= 1),
     ]
+    st = re.search(r"stack: (\d+) bytes reserved; high-water (\d+)", txt)
+    if st:
+        reserved, high = int(st.group(1)), int(st.group(2))
+        print(f"  stack high-water {high} of {reserved} bytes")
+        # A high-water at the reservation means the stack ran into the statics below it.
+        checks.append(("stack high-water below its reservation (1 KiB margin)", high + 1024 <= reserved))
+    else:
+        checks.append(("stack figures printed", False))
     for what, ok in checks:
         print(f"  {'PASS' if ok else 'FAIL'} {what}")
         if not ok: fail.append(f"{name}: {what}")

@@ -182,8 +182,8 @@ if [ -n "$log_file$replay_file" ]; then
     refit=()
     [ -z "$refit_every" ] || refit=(--refit-every "$refit_every")
     [ -z "$lossless" ] || refit+=(--lossless)
-    SERIAL="$OUT/uart.bin" scripts/firmware-qemu.sh "$ELF" --replay "$OUT/replay.bin" ${refit[@]+"${refit[@]}"} \
-        -- -icount "$ICOUNT" >"$OUT/defmt.txt"
+    SERIAL="$OUT/uart.bin" ICOUNT="$ICOUNT" scripts/firmware-qemu.sh "$ELF" --replay "$OUT/replay.bin" \
+        ${refit[@]+"${refit[@]}"} >"$OUT/defmt.txt"
     rc=$?
     set -e
     grep -E ' replay |ERROR|WARN| paced ' "$OUT/defmt.txt" || true
@@ -206,7 +206,7 @@ cargo run -q --release -p host-tests --bin gen-log -- \
 
 log "running the firmware under QEMU; decoded defmt stream (one report per second shown)"
 set +e
-SERIAL="$OUT/uart.bin" scripts/firmware-qemu.sh "$ELF" "$OUT/gyro.log" "$bus_every" >"$OUT/defmt.txt"
+SERIAL="$OUT/uart.bin" ICOUNT="$ICOUNT" scripts/firmware-qemu.sh "$ELF" "$OUT/gyro.log" "$bus_every" >"$OUT/defmt.txt"
 rc=$?
 set -e
 grep -E ' gyro log |ERROR|WARN' "$OUT/defmt.txt" || true

@@ -244,21 +244,24 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoBoardInputs>
         let now_us = clock.now_us(gyro.interface());
         let time = SampleTime::new(&config, pipeline.rate_hz, now_us);
         let reports = ReportSchedule::new(&config, now_us);
-        // `let ... else`, not `ok_or()?`: one temporary of the pipeline fewer in this frame.
+        // Two sample periods of polling before a timeout.
+        let max_polls = (2 * config.odr.period_us() / POLL_US).max(2);
+        let rate_check = RateCheck::new(&config);
+        // `let ... else`, not `ok_or()?`, and no call between it and the loop: each would keep
+        // the pipeline or the loop in a temporary of its own.
         let Some(pipeline) = FlightPipeline::new(pipeline, with_accel) else {
             return Err(InitError::PipelineSettings);
         };
         Ok(SampleLoop {
             gyro,
             config,
-            // Two sample periods of polling before a timeout.
-            max_polls: (2 * config.odr.period_us() / POLL_US).max(2),
+            max_polls,
             clock,
             time,
             board,
             rotors,
             health: SensorHealth::default(),
-            rate_check: RateCheck::new(&config),
+            rate_check,
             last_inputs: SampleInputs::default(),
             identifier,
             refined,

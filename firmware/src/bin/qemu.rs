@@ -28,7 +28,7 @@ use firmware::log_format::{decode_sample, Header, HEADER_LEN, SAMPLE_LEN};
 use firmware::replay_format::{self, ReplayHeader};
 use firmware::uplink::{send_report, ByteSink};
 use firmware::{
-    stack, InitError, NoBoardInputs, NoDelay, Poll, Report, SampleLoop, SampleRecord, TensorReport,
+    stack, InitError, NoBoardInputs, NoDelay, Report, SampleLoop, SampleRecord, TensorReport,
 };
 use heapless::spsc::{Consumer, Producer, Queue};
 use icm42688::sim::{SampleSource, SimIcm42688};
@@ -212,6 +212,83 @@ fn main() -> ! {
     run_log(path, fail_every, &mut uart)
 }
 
+/// The simulated part's bus in the log mode.
+type LogBus = SpiInterface<SimIcm42688<LogSource>>;
+
+/// The sample loop in the log mode.
+type LogLoop = SampleLoop<LogBus, fn(&LogBus) -> u32, NoBoardInputs>;
+
+/// The gyro's sample period in the log mode, us.
+static PERIOD_US: AtomicU32 = AtomicU32::new(1000);
+
+/// The log mode's clock. The simulated part models no time: the loop's clock is its count of
+/// latched samples (one per data-ready poll) times the period, so a sample lost on the bus
+/// lengthens the next step.
+fn log_clock(i: &LogBus) -> u32 {
+    i.bus()
+        .stats()
+        .samples
+        .wrapping_mul(PERIOD_US.load(Ordering::Relaxed))
+}
+
+/// The log mode's sample interrupt state (the board's structure: read, ring and step in one
+/// interrupt), handed to SysTick once and handed back at the end.
+struct LogCtx {
+    lp: &'static mut LogLoop,
+    stepper: Stepper<'static>,
+    ring_in: Producer<'static, SampleRecord>,
+    ring_out: Consumer<'static, SampleRecord>,
+    jobs: Producer<'static, FitJob<'static>>,
+    done: Consumer<'static, FitJob<'static>>,
+    reports: Producer<'static, Report>,
+}
+
+static LOG: Mutex<RefCell<Option<LogCtx>>> = Mutex::new(RefCell::new(None));
+static LOG_BACK: Mutex<RefCell<Option<LogCtx>>> = Mutex::new(RefCell::new(None));
+
+/// One sample period of the log mode, in SysTick's interrupt, as the board's TIM2 does it:
+/// read a sample through the driver and the simulated part into the ring, step the loop with
+/// the ring's samples, hand fit jobs to thread mode. True once the log is exhausted and every
+/// sample was stepped (a timeout alone is not the end: with injected bus errors a wait can
+/// fail before it times out).
+fn log_tick(c: &mut LogCtx) -> bool {
+    let exhausted = c.lp.gyro().interface().bus().exhausted();
+    if !exhausted {
+        if let Ok(rec) = c.lp.read_record(&mut NoDelay) {
+            DELIVERED.fetch_add(1, Ordering::Relaxed);
+            match c.ring_in.enqueue(rec) {
+                Ok(()) => {
+                    let n = c.ring_in.len() as u32;
+                    if n > PEAK.load(Ordering::Relaxed) {
+                        PEAK.store(n, Ordering::Relaxed);
+                    }
+                }
+                Err(_) => {
+                    DROPPED.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        }
+        if let Some(r) = c.lp.take_failed_report() {
+            let _ = c.reports.enqueue(r);
+        }
+    }
+    let now = DELIVERED.load(Ordering::Relaxed);
+    c.stepper.run(
+        c.lp,
+        &mut c.ring_out,
+        &mut c.jobs,
+        &mut c.done,
+        &mut c.reports,
+        now,
+    );
+    if exhausted && c.ring_out.is_empty() && !c.stepper.job_out() {
+        // SAFETY: SysTick's control register; only this handler and start-up touch it.
+        unsafe { (*cortex_m::peripheral::SYST::PTR).csr.write(0) };
+        return true;
+    }
+    false
+}
+
 /// A gyro log through the simulated part and the whole sample loop (see the module docs).
 #[inline(never)]
 fn run_log(path: &str, fail_every: u32, uart: &mut Usart1) -> ! {
@@ -250,16 +327,11 @@ fn run_log(path: &str, fail_every: u32, uart: &mut Usart1) -> ! {
     }
 
     let sim = SimIcm42688::new(source).with_bus_error_every(fail_every);
-    let mut delay = NoDelay;
-    // The simulated part models no time: the loop's clock is its count of latched samples
-    // (one per data-ready poll), so a sample lost on the bus lengthens the next step.
-    let period_us = config.odr.period_us();
-    let clock = move |i: &SpiInterface<SimIcm42688<LogSource>>| {
-        i.bus().stats().samples.wrapping_mul(period_us)
-    };
+    PERIOD_US.store(config.odr.period_us(), Ordering::Relaxed);
+    let clock = log_clock as fn(&LogBus) -> u32;
     // Matched by reference, not moved out of the `Result`: a move would be a second copy of
     // the loop in this frame.
-    let mut built = SampleLoop::new(Icm42688::new_spi(sim), &mut delay, config, clock);
+    let mut built = build_log_loop(sim, config, clock);
     let app = match &mut built {
         Ok(app) => app,
         Err(e) => {
@@ -274,27 +346,10 @@ fn run_log(path: &str, fail_every: u32, uart: &mut Usart1) -> ! {
     stack::paint();
     firmware::bench::calibrate();
 
-    // Until the log is exhausted (a timeout alone is not the end: with injected bus errors a
-    // wait can fail before it times out).
-    while !app.gyro().interface().bus().exhausted() {
-        if let Poll::Stepped {
-            report: Some(r), ..
-        } = app.poll(&mut delay)
-        {
-            firmware::app::log_report(&r);
-            firmware::app::log_tensor(&r, false);
-            send_report(uart, &r, None);
-        }
-        if let Some(r) = app.take_failed_report() {
-            firmware::app::log_report(&r);
-            firmware::app::log_tensor(&r, false);
-            send_report(uart, &r, None);
-        }
-        // A free flight ended: its output-error fits run here, between samples.
-        if app.fits_pending() {
-            app.fit_ended_flight();
-        }
-    }
+    // The sample path in SysTick's interrupt at the ODR, the fits in thread mode on a copy of
+    // the pipeline (the board's structure, `firmware-stm32f405`).
+    let lp: &'static mut LogLoop = run_paced_log(app, config.odr.hz(), uart);
+    let app = lp;
 
     // The log has ended: a flight still being fed ends with it.
     app.end_flight();
@@ -462,8 +517,19 @@ static BACK: Mutex<RefCell<Option<StepCtx>>> = Mutex::new(RefCell::new(None));
 #[exception]
 fn SysTick() {
     static mut S: Option<&'static mut Sampler> = None;
-    if S.is_none() {
-        *S = critical_section::with(|cs| SAMPLER.borrow_ref_mut(cs).take());
+    static mut L: Option<LogCtx> = None;
+    if S.is_none() && L.is_none() {
+        critical_section::with(|cs| {
+            *S = SAMPLER.borrow_ref_mut(cs).take();
+            *L = LOG.borrow_ref_mut(cs).take();
+        });
+    }
+    if let Some(l) = L.as_mut() {
+        if log_tick(l) {
+            let back = L.take();
+            critical_section::with(|cs| *LOG_BACK.borrow_ref_mut(cs) = back);
+        }
+        return;
     }
     let Some(s) = S.as_deref_mut() else { return };
     s.tick += 1;
@@ -556,6 +622,120 @@ fn PendSV() {
 unsafe fn forever<T>(x: &mut T) -> &'static mut T {
     // SAFETY: the caller's frame outlives the program (see above); no other reference is used.
     unsafe { &mut *(x as *mut T) }
+}
+
+/// The sample ring, the fit jobs' two queues and the reports' queue, once (one set for
+/// whichever mode runs).
+#[allow(clippy::type_complexity)]
+fn queues() -> Option<(
+    &'static mut Queue<SampleRecord, RING>,
+    &'static mut Queue<FitJob<'static>, 2>,
+    &'static mut Queue<FitJob<'static>, 2>,
+    &'static mut Queue<Report, REPORTS>,
+)> {
+    Some((
+        cortex_m::singleton!(: Queue<SampleRecord, RING> = Queue::new())?,
+        cortex_m::singleton!(: Queue<FitJob<'static>, 2> = Queue::new())?,
+        cortex_m::singleton!(: Queue<FitJob<'static>, 2> = Queue::new())?,
+        cortex_m::singleton!(: Queue<Report, REPORTS> = Queue::new())?,
+    ))
+}
+
+/// The log mode's sample loop paced by SysTick at `rate_hz`: the fit slot, the queues, the
+/// interrupt, and thread mode's fits and reports until the log is exhausted; returns the loop.
+/// A function of its own: its frame (the slot) is on the stack only while it runs.
+#[inline(never)]
+fn run_paced_log(app: &mut LogLoop, rate_hz: f32, uart: &mut Usart1) -> &'static mut LogLoop {
+    let mut slot: FlightPipeline = *app.pipeline();
+    let Some((ring, jobs, done, reports)) = queues() else {
+        exit(3)
+    };
+    let (ring_in, ring_out) = ring.split();
+    let (jobs_in, mut jobs_out) = jobs.split();
+    let (mut done_in, done_out) = done.split();
+    let (reports_in, mut reports_out) = reports.split();
+    // SAFETY: `app` lives in `run_log`'s frame and `slot` in this one; neither function
+    // returns before the interrupt has handed its state back (`LOG_BACK`), and `run_log` never
+    // returns at all; meanwhile they are reached only through the interrupt.
+    let (lp, slot) = unsafe { (forever(app), forever(&mut slot)) };
+    critical_section::with(|cs| {
+        *LOG.borrow_ref_mut(cs) = Some(LogCtx {
+            lp,
+            stepper: Stepper::new(slot, 0, 1),
+            ring_in,
+            ring_out,
+            jobs: jobs_in,
+            done: done_out,
+            reports: reports_in,
+        });
+    });
+    start_sample_timer(rate_hz);
+    let back = loop {
+        if let Some(mut job) = jobs_out.dequeue() {
+            job.run(|| DELIVERED.load(Ordering::Relaxed));
+            if done_in.enqueue(job).is_err() {
+                defmt::error!("fit job queue full");
+            }
+            continue;
+        }
+        if let Some(r) = reports_out.dequeue() {
+            firmware::app::log_report(&r);
+            firmware::app::log_tensor(&r, false);
+            send_report(uart, &r, None);
+            continue;
+        }
+        if let Some(back) = critical_section::with(|cs| LOG_BACK.borrow_ref_mut(cs).take()) {
+            break back;
+        }
+        // Sleep until an interrupt, checked with interrupts masked (see `paced`).
+        critical_section::with(|cs| {
+            if !jobs_out.ready() && !reports_out.ready() && LOG_BACK.borrow_ref(cs).is_none() {
+                cortex_m::asm::wfi();
+            }
+        });
+    };
+    while let Some(r) = reports_out.dequeue() {
+        firmware::app::log_report(&r);
+        firmware::app::log_tensor(&r, false);
+        send_report(uart, &r, None);
+    }
+    let st = back.stepper.stats;
+    defmt::info!(
+        "paced rate={=f32} Hz delivered={=u32} stepped={=u32} dropped={=u32} ring_peak={=u32} ring_capacity={=u32} holds={=u32} fit_jobs={=u32} adopted={=u32} inline_fits={=u32} reports_dropped={=u32}",
+        rate_hz,
+        DELIVERED.load(Ordering::Relaxed),
+        st.stepped,
+        DROPPED.load(Ordering::Relaxed),
+        PEAK.load(Ordering::Relaxed),
+        (RING - 1) as u32,
+        st.holds,
+        st.jobs,
+        st.adopted,
+        st.inline_fits,
+        st.reports_dropped
+    );
+    back.lp
+}
+
+/// The log mode's loop, built. Not inlined: the construction's temporaries (a pipeline of
+/// tens of kilobytes among them) live in this frame, gone once it returns, not in
+/// [`run_log`]'s for good.
+#[inline(never)]
+fn build_log_loop(
+    sim: SimIcm42688<LogSource>,
+    config: Config,
+    clock: fn(&LogBus) -> u32,
+) -> Result<LogLoop, InitError<<LogBus as icm42688::RegisterInterface>::Error>> {
+    SampleLoop::new_with(
+        Icm42688::new_spi(sim),
+        &mut NoDelay,
+        config,
+        clock,
+        NoBoardInputs,
+        firmware::pipeline_settings(&config),
+        true,
+        Rotors::NONE,
+    )
 }
 
 /// The replay mode's loop, built in one go with the log's pipeline settings and rotors. Not
@@ -700,12 +880,7 @@ fn paced(
             1
         }
     };
-    let (Some(ring), Some(jobs), Some(done), Some(reports)) = (
-        cortex_m::singleton!(: Queue<SampleRecord, RING> = Queue::new()),
-        cortex_m::singleton!(: Queue<FitJob<'static>, 2> = Queue::new()),
-        cortex_m::singleton!(: Queue<FitJob<'static>, 2> = Queue::new()),
-        cortex_m::singleton!(: Queue<Report, REPORTS> = Queue::new()),
-    ) else {
+    let Some((ring, jobs, done, reports)) = queues() else {
         exit(3)
     };
     let (ring_p, ring_c) = ring.split();
