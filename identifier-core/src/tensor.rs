@@ -141,16 +141,15 @@ impl TensorSettings {
     }
 
     /// Settings for a gyro sampled at `rate_hz` with white noise `noise_std` (rad/s per
-    /// sample): the longest step is ten sample periods but at most 0.1 s (no thrown body is
-    /// followed at under 100 Hz, and a log whose steps all exceed it has the wrong time unit);
-    /// at least 50 ms of samples (20 to 200) before an estimate; everything else is
-    /// rate-independent. Invalid inputs give settings that
-    /// [`TensorEstimator::new`] refuses.
+    /// sample): the longest step is ten sample periods (a satellite's 1 Hz gyro included; a
+    /// step that turns the body by more than [`MAX_STEP_TURN_RAD`] is a gap too, whatever the
+    /// rate, so a log whose time unit is wrong still shows its gaps); at least 50 ms of
+    /// samples (20 to 200) before an estimate; everything else is rate-independent. Invalid
+    /// inputs give settings that [`TensorEstimator::new`] refuses.
     pub fn for_rate(rate_hz: f32, noise_std: f32) -> Self {
         let mut s = Self::new();
         s.noise_std = noise_std;
-        let m = 10.0 / rate_hz;
-        s.max_dt = if m < 0.1 { m } else { 0.1 };
+        s.max_dt = 10.0 / rate_hz;
         // 50 ms of samples, between 20 and 200: a 0.85 s toss at 100 Hz has 85.
         let n = rate_hz * 0.05;
         s.min_samples = if n >= 200.0 {
@@ -189,6 +188,12 @@ impl Default for TensorSettings {
     }
 }
 
+/// The most a body may turn between two samples, rad (`|w|_1 dt`), for the step to be
+/// integrated: a longer step is a gap ([`TensorStatus::UnitsLookWrong`] when more than a tenth
+/// of the steps are). A time unit read wrong (ms as s) turns a thrown body by radians per
+/// step; a satellite's 1 Hz gyro at 0.5 rad/s turns it by half of one.
+pub const MAX_STEP_TURN_RAD: f32 = 1.0;
+
 /// Why an estimate is or is not to be trusted. Exactly one applies; the first in this order
 /// that holds is reported.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -198,7 +203,8 @@ pub enum TensorStatus {
     TooFewSamples,
     /// Rates above [`TensorSettings::max_plausible_rate`] were seen (deg/s data read as
     /// rad/s?), or more than a tenth of the steps were gaps longer than
-    /// [`TensorSettings::max_dt`] (time in ms or us read as seconds?).
+    /// [`TensorSettings::max_dt`] or than [`MAX_STEP_TURN_RAD`] of turn (time in ms or us read
+    /// as seconds?).
     UnitsLookWrong,
     /// More than 1 % of the samples were saturated (a clipped throw).
     Saturated,
@@ -764,7 +770,10 @@ impl TensorEstimator {
             self.counters.used = self.counters.used.saturating_add(1);
             return SampleStatus::Anchored;
         };
-        if dt > self.settings.max_dt {
+        // A step is a gap when it is long against the sample rate or against the motion: the
+        // samples must follow the body's turning (`|w|_1 dt`, at least the angle turned).
+        let turn = (omega[0].abs() + omega[1].abs() + omega[2].abs()) * dt;
+        if dt > self.settings.max_dt || turn > MAX_STEP_TURN_RAD {
             self.counters.gaps = self.counters.gaps.saturating_add(1);
             self.end_stretch();
             self.anchor(omega, h);
