@@ -73,6 +73,7 @@ pub use crate::recording::{estimate_noise, median_dt, white_noise};
 use crate::source::{RecordingSource, Source};
 use crate::survey::{survey, Wanted};
 pub use crate::unhold::{slow_telemetry, unhold, RotorHold};
+use crate::vehicle::Vehicle;
 
 use inputs::{Inputs, RotorInput};
 
@@ -294,8 +295,13 @@ impl From<ReadError> for IdentifyError {
 /// Options of one identification.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct IdentifyOptions {
-    /// Known rotor.
+    /// Known rotor (the `--rotor-*` shorthand: one rotor on a gyro axis, its speed from the
+    /// log's rotor channel).
     pub rotor: Option<Rotor>,
+    /// The vehicle file's rotors (`--vehicle`), their speeds from the columns it names: the
+    /// source must have been opened with [`crate::vehicle::Vehicle::columns`] as
+    /// [`crate::ReadOptions::rotor_columns`]. Not with [`IdentifyOptions::rotor`].
+    pub vehicle: Option<Vehicle>,
     /// Hand-chosen stretches `(start_s, end_s)`; the gate is not used.
     pub segments: Option<Vec<(f64, f64)>>,
     /// Gyro noise, rad/s; estimated from the data when `None`.
@@ -319,6 +325,13 @@ pub trait Progress {
 pub struct Quiet;
 
 impl Progress for Quiet {}
+
+impl IdentifyOptions {
+    /// A rotor momentum is known (`--rotor-*` or `--vehicle`): the tensor comes in kg m^2.
+    pub fn momentum_known(&self) -> bool {
+        self.rotor.is_some() || self.vehicle.is_some()
+    }
+}
 
 /// The rotor momentum's quantum, kg m^2/s: the rotor inertia times the speed channel's
 /// resolution ([`crate::survey::RotorStep`]; 0 without a rotor or a speed that never changed).
@@ -387,6 +400,21 @@ pub fn identify_source(
         .noise_std
         .or(sv.noise.map(|m| white_noise(m, filters.as_ref(), dt_med)))
         .unwrap_or(2e-3);
+    if let Some(v) = &opts.vehicle {
+        if opts.rotor.is_some() {
+            return Err(IdentifyError::Rotor(
+                "--vehicle and --rotor-inertia/--rotor-axis exclude each other".into(),
+            ));
+        }
+        if ch.wheels != v.rotors.len() {
+            return Err(IdentifyError::Rotor(format!(
+                "the log was read with {} of the vehicle file's {} rotor columns (only CSV logs \
+                 have named rotor columns; for a blackbox log's single rotor use --rotor-*)",
+                ch.wheels,
+                v.rotors.len()
+            )));
+        }
+    }
     let rotor = match &opts.rotor {
         None => None,
         Some(r) => {
@@ -407,7 +435,7 @@ pub fn identify_source(
             })
         }
     };
-    if opts.rotor.is_none() && ch.rotor.is_some() {
+    if !opts.momentum_known() && ch.rotor.is_some() {
         warnings.push(
             "the log has a rotor-speed channel but no --rotor-inertia was given: rotor \
              momentum is ignored and the tensor is determined up to scale only"
@@ -425,6 +453,7 @@ pub fn identify_source(
         samples: n,
         dt_med,
         rotor,
+        vehicle: opts.vehicle.as_ref(),
     };
     let mut trace = opts.trace.then(|| Trace {
         step: (n / 20000).max(1),
@@ -528,7 +557,7 @@ pub fn identify_source(
     // hand, a catch, a stretch the gate should not have passed) is not in the pooled fit;
     // say which, since the pooled sample count includes it. (With a rotor the fit is
     // reported whenever it ran; without one also only where it fits to the noise.)
-    if opts.rotor.is_some() && pooled_json.tensor_method == "OutputError" {
+    if opts.momentum_known() && pooled_json.tensor_method == "OutputError" {
         for (k, j) in &throws {
             if j.tensor_method != "OutputError" {
                 warnings.push(format!(

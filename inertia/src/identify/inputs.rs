@@ -11,6 +11,7 @@ use crate::source::{Flow, Sample, Source};
 use crate::unhold::{Plan, Unhold, LOOKAHEAD};
 
 use super::{IdentifyError, Rotor};
+use crate::vehicle::Vehicle;
 
 /// One sample's inputs.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -52,6 +53,8 @@ pub(crate) struct Inputs<'a> {
     pub dt_med: f64,
     /// The rotor, if one was given.
     pub rotor: Option<RotorInput<'a>>,
+    /// The vehicle file's rotors, if one was given (instead of `rotor`).
+    pub vehicle: Option<&'a Vehicle>,
 }
 
 /// Turns samples (in order, with their rotor speed in rad/s) into inputs.
@@ -60,15 +63,17 @@ struct Emit<'v, 'w> {
     prev_t: Option<f64>,
     dt_med: f64,
     rotor: Option<Rotor>,
+    vehicle: Option<&'v Vehicle>,
     visit: &'v mut (dyn FnMut(&Input) -> Result<Flow, ReadError> + 'w),
 }
 
 impl Emit<'_, '_> {
     #[inline]
     fn emit(&mut self, s: &Sample, speed: f32) -> Result<Flow, ReadError> {
-        let h = match &self.rotor {
-            Some(r) => r.axis.map(|a| a * r.inertia * speed),
-            None => [0.0; 3],
+        let h = match (&self.rotor, self.vehicle) {
+            (Some(r), _) => r.axis.map(|a| a * r.inertia * speed),
+            (None, Some(v)) => v.momentum(&s.extra.wheels),
+            (None, None) => [0.0; 3],
         };
         let dt = match self.prev_t {
             None => self.dt_med as f32,
@@ -205,6 +210,7 @@ impl Inputs<'_> {
             prev_t: None,
             dt_med: self.dt_med,
             rotor: self.rotor.map(|r| r.rotor),
+            vehicle: self.vehicle,
             visit,
         };
         let mut stopped = false;
