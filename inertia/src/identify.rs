@@ -387,7 +387,7 @@ pub fn identify_source(
             _ => f32::INFINITY,
         };
         report = next;
-        if !(moved >= 0.1) {
+        if moved.is_nan() || moved < 0.1 {
             break;
         }
     }
