@@ -11,8 +11,9 @@
 # flywheel 1.689e-6 kg m^2 about -z, 14 poles), a simulated board throw CSV
 # (host-tests gen-throw --scenario board_throw --seed 1, same flywheel, speed in rad/s) and
 # the same throw as a Betaflight blackbox log (--format betaflight: filtered gyro and
-# accelerometer, eRPM) and as a PX4 ULog (--format px4: interval means, esc_status), and a
-# toss without a rotor as a CSV and a ULog.
+# accelerometer, eRPM) and as a PX4 ULog (--format px4: interval means, esc_status), a toss
+# without a rotor as a CSV and a ULog, user mistakes, and four spacecraft fixtures with
+# reaction wheels and their vehicle files (inertia/tests/data/spacecraft).
 # THROWN_FC_DIR overrides where the thrown-FC logs are looked for.
 # Exit 1 when any log differs.
 set -euo pipefail
@@ -65,6 +66,14 @@ gen --scenario board_throw --seed 5 --time-unit ms --out "$OUT/bad_time_ms.csv"
 gen --scenario clipped_toss --seed 2 --out "$OUT/bad_clipped.csv"
 bad=("$OUT/bad_still.csv" "$OUT/bad_degps.csv" "$OUT/bad_time_ms.csv" "$OUT/bad_clipped.csv")
 logs+=("${bad[@]}")
+# Spacecraft with reaction wheels, their vehicle files (`--vehicle`, several rotors through
+# Rotors::momentum on both sides): the fixtures whose identification does not fold in the
+# gravity-gradient torque (that needs the attitude and position columns, which the firmware has
+# no input for).
+SC=inertia/tests/data/spacecraft
+for n in leo-free-1hz sat6u-pyramid-10hz mems-walk-10hz peer-cubesat-1hz; do
+    logs+=("$SC/$n.csv")
+done
 
 fail=0
 results=()
@@ -73,7 +82,11 @@ for f in "${logs[@]}"; do
     d="$OUT/runs/$name"
     mkdir -p "$d"
     rotor=(--rotor-inertia 1.689e-6 --rotor-axis=-z)
-    case "$f" in *.BFL | *.bbl) rotor+=(--rotor-poles 14) ;; *no_rotor*) rotor=() ;; esac
+    case "$f" in
+        *.BFL | *.bbl) rotor+=(--rotor-poles 14) ;;
+        *no_rotor*) rotor=() ;;
+        "$SC"/*) rotor=(--vehicle "${f%.csv}.toml") ;;
+    esac
     set +e
     "$INERTIA" identify --input "$f" "${rotor[@]}" --json "$d/identify.json" 2>"$d/identify.err"
     id_rc=$?

@@ -3,7 +3,8 @@
 # stream decoded on the host.
 #
 #   scripts/run.sh [gen-log options, e.g. --duration 30 --noise 2e-3 --seed 3 --bus-error-every 50] [--json OUT.json]
-#   scripts/run.sh --log FILE [--rotor-inertia KG_M2 --rotor-axis x|y|z|-x|-y|-z [--rotor-poles N] [--rotor-raw | --rotor-unhold]]
+#   scripts/run.sh --log FILE [--rotor-inertia KG_M2 --rotor-axis x|y|z|-x|-y|-z [--rotor-poles N] [--rotor-raw | --rotor-unhold]
+#                  | --vehicle FILE.toml]
 #                  [--noise-std RAD_S] [--gyro-unit rad/s|deg/s] [--time-unit s|ms|us] [--json OUT.json]
 #                  [--refit-every N] [--lossless]
 #   scripts/run.sh --replay FILE.irpl [--refit-every N] [--lossless] [--json OUT.json]
@@ -49,7 +50,7 @@ usage() { sed -n '2,/^set -euo/p' "${BASH_SOURCE[0]}" | sed '$d; s/^# \{0,1\}//'
 
 die() { echo "run.sh: $*" >&2; echo "run.sh: see scripts/run.sh --help" >&2; exit 2; }
 
-log_file="" replay_file="" refit_every="" lossless="" json="" rotor_inertia="" rotor_axis="" rotor_poles="" rotor_hold="" noise_std=""
+log_file="" vehicle="" replay_file="" refit_every="" lossless="" json="" rotor_inertia="" rotor_axis="" rotor_poles="" rotor_hold="" noise_std=""
 gyro_unit="" time_unit=""
 gen_args=()
 bus_every=0
@@ -68,6 +69,7 @@ while [ $# -gt 0 ]; do
         -h | --help) usage; exit 0 ;;
         --log) need "$@"; log_file="$2"; shift 2 ;;
         --replay) need "$@"; replay_file="$2"; shift 2 ;;
+        --vehicle) need "$@"; vehicle="$2"; shift 2 ;;
         --refit-every) need "$@"; refit_every="$2"; shift 2 ;;
         --lossless) lossless=1; shift ;;
         --json) need "$@"; json="$2"; shift 2 ;;
@@ -95,14 +97,18 @@ if [ -n "$refit_every" ]; then
 fi
 is_num() { [[ "$1" =~ ^[+]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][-+]?[0-9]+)?$ ]]; }
 if [ -z "$log_file" ] && [ -z "$replay_file" ]; then
-    for o in rotor_inertia rotor_axis rotor_poles noise_std gyro_unit time_unit; do
+    for o in rotor_inertia rotor_axis rotor_poles noise_std gyro_unit time_unit vehicle; do
         [ -z "${!o}" ] || die "--${o//_/-} applies to a replayed log: give --log FILE"
     done
     [ -z "$rotor_hold" ] || die "$rotor_hold applies to a replayed log: give --log FILE"
 else
     [ ${#gen_args[@]} -eq 0 ] || die "${gen_args[0]} applies to the simulated run, not to --log"
     [ -n "$replay_file" ] || { [ -f "$log_file" ] && [ -r "$log_file" ]; } || die "--log $log_file: no such readable file"
-    if [ -n "$replay_file" ] && [ -n "$rotor_inertia$rotor_axis$rotor_poles$rotor_hold$noise_std$gyro_unit$time_unit" ]; then
+    if [ -n "$vehicle" ]; then
+        [ -z "$rotor_inertia$rotor_axis$rotor_poles" ] || die "--vehicle and --rotor-* exclude each other"
+        [ -f "$vehicle" ] && [ -r "$vehicle" ] || die "--vehicle $vehicle: no such readable file"
+    fi
+    if [ -n "$replay_file" ] && [ -n "$rotor_inertia$rotor_axis$rotor_poles$rotor_hold$noise_std$gyro_unit$time_unit$vehicle" ]; then
         die "the --rotor-*, --noise-std, --gyro-unit and --time-unit options apply to --log: a replay file carries its own"
     fi
     if [ -n "$rotor_axis$rotor_poles$rotor_hold" ]; then
@@ -133,6 +139,7 @@ fi
 abspath() { case "$1" in /*) echo "$1" ;; *) echo "$PWD/$1" ;; esac; }
 [ -z "$log_file" ] || log_file="$(abspath "$log_file")"
 [ -z "$replay_file" ] || replay_file="$(abspath "$replay_file")"
+[ -z "$vehicle" ] || vehicle="$(abspath "$vehicle")"
 [ -z "$json" ] || json="$(abspath "$json")"
 
 source "$(dirname "${BASH_SOURCE[0]}")/setup.sh"
@@ -167,6 +174,7 @@ if [ -n "$log_file$replay_file" ]; then
     ex=(--input "$log_file" --out "$OUT/replay.bin")
     [ -z "$rotor_inertia" ] || ex+=(--rotor-inertia "$rotor_inertia" --rotor-axis="$rotor_axis")
     [ -z "$rotor_poles" ] || ex+=(--rotor-poles "$rotor_poles")
+    [ -z "$vehicle" ] || ex+=(--vehicle "$vehicle")
     [ -z "$rotor_hold" ] || ex+=("$rotor_hold")
     [ -z "$noise_std" ] || ex+=(--noise-std "$noise_std")
     [ -z "$gyro_unit" ] || ex+=(--gyro-unit "$gyro_unit")

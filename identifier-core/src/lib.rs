@@ -116,7 +116,7 @@ pub use inertia::{consistency, InertiaRatios};
 pub use output_error::StretchOutcome;
 pub use pipeline::{
     Exit, FlightPipeline, Pending, Pipeline, PipelineSettings, RatioSource, Ratios,
-    TRAJECTORY_FIT_RATIO,
+    TRAJECTORY_FIT_RATIO, WINDOW_TURN_RAD,
 };
 pub use ratio_fit::{FlightRatioFit, RatioFit, RatioFitEstimate};
 pub use refined::{Refined, RefinedSettings};
@@ -127,6 +127,6 @@ pub use status::{Counters, Estimate, SampleStatus};
 pub use status::{Exposure, Trust, Verdict};
 pub use tensor::{
     TensorCounters, TensorEstimate, TensorEstimator, TensorMethod, TensorModel, TensorSettings,
-    TensorStatus,
+    TensorStatus, MAX_STEP_TURN_RAD,
 };
 pub use tensor_fit::{FlightTensorFit, TensorFit, TensorFitEstimate};

@@ -61,7 +61,22 @@ pub struct PipelineSettings {
     /// unfiltered gyro; the fits count it in their block means ((B0') of the fits' block
     /// buffer). The filter's delay is taken out of the sample times before the pipeline.
     pub reading_smoothing: f32,
+    /// How far a free flight may turn, rad (`sum |w_x| + |w_y| + |w_z|` times the time step,
+    /// at least the angle turned), before its output-error fits close a window and start the
+    /// next (W1). One trajectory from one initial rate is fitted per window: over a long
+    /// tumble (a satellite's minutes to hours, a long toss) `f32` and the model's own
+    /// sensitivity to its start make one trajectory drift from the motion by more than the
+    /// gyro's noise, and the fit fails. The windows' estimates are pooled by their
+    /// information, like the stretches of several throws; memory and the per-sample cost do
+    /// not grow with the flight. The default ([`WINDOW_TURN_RAD`]) is above any throw's
+    /// turn (35 rad/s for 0.6 s). Not finite or not positive: no windows.
+    pub window_turn_rad: f32,
 }
+
+/// The default [`PipelineSettings::window_turn_rad`], rad: eight turns of the L1 rate. The
+/// test `long_tumbles_are_fitted_in_windows` (in `pipeline`) runs a wheel-driven tumble through
+/// several windows.
+pub const WINDOW_TURN_RAD: f32 = 50.0;
 
 impl PipelineSettings {
     /// Settings for a gyro at `rate_hz` with white noise `noise_std` rad/s: guards of 50 ms
@@ -97,6 +112,7 @@ impl PipelineSettings {
             decimation,
             reading_window: 0.0,
             reading_smoothing: 0.0,
+            window_turn_rad: WINDOW_TURN_RAD,
         }
     }
 
@@ -293,6 +309,8 @@ pub struct Pipeline<const N: usize> {
     input_index: u32,
     group: Group,
     feeding: bool,
+    /// The L1 angle turned since the fits' window began (W1).
+    turned: f32,
     throws: u32,
     fed_inputs: u32,
 }
@@ -377,6 +395,7 @@ impl<const N: usize> Pipeline<N> {
             input_index: 0,
             group: Group::EMPTY,
             feeding: false,
+            turned: 0.0,
             throws: 0,
             fed_inputs: 0,
         })
@@ -737,16 +756,16 @@ impl<const N: usize> Pipeline<N> {
         }
     }
 
-    /// Takes the fits of the flight that ended from `fitted`: a copy of this pipeline made
-    /// while its fits were pending, on which [`Pipeline::fit_ended_flight`] has run since.
-    /// Samples this pipeline was given meanwhile and did not feed leave the fits' inputs as
-    /// they were, so the result is the same bits as running the fits here at the time the
-    /// copy was made. Refused (false, nothing changed) when this pipeline's fits are not
-    /// pending, `fitted`'s are, or the two have not fed the same flights (another flight began
-    /// here meanwhile and ran the fits itself, or `fitted` is not a copy of this pipeline).
+    /// Takes the fits of the flight (or window, (W1)) that ended from `fitted`: a copy of this
+    /// pipeline made while its fits were pending, on which [`Pipeline::fit_ended_flight`] has
+    /// run since. Samples this pipeline was given meanwhile and did not feed leave the fits'
+    /// inputs as they were, so the result is the same bits as running the fits here at the
+    /// time the copy was made. Refused (false, nothing changed) when this pipeline's fits are
+    /// not pending, `fitted`'s are, or the two have not fed the same samples (this pipeline
+    /// fed one meanwhile and ran the fits itself, or `fitted` is not a copy of it).
     pub fn adopt_fits(&mut self, fitted: &Self) -> bool {
         let same = self.throws == fitted.throws && self.fed_inputs == fitted.fed_inputs;
-        if !self.fits_pending || fitted.fits_pending || self.feeding || !same {
+        if !self.fits_pending || fitted.fits_pending || !same {
             return false;
         }
         self.trajectory = fitted.trajectory;
@@ -790,11 +809,12 @@ impl<const N: usize> Pipeline<N> {
     fn close_tensor_fit(&mut self) {
         let e = self.estimator.estimate();
         if self.rotor_seen {
+            let start = e.tensor.or_else(|| self.estimator.absolute_guess());
             // A bias measured on the bench was removed from every sample: none is looked for.
             if self.bias_measured() {
-                self.tensor_fit.close_without_bias(e.tensor);
+                self.tensor_fit.close_without_bias(start);
             } else {
-                self.tensor_fit.close(e.tensor);
+                self.tensor_fit.close(start);
             }
         } else {
             let fe = self.trajectory.estimate();
@@ -1202,7 +1222,12 @@ impl<const N: usize> Pipeline<N> {
             // The previous flight's fits must run before this one fills the blocks.
             self.fit_ended_flight();
             self.feeding = true;
+            self.turned = 0.0;
             self.throws = self.throws.saturating_add(1);
+        } else if self.fits_pending {
+            // A window (W1) closed and nobody ran its fits: they run before the next window
+            // fills the blocks.
+            self.fit_ended_flight();
         }
         let b = self.bias();
         p.omega = [p.omega[0] - b[0], p.omega[1] - b[1], p.omega[2] - b[2]];
@@ -1222,6 +1247,17 @@ impl<const N: usize> Pipeline<N> {
             self.trajectory.step_mean(p.omega, p.dt, p.inputs);
         }
         self.tensor_fit.step_mean(p.omega, p.h, p.dt, p.inputs);
+        // (W1): the window closes when the flight has turned far enough; its fits wait for
+        // `fit_ended_flight` like a flight's end.
+        let [w0, w1, w2] = p.omega;
+        let turn = (w0.abs() + w1.abs() + w2.abs()) * p.dt;
+        if turn.is_finite() {
+            self.turned += turn;
+        }
+        if self.turned > self.settings.window_turn_rad {
+            self.turned = 0.0;
+            self.fits_pending = true;
+        }
         Exit {
             sample: p,
             fed: Some(status),

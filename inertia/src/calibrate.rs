@@ -104,6 +104,7 @@ pub fn unit_throw(
             axis,
             poles,
         }),
+        vehicle: None,
         segments: None,
         noise_std: None,
         // Decided from the log unless `INERTIA_ROTOR_UNHOLD` is set (`identify --rotor-unhold`).

@@ -22,6 +22,7 @@
 //! Every number in the report is the same bits as when the whole recording is held (module
 //! `reference`, the tests' reference).
 
+pub mod gravity;
 mod inputs;
 mod passes;
 #[cfg(test)]
@@ -73,6 +74,7 @@ pub use crate::recording::{estimate_noise, median_dt, white_noise};
 use crate::source::{RecordingSource, Source};
 use crate::survey::{survey, Wanted};
 pub use crate::unhold::{slow_telemetry, unhold, RotorHold};
+use crate::vehicle::Vehicle;
 
 use inputs::{Inputs, RotorInput};
 
@@ -211,6 +213,11 @@ pub struct Report {
         skip_serializing_if = "Option::is_none"
     )]
     pub rotor_momentum_quantum: Option<f32>,
+    /// The gravity-gradient torque (G1) was folded into the known momentum ((G2) of
+    /// [`gravity`]): the log has attitude and position columns and a rotor momentum fixes the
+    /// scale. Absent otherwise.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub gravity_gradient: bool,
     /// Every free flight.
     pub throws: Vec<EstimateJson>,
     /// All throws together (the on-board result).
@@ -304,8 +311,13 @@ impl From<ReadError> for IdentifyError {
 /// Options of one identification.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct IdentifyOptions {
-    /// Known rotor.
+    /// Known rotor (the `--rotor-*` shorthand: one rotor on a gyro axis, its speed from the
+    /// log's rotor channel).
     pub rotor: Option<Rotor>,
+    /// The vehicle file's rotors (`--vehicle`), their speeds from the columns it names: the
+    /// source must have been opened with [`crate::vehicle::Vehicle::columns`] as
+    /// [`crate::ReadOptions::rotor_columns`]. Not with [`IdentifyOptions::rotor`].
+    pub vehicle: Option<Vehicle>,
     /// Hand-chosen stretches `(start_s, end_s)`; the gate is not used.
     pub segments: Option<Vec<(f64, f64)>>,
     /// Gyro noise, rad/s; estimated from the data when `None`.
@@ -330,6 +342,13 @@ pub struct Quiet;
 
 impl Progress for Quiet {}
 
+impl IdentifyOptions {
+    /// A rotor momentum is known (`--rotor-*` or `--vehicle`): the tensor comes in kg m^2.
+    pub fn momentum_known(&self) -> bool {
+        self.rotor.is_some() || self.vehicle.is_some()
+    }
+}
+
 /// The rotor momentum's quantum, kg m^2/s: the rotor inertia times the speed channel's
 /// resolution ([`crate::survey::RotorStep`]; 0 without a rotor or a speed that never changed).
 pub(crate) fn momentum_quantum(opts: &IdentifyOptions, speed_step: Option<f32>) -> f32 {
@@ -349,9 +368,56 @@ fn bits(v: [f32; 3]) -> [u32; 3] {
 }
 
 /// Runs the identification on a log read sample by sample (see the module documentation).
+/// An orbiting vehicle's log (attitude and position columns, a known rotor momentum) is
+/// identified with the gravity-gradient torque folded into the momentum ([`gravity`]),
+/// refitted at the tensor found until it settles.
 pub fn identify_source(
     src: &dyn Source,
     opts: &IdentifyOptions,
+    progress: &mut dyn Progress,
+) -> Result<Report, IdentifyError> {
+    let free = identify_pass(src, opts, None, progress)?;
+    let ch = src.channels();
+    if !(opts.momentum_known() && ch.attitude && ch.position) {
+        return Ok(free);
+    }
+    let mut report = free.clone();
+    for _ in 0..gravity::MAX_PASSES {
+        let Some(j) = report.pooled.tensor_kg_m2 else {
+            break;
+        };
+
+        let mut next = identify_pass(src, opts, Some(j), progress)?;
+        next.gravity_gradient = true;
+        let moved = match (next.pooled.tensor_kg_m2, next.pooled.tensor_std_kg_m2) {
+            (Some(a), Some(s)) => (0..9).fold(0.0f32, |m, k| {
+                let (r, c) = (k / 3, k % 3);
+                m.max((a[r][c] - j[r][c]).abs() / s[r][c])
+            }),
+            _ => f32::INFINITY,
+        };
+        report = next;
+        if moved.is_nan() || moved < 0.1 {
+            break;
+        }
+    }
+    // The model with the gravity gradient has no more free parameters than the one without:
+    // the one whose residual is smaller is the likelier (a simulated orbit without the
+    // torque keeps the torque-free model).
+    let ratio = |r: &Report| r.pooled.residual_ratio;
+    if report.gravity_gradient && ratio(&report) < ratio(&free) {
+        Ok(report)
+    } else {
+        Ok(free)
+    }
+}
+
+/// One identification, with the gravity gradient of a body of inertia `gravity` folded into
+/// the momentum when given.
+fn identify_pass(
+    src: &dyn Source,
+    opts: &IdentifyOptions,
+    gravity: Option<[[f32; 3]; 3]>,
     progress: &mut dyn Progress,
 ) -> Result<Report, IdentifyError> {
     let ch = src.channels();
@@ -397,6 +463,21 @@ pub fn identify_source(
         .noise_std
         .or(sv.noise.map(|m| white_noise(m, filters.as_ref(), dt_med)))
         .unwrap_or(2e-3);
+    if let Some(v) = &opts.vehicle {
+        if opts.rotor.is_some() {
+            return Err(IdentifyError::Rotor(
+                "--vehicle and --rotor-inertia/--rotor-axis exclude each other".into(),
+            ));
+        }
+        if ch.wheels != v.rotors.len() {
+            return Err(IdentifyError::Rotor(format!(
+                "the log was read with {} of the vehicle file's {} rotor columns (only CSV logs \
+                 have named rotor columns; for a blackbox log's single rotor use --rotor-*)",
+                ch.wheels,
+                v.rotors.len()
+            )));
+        }
+    }
     let rotor = match &opts.rotor {
         None => None,
         Some(r) => {
@@ -417,7 +498,7 @@ pub fn identify_source(
             })
         }
     };
-    if opts.rotor.is_none() && ch.rotor.is_some() {
+    if !opts.momentum_known() && ch.rotor.is_some() {
         warnings.push(
             "the log has a rotor-speed channel but no --rotor-inertia was given: rotor \
              momentum is ignored and the tensor is determined up to scale only"
@@ -435,6 +516,8 @@ pub fn identify_source(
         samples: n,
         dt_med,
         rotor,
+        vehicle: opts.vehicle.as_ref(),
+        gravity,
     };
     let mut trace = opts.trace.then(|| Trace {
         step: (n / 20000).max(1),
@@ -538,7 +621,7 @@ pub fn identify_source(
     // hand, a catch, a stretch the gate should not have passed) is not in the pooled fit;
     // say which, since the pooled sample count includes it. (With a rotor the fit is
     // reported whenever it ran; without one also only where it fits to the noise.)
-    if opts.rotor.is_some() && pooled_json.tensor_method == "OutputError" {
+    if opts.momentum_known() && pooled_json.tensor_method == "OutputError" {
         for (k, j) in &throws {
             if j.tensor_method != "OutputError" {
                 warnings.push(format!(
@@ -558,6 +641,7 @@ pub fn identify_source(
         gyro_bias: pooled.bias.unwrap_or([0.0; 3]),
         free_flight_detection: detection,
         rotor_momentum_quantum: (quantum > 0.0).then_some(quantum),
+        gravity_gradient: false,
         throws: throws.into_iter().map(|(_, j)| j).collect(),
         pooled: pooled_json,
         warnings,

@@ -14,6 +14,7 @@ pub mod select;
 pub mod source;
 pub mod survey;
 pub mod unhold;
+pub mod vehicle;
 
 pub use readers::{read, AccelUnit, Format, GyroUnit, ReadError, ReadOptions, TimeUnit};
 pub use recording::{Recording, RotorSpeed};

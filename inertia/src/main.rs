@@ -9,6 +9,7 @@ use inertia::export::{ExportError, ExportFormat, ExportOptions};
 use inertia::identify::{
     identify_source, parse_axis, IdentifyError, IdentifyOptions, Progress, Report, Rotor, RotorHold,
 };
+use inertia::vehicle::Vehicle;
 use inertia::{read, AccelUnit, Format, GyroUnit, ReadOptions, TimeUnit};
 
 mod replay;
@@ -121,6 +122,11 @@ struct RotorArgs {
     /// of the hold it ends), whatever its update rate.
     #[arg(long)]
     rotor_unhold: bool,
+    /// A vehicle file (TOML, `[[rotor]]` tables: name, column, inertia_kg_m2, axis, optional
+    /// poles and speed_unit) describing any number of rotors, each with its log column: makes
+    /// the tensor absolute. See docs/formats.md.
+    #[arg(long, conflicts_with_all = ["rotor_inertia", "rotor_axis", "rotor_poles"])]
+    vehicle: Option<PathBuf>,
 }
 
 impl RotorArgs {
@@ -137,6 +143,20 @@ impl RotorArgs {
 }
 
 impl RotorArgs {
+    /// The vehicle file, read and checked, when given.
+    fn vehicle(&self) -> Result<Option<Vehicle>, String> {
+        self.vehicle
+            .as_deref()
+            .map(Vehicle::load)
+            .transpose()
+            .map_err(|e| e.to_string())
+    }
+
+    /// The rotor columns a reading needs (the vehicle file's).
+    fn columns(vehicle: Option<&Vehicle>) -> Vec<String> {
+        vehicle.map(Vehicle::columns).unwrap_or_default()
+    }
+
     /// The rotor, when given: `--rotor-inertia` (positive) and `--rotor-axis` together.
     fn rotor(&self) -> Result<Option<Rotor>, String> {
         match (self.rotor_inertia, self.rotor_axis) {
@@ -432,15 +452,18 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
         }
     }
     let rotor = rotor_and_noise(&args.rotor, args.noise_std)?;
-    let export = export_options(&args, rotor.is_some())?;
+    let vehicle = args.rotor.vehicle()?;
+    let export = export_options(&args, rotor.is_some() || vehicle.is_some())?;
     let segments = args.segments.as_ref().map(parse_segments).transpose()?;
     let opts = ReadOptions {
         gyro_unit: args.gyro_unit,
         time_unit: args.time_unit,
         accel_unit: args.accel_unit,
+        rotor_columns: RotorArgs::columns(vehicle.as_ref()),
     };
     let iopts = IdentifyOptions {
         rotor,
+        vehicle,
         segments,
         noise_std: args.noise_std,
         rotor_hold: args.rotor.hold(),
@@ -579,11 +602,16 @@ fn run_close_loop(args: CloseLoopArgs) -> Result<ExitCode, String> {
     if !(args.alpha > 0.0 && args.alpha < 1.0) {
         return Err(format!("--alpha {} must be in (0, 1)", args.alpha));
     }
+    let vehicle = args.rotor.vehicle()?;
     let units = ReadOptions {
         gyro_unit: args.gyro_unit,
         time_unit: args.time_unit,
         accel_unit: args.accel_unit,
+        rotor_columns: RotorArgs::columns(vehicle.as_ref()),
     };
+    if vehicle.is_some() {
+        return Err("close-loop --vehicle: not available yet (use --rotor-*)".into());
+    }
     if let Some(rotor) = args.rotor.rotor()? {
         return run_close_loop_tensor(&args, rotor, &units);
     }
@@ -761,13 +789,19 @@ struct TelemetryArgs {
 
 fn run_export_replay(args: ExportReplayArgs) -> Result<ExitCode, String> {
     let rotor = rotor_and_noise(&args.rotor, args.noise_std)?;
+    let vehicle = args.rotor.vehicle()?;
     let opts = ReadOptions {
         gyro_unit: args.gyro_unit,
         time_unit: args.time_unit,
         accel_unit: args.accel_unit,
+        rotor_columns: RotorArgs::columns(vehicle.as_ref()),
     };
     let rec = read(&args.input, &opts).map_err(|e| e.to_string())?;
-    let e = replay::export(&rec, rotor, args.noise_std, args.rotor.hold(), &args.out)?;
+    let rotors = match &vehicle {
+        Some(v) => replay::Rotors::Vehicle(v),
+        None => replay::Rotors::Flag(rotor),
+    };
+    let e = replay::export(&rec, rotors, args.noise_std, args.rotor.hold(), &args.out)?;
     eprintln!(
         "{}: {} samples at {} Hz, noise {} rad/s, accelerometer {}",
         args.out.display(),

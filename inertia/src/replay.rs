@@ -11,15 +11,27 @@
 //! rounded once to `f32`, the rotor speed's resolution the smallest change of the channel
 //! (`inertia::survey::RotorStep`). The firmware turns the rotor speeds into momentum with the
 //! same `identifier_core::Rotors::momentum` as `identify`; the momentum's quantum is written
-//! as `identify` computes it (`inertia * resolution`). No sample is flagged as actuated (a
-//! log says nothing of actuators).
+//! as `identify` computes it (`inertia * resolution`). With a vehicle file (`--vehicle`) the
+//! table is its rotors and each sample carries their columns in rad/s (as logged times the
+//! file's factor, as `identify` computes them); `identify`'s gravity-gradient fold of orbit
+//! logs (attitude and position columns) is not carried: the firmware has no such input. No
+//! sample is flagged as actuated (a log says nothing of actuators).
 
 use std::io::Write;
 use std::path::Path;
 
 use inertia::identify::{slow_telemetry, unhold, Rotor, RotorHold};
 use inertia::recording::{estimate_noise, median_dt, white_noise};
+use inertia::vehicle::Vehicle;
 use inertia::Recording;
+
+/// The rotors whose speeds the replay carries.
+pub enum Rotors<'a> {
+    /// The `--rotor-*` flags' one rotor, or none.
+    Flag(Option<Rotor>),
+    /// A vehicle file's rotors (`--vehicle`), their speeds from its columns.
+    Vehicle(&'a Vehicle),
+}
 
 /// What was written.
 pub struct Exported {
@@ -36,7 +48,7 @@ pub struct Exported {
 /// Writes the replay file of `rec` to `out`.
 pub fn export(
     rec: &Recording,
-    rotor: Option<Rotor>,
+    rotors: Rotors<'_>,
     noise_std: Option<f32>,
     hold: RotorHold,
     out: &Path,
@@ -53,6 +65,10 @@ pub fn export(
     let noise = noise_std.unwrap_or_else(|| {
         white_noise(estimate_noise(&rec.gyro), rec.gyro_filters.as_ref(), dt_med)
     });
+    let (rotor, vehicle) = match rotors {
+        Rotors::Flag(r) => (r, None),
+        Rotors::Vehicle(v) => (None, Some(v)),
+    };
     let mut step = None;
     let speed: Option<Vec<f32>> = match &rotor {
         None => None,
@@ -85,9 +101,36 @@ pub fn export(
         // The same check `identify` makes of its rotor.
         r.rotors()?;
     }
+    // A vehicle file's rotors: each column as logged times the factor to rad/s the vehicle
+    // file gives it, as `identify` turns them into speeds before `Rotors::momentum`.
+    let wheels: Vec<Vec<f32>> = match vehicle {
+        None => Vec::new(),
+        Some(v) => {
+            if rec.wheels.len() != v.rotors.len() || rec.wheels.iter().any(|w| w.len() != n) {
+                return Err(format!(
+                    "the log gives {} of the vehicle file's {} rotor columns",
+                    rec.wheels.len(),
+                    v.rotors.len()
+                ));
+            }
+            v.rotors
+                .iter()
+                .zip(&rec.wheels)
+                .map(|(r, w)| {
+                    let k = r.to_rad_per_sec().unwrap_or(f32::NAN);
+                    w.iter().map(|&x| x * k).collect()
+                })
+                .collect()
+        }
+    };
+    let table: Vec<(f32, [f32; 3])> = match (vehicle, &rotor) {
+        (Some(v), _) => v.rotors.iter().map(|r| (r.inertia_kg_m2, r.axis)).collect(),
+        (None, Some(r)) => vec![(r.inertia, r.axis)],
+        (None, None) => Vec::new(),
+    };
     let with_accel = rec.accel.is_some();
-    let rotors = u32::from(rotor.is_some());
-    let mut b: Vec<u8> = Vec::with_capacity(44 + 16 + (32 + 4) * n);
+    let rotors = table.len() as u32;
+    let mut b: Vec<u8> = Vec::with_capacity(44 + 16 * table.len() + (32 + 4 * table.len()) * n);
     // Fixed part (44 bytes).
     b.extend_from_slice(b"IRPL");
     b.extend_from_slice(&5u32.to_le_bytes());
@@ -106,9 +149,9 @@ pub fn export(
     b.extend_from_slice(&rotors.to_le_bytes());
     b.extend_from_slice(&(n as u32).to_le_bytes());
     // The rotor table (16 bytes a rotor).
-    if let Some(r) = &rotor {
-        b.extend_from_slice(&r.inertia.to_le_bytes());
-        for a in r.axis {
+    for (j, axis) in &table {
+        b.extend_from_slice(&j.to_le_bytes());
+        for a in axis {
             b.extend_from_slice(&a.to_le_bytes());
         }
     }
@@ -123,6 +166,9 @@ pub fn export(
         b.extend_from_slice(&0u32.to_le_bytes());
         if let Some(s) = &speed {
             b.extend_from_slice(&s[i].to_le_bytes());
+        }
+        for w in &wheels {
+            b.extend_from_slice(&w[i].to_le_bytes());
         }
     }
     let mut file = std::fs::File::create(out).map_err(|e| format!("{}: {e}", out.display()))?;

@@ -15,7 +15,9 @@ use std::path::Path;
 
 use crate::readers::gyro_filters::GyroFilters;
 use crate::readers::{self, Format, ReadError, ReadOptions};
-pub use crate::readers::{Channels, Flow, Reading, RotorUnit, Sample, Source, Visit};
+pub use crate::readers::{
+    Channels, Extra, Flow, Reading, RotorUnit, Sample, Source, Visit, MAX_WHEELS,
+};
 use crate::recording::{Recording, RotorSpeed};
 
 /// Opens the log at `path` for reading sample by sample, the format detected from the
@@ -57,9 +59,14 @@ impl Source for RecordingSource<'_> {
     }
 
     fn channels(&self) -> Channels {
+        let rec = &*self.rec;
         Channels {
-            accel: self.rec.accel.is_some(),
-            rotor: self.rec.rotor.as_ref().map(RotorUnit::of),
+            accel: rec.accel.is_some(),
+            rotor: rec.rotor.as_ref().map(RotorUnit::of),
+            wheels: rec.wheels.len(),
+            attitude: rec.attitude.is_some(),
+            position: rec.position.is_some(),
+            magnetic: rec.magnetic.is_some(),
         }
     }
 
@@ -91,7 +98,12 @@ impl Source for RecordingSource<'_> {
         });
         let uneven = rec.gyro.len() != n
             || rec.accel.as_ref().is_some_and(|a| a.len() != n)
-            || rotor.is_some_and(|r| r.len() != n);
+            || rotor.is_some_and(|r| r.len() != n)
+            || rec.wheels.len() > MAX_WHEELS
+            || rec.wheels.iter().any(|w| w.len() != n)
+            || rec.attitude.as_ref().is_some_and(|v| v.len() != n)
+            || rec.position.as_ref().is_some_and(|v| v.len() != n)
+            || rec.magnetic.as_ref().is_some_and(|v| v.len() != n);
         if uneven {
             return Err(ReadError::new(
                 Path::new(&rec.source),
@@ -104,6 +116,12 @@ impl Source for RecordingSource<'_> {
                 gyro: rec.gyro[i],
                 accel: rec.accel.as_ref().map_or([0.0; 3], |a| a[i]),
                 rotor: rotor.map_or(0.0, |r| r[i]),
+                extra: Extra {
+                    wheels: core::array::from_fn(|k| rec.wheels.get(k).map_or(0.0, |w| w[i])),
+                    attitude: rec.attitude.as_ref().map_or([0.0; 4], |v| v[i]),
+                    position: rec.position.as_ref().map_or([0.0; 3], |v| v[i]),
+                    magnetic: rec.magnetic.as_ref().map_or([0.0; 3], |v| v[i]),
+                },
             };
             if visit(&s)? == Flow::Stop {
                 return Ok(Reading {

@@ -4,7 +4,7 @@
 //! | layer | modules | what they hold |
 //! |---|---|---|
 //! | 1 readers | `readers` (with `gyro_filters`, `units`) | the logs read: the [`Recording`] and the `Source` every reader gives |
-//! | 2 recording | `recording`, `source`, `survey`, `select`, `unhold` | the recording and its statistics (median time step, gyro noise), the free flights found in it, the rotor's telemetry unheld |
+//! | 2 recording | `recording`, `source`, `survey`, `select`, `unhold`, `vehicle` | the recording and its statistics (median time step, gyro noise), the free flights found in it, the rotor's telemetry unheld, the vehicle file's rotors |
 //! | 3 product | `identify` (with `identify/`), `calibrate`, `pool`, `export` | the tensor identified, the rotor calibrated, logs pooled, the report exported |
 //! | 4 analyses | `close_loop`, `plots` | what is made of the product: close-the-loop's analysis, the drawings |
 //! | 5 CLI | the binary: `main.rs` and its modules `replay`, `telemetry` | the commands |
@@ -34,6 +34,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("survey", 2),
     ("select", 2),
     ("unhold", 2),
+    ("vehicle", 2),
     ("identify", 3),
     ("calibrate", 3),
     ("pool", 3),

@@ -403,7 +403,7 @@ fn csv_units_converted() {
     let o = ReadOptions {
         gyro_unit: Some(GyroUnit::DegPerSec),
         time_unit: Some(TimeUnit::Ms),
-        accel_unit: None,
+        ..ReadOptions::default()
     };
     let r = read(&p, &o).unwrap();
     assert_eq!(r.len(), 50);

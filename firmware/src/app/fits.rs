@@ -17,18 +17,23 @@
 //!   pipeline goes on with the stretch untouched, so the fit at the end of the window is the
 //!   one `inertia identify` gives for the same samples.
 //!
-//! When the live pipeline would start a new stretch while its previous one's fits are still
-//! out, it would run them itself, in the stepper: a stall of the sample path, and a second
-//! fit's stack on top of thread mode's. So a sample that could start one does not reach it
-//! until the job returns ([`FitScheduler::hold`]):
-//! * without an accelerometer (continuous mode) that is any unflagged sample: it is held
-//!   out like a flagged one (stepped, not fed; [`StepStats::held_for_fit`]), and the new
-//!   stretch starts with the first sample after the job returned. A fit of a long stretch
-//!   takes seconds (`scripts/firmware-paced.sh` measures it), longer than a ring can hold;
-//! * with the free-flight gate, any sample while the gate holds free flight (a new flight is
-//!   fed only from the delay line's length after the gate opens, so the sample that opens it
-//!   is stepped safely): it waits in the ring, since the gate must see every sample in order.
-//!   A throw that follows a catch faster than a fit runs (about a third of a second) thus
+//! The same holds for a window of a long flight ((W1) of the pipeline: it closes after a
+//! bounded turn and its fits are pending while the flight goes on being fed).
+//!
+//! When the live pipeline would feed a sample while its fits are still out, it would run them
+//! itself, in the stepper: a stall of the sample path, and a second fit's stack on top of
+//! thread mode's. So a sample that could be fed does not reach it until the job returns
+//! ([`FitScheduler::hold`]):
+//! * after a stretch that a flagged sample ended (continuous mode), it is held out like a
+//!   flagged one (stepped, not fed; [`StepStats::held_for_fit`]): the stretch has ended
+//!   anyway, and the new one starts with the first sample after the job returned. A fit of a
+//!   long stretch takes seconds (`scripts/firmware-paced.sh` measures it), longer than a ring
+//!   can hold;
+//! * otherwise (a window closed, or the gate ended a flight and holds free flight again) it
+//!   waits in the ring: the window's flight goes on, and the gate must see every sample in
+//!   order. A new flight is fed only from the delay line's length after the gate opens, so
+//!   the sample that opens it is stepped safely. A throw that follows a catch faster than a
+//!   fit runs (about a third of a second), or a window's fit longer than the ring's time,
 //!   fills the ring, and what finds it full is lost and counted by the sample path.
 //!
 //! [`StepStats::inline_fits`] counts fits the live pipeline ran itself anyway (none by
@@ -44,7 +49,8 @@ use super::{BoardInputs, Report, SampleClock, SampleLoop, SampleRecord, TensorRe
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum FitKind {
-    /// The flight (stretch) that ended: its fits, to be adopted by the live pipeline.
+    /// The flight, stretch or window ((W1) of the pipeline) that ended: its fits, to be adopted
+    /// by the live pipeline.
     EndedFlight,
     /// Continuous mode's periodic re-fit of the window so far: the copy's open stretch ended
     /// and fitted; reported, not adopted.
@@ -125,10 +131,10 @@ impl FitScheduler {
         None
     }
 
-    /// True when `next` must wait in the ring: the live pipeline's fits are pending (out on a
-    /// copy, or waiting for the slot) and `next` could start a new stretch, which would run
-    /// them in place: an unflagged sample while the pipeline takes samples as free (always
-    /// without an accelerometer; with one, while its gate holds free flight).
+    /// True when `next` must not reach the pipeline yet: the live pipeline's fits are pending
+    /// (out on a copy, or waiting for the slot) and `next` could be fed, which would run them
+    /// in place: an unflagged sample while the pipeline takes samples as free (always without
+    /// an accelerometer; with one, while its gate holds free flight).
     pub fn hold<IF, C, R>(&self, lp: &SampleLoop<IF, C, R>, next: &SampleRecord) -> bool
     where
         IF: RegisterInterface,
@@ -214,7 +220,7 @@ impl<'a> Stepper<'a> {
                 return;
             };
             let hold = self.schedule.hold(lp, next);
-            if hold && lp.with_accel() {
+            if hold && !lp.stretch_closed_by_flag() {
                 self.stats.holds = self.stats.holds.saturating_add(1);
                 return;
             }

@@ -178,6 +178,8 @@ pub struct SampleLoop<IF, C, R = NoBoardInputs> {
     was_actuated: bool,
     /// The sensor's identity is to be checked before the next sample.
     check_identity: bool,
+    /// The pipeline's stretch was ended by a flagged sample and none was fed since.
+    flag_closed: bool,
     /// The pipeline gates free flights by the accelerometer (else: continuous mode).
     with_accel: bool,
     counters: LoopCounters,
@@ -269,6 +271,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoBoardInputs>
             not_fed: 0,
             was_actuated: false,
             check_identity: false,
+            flag_closed: false,
             with_accel,
             counters: LoopCounters::default(),
             reports,
@@ -296,6 +299,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>> SampleLoop<IF, C, NoBoardInputs>
             not_fed: self.not_fed,
             was_actuated: self.was_actuated,
             check_identity: self.check_identity,
+            flag_closed: self.flag_closed,
             with_accel: self.with_accel,
             counters: self.counters,
             reports: self.reports,
@@ -488,6 +492,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: BoardInputs> SampleLoop<IF, C
     /// the delay line commits.
     fn feed_pipeline(&mut self, omega: [f32; 3], accel: [f32; 3], dt: f32) {
         self.was_actuated = false;
+        self.flag_closed = false;
         let h = self.last_inputs.momentum.unwrap_or([0.0; 3]);
         let exit = self.pipeline.step(omega, accel, h, dt);
         if let Some(e) = exit {
@@ -504,6 +509,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: BoardInputs> SampleLoop<IF, C
     /// catch, and the next unflagged sample starts a new stretch.
     fn hold_out(&mut self) {
         self.counters.held_out = self.counters.held_out.saturating_add(1);
+        self.flag_closed = true;
         if !self.was_actuated {
             self.identifier.restart();
             self.refined.restart();
@@ -603,6 +609,12 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: BoardInputs> SampleLoop<IF, C
     /// The samples of the loop that left the pipeline's delay line unfed.
     pub fn not_fed(&self) -> u32 {
         self.not_fed
+    }
+
+    /// True when the pipeline's stretch was ended by a flagged sample
+    /// ([`BoardInputs::actuated`]) and no sample was fed since.
+    pub fn stretch_closed_by_flag(&self) -> bool {
+        self.flag_closed
     }
 
     /// True when the pipeline has an accelerometer's free-flight gate; false in the continuous

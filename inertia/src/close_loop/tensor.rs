@@ -546,6 +546,7 @@ pub fn analyse_tensor(
         rec,
         &IdentifyOptions {
             rotor: Some(opts.rotor),
+            vehicle: None,
             segments: opts.segments.clone(),
             noise_std: None,
             rotor_hold: opts.rotor_hold,

@@ -12,7 +12,9 @@ use crate::unhold::{Plan, Unhold, LOOKAHEAD};
 
 use identifier_core::Rotors;
 
+use super::gravity::GravityFold;
 use super::{IdentifyError, Rotor};
+use crate::vehicle::Vehicle;
 
 /// One sample's inputs.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -54,6 +56,11 @@ pub(crate) struct Inputs<'a> {
     pub dt_med: f64,
     /// The rotor, if one was given.
     pub rotor: Option<RotorInput<'a>>,
+    /// The vehicle file's rotors, if one was given (instead of `rotor`).
+    pub vehicle: Option<&'a Vehicle>,
+    /// The gravity gradient (G1) of a body of this inertia (kg m^2), folded into the momentum
+    /// by (G2) from the log's attitude and position.
+    pub gravity: Option<[[f32; 3]; 3]>,
 }
 
 /// Turns samples (in order, with their rotor speed in rad/s) into inputs.
@@ -61,15 +68,28 @@ struct Emit<'v, 'w> {
     i: usize,
     prev_t: Option<f64>,
     dt_med: f64,
-    /// The rotor's momentum function ((R1) of `identifier_core::Rotors`; none: zero).
+    /// The `--rotor-*` rotor's momentum function ((R1) of `identifier_core::Rotors`; none:
+    /// zero).
     rotors: Rotors,
+    vehicle: Option<&'v Vehicle>,
+    gravity: Option<GravityFold>,
     visit: &'v mut (dyn FnMut(&Input) -> Result<Flow, ReadError> + 'w),
 }
 
 impl Emit<'_, '_> {
     #[inline]
     fn emit(&mut self, s: &Sample, speed: f32) -> Result<Flow, ReadError> {
-        let h = self.rotors.momentum(&[speed]);
+        let h = match (self.rotors.is_empty(), self.vehicle) {
+            (true, Some(v)) => v.momentum(&s.extra.wheels),
+            _ => self.rotors.momentum(&[speed]),
+        };
+        let h = match &mut self.gravity {
+            Some(g) => {
+                let e = g.step(s.t, s.extra.attitude, s.extra.position);
+                [h[0] + e[0], h[1] + e[1], h[2] + e[2]]
+            }
+            None => h,
+        };
         let dt = match self.prev_t {
             None => self.dt_med as f32,
             Some(p) => (s.t - p) as f32,
@@ -212,6 +232,8 @@ impl Inputs<'_> {
             prev_t: None,
             dt_med: self.dt_med,
             rotors,
+            vehicle: self.vehicle,
+            gravity: self.gravity.map(GravityFold::new),
             visit,
         };
         let mut stopped = false;

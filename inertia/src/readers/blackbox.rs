@@ -594,6 +594,7 @@ fn choose_log(path: &Path, data: &[u8]) -> Result<Chosen, ReadError> {
         channels: Channels {
             accel: f.acc.is_some(),
             rotor: f.erpm.map(|_| RotorUnit::Erpm),
+            ..Channels::default()
         },
     })
 }

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use super::{Location, ReadError};
-use crate::readers::{Reading, Sample};
+use crate::readers::{Extra, Reading, Sample};
 
 const AXES: [&str; 3] = ["x", "y", "z"];
 
@@ -65,6 +65,31 @@ impl Checker {
         accel: Option<[f64; 3]>,
         rotor: Option<f64>,
     ) -> Result<Option<Sample>, ReadError> {
+        self.check_with(at, t, gyro, accel, rotor, Extra::default())
+    }
+
+    /// [`Checker::check`] with the vehicle's rotor columns and a spacecraft's columns, which
+    /// must be finite too.
+    pub(crate) fn check_with(
+        &mut self,
+        at: Location,
+        t: f64,
+        gyro: [f64; 3],
+        accel: Option<[f64; 3]>,
+        rotor: Option<f64>,
+        extra: Extra,
+    ) -> Result<Option<Sample>, ReadError> {
+        let finite = extra.wheels.iter().all(|x| x.is_finite())
+            && extra.attitude.iter().all(|x| x.is_finite())
+            && extra.position.iter().all(|x| x.is_finite())
+            && extra.magnetic.iter().all(|x| x.is_finite());
+        if !finite {
+            return Err(ReadError::at(
+                &self.file,
+                at,
+                "a rotor, attitude, position or magnetometer value is not finite (or beyond f32)",
+            ));
+        }
         if !t.is_finite() {
             return Err(ReadError::at(
                 &self.file,
@@ -98,6 +123,7 @@ impl Checker {
             gyro: g,
             accel: a.unwrap_or([0.0; 3]),
             rotor: r.unwrap_or(0.0),
+            extra,
         }))
     }
 

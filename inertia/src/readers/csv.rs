@@ -9,13 +9,17 @@
 //! | gyro (required) | `wx,wy,wz`, `gx,gy,gz`, `w_x,...`, `gyro_x,...` or `omega_x,...` | [`ReadOptions::gyro_unit`], default rad/s |
 //! | accelerometer (optional) | `ax,ay,az`, `a_x,...`, `acc_x,...` or `accel_x,...` | [`ReadOptions::accel_unit`], default m/s^2 (gravity included) |
 //! | rotor speed (optional) | `rotor_rad_s` (rad/s), `rotor_rpm` (mechanical rpm) or `erpm` (true eRPM) | |
+//! | a vehicle file's rotors (optional) | the names its `column` keys give ([`ReadOptions::rotor_columns`]) | as logged; the vehicle file's `speed_unit` |
+//! | attitude (optional) | `qw,qx,qy,qz`, scalar first, `v_N = R(q) v_B` | |
+//! | position (optional) | `rx,ry,rz`, Earth-centred inertial | m |
+//! | magnetometer (optional) | `bx,by,bz`, body frame | T |
 //!
 //! The plain `t,wx,wy,wz` (seconds, rad/s) reads as it always did. Separators `,`, `;` (with
 //! decimal commas) and tab are accepted, as in [`super::phyphox`].
 
 use std::path::Path;
 
-use super::{collect, fields, quote, text, Location, ReadError, ReadOptions};
+use super::{collect, fields, quote, text, Extra, Location, ReadError, ReadOptions, MAX_WHEELS};
 use crate::readers::Recording;
 use crate::readers::{Channels, Reading, RotorUnit, Source, Visit};
 
@@ -27,9 +31,14 @@ struct Columns {
     rotor: Option<(usize, RotorUnit)>,
     /// What the rotor column's values are multiplied by (`rotor_rpm`: 2 pi / 60 to rad/s).
     rotor_scale: f64,
+    attitude: Option<[usize; 4]>,
+    position: Option<[usize; 3]>,
+    magnetic: Option<[usize; 3]>,
+    /// The vehicle file's rotor columns, in its order.
+    wheels: Vec<usize>,
 }
 
-fn columns(path: &Path, header: &str) -> Result<Columns, ReadError> {
+fn columns(path: &Path, header: &str, rotor_columns: &[String]) -> Result<Columns, ReadError> {
     let names: Vec<String> = fields(header)
         .into_iter()
         .map(|n| n.to_ascii_lowercase())
@@ -65,12 +74,38 @@ fn columns(path: &Path, header: &str) -> Result<Columns, ReadError> {
         (None, None, Some(c)) => (Some((c, RotorUnit::Erpm)), 1.0),
         (None, None, None) => (None, 1.0),
     };
+    let attitude = (|| Some([col("qw")?, col("qx")?, col("qy")?, col("qz")?]))();
+    if rotor_columns.len() > MAX_WHEELS {
+        return Err(ReadError::new(
+            path,
+            format!("more than {MAX_WHEELS} rotor columns"),
+        ));
+    }
+    let mut wheels = Vec::with_capacity(rotor_columns.len());
+    for name in rotor_columns {
+        let c = col(&name.trim().to_ascii_lowercase()).ok_or_else(|| {
+            ReadError::at(
+                path,
+                Location::Line(1),
+                format!(
+                    "the vehicle file names the rotor column {}, which header {} does not have",
+                    quote(name),
+                    quote(header)
+                ),
+            )
+        })?;
+        wheels.push(c);
+    }
     Ok(Columns {
         t,
         gyro,
         accel,
         rotor,
         rotor_scale,
+        attitude,
+        position: triple("r"),
+        magnetic: triple("b"),
+        wheels,
     })
 }
 
@@ -83,8 +118,14 @@ pub fn read_csv(path: &Path, opts: &ReadOptions) -> Result<Recording, ReadError>
 /// A row's values: time, gyro, accelerometer, rotor speed (units converted).
 type Row = text::TableRow;
 
-/// Where a value of a row goes: time, the gyro axes, the accelerometer axes, the rotor.
-const SLOTS: usize = 8;
+/// Where a value of a row goes: time, the gyro axes, the accelerometer axes, the rotor, the
+/// attitude, position and magnetometer ([`SLOT_Q`], [`SLOT_R`], [`SLOT_B`]), the vehicle's
+/// rotors ([`SLOT_WHEELS`]).
+const SLOTS: usize = SLOT_WHEELS + MAX_WHEELS;
+const SLOT_Q: usize = 8;
+const SLOT_R: usize = SLOT_Q + 4;
+const SLOT_B: usize = SLOT_R + 3;
+const SLOT_WHEELS: usize = SLOT_B + 3;
 const NO_SLOT: u8 = u8::MAX;
 
 /// A CSV log read row by row (see [`crate::source`]).
@@ -109,7 +150,8 @@ impl CsvSource {
         let Some(header) = text::first_line(path)? else {
             return Err(ReadError::new(path, "empty file"));
         };
-        let c = columns(path, &header).map_err(|e| text::utf8_first(path, e))?;
+        let c =
+            columns(path, &header, &opts.rotor_columns).map_err(|e| text::utf8_first(path, e))?;
         let kt = opts.time_unit.unwrap_or_default().to_seconds();
         let kw = opts.gyro_unit.unwrap_or_default().to_rad_per_sec();
         let ka = opts.accel_unit.unwrap_or_default().to_meters_per_sec2();
@@ -120,6 +162,15 @@ impl CsvSource {
         if let Some((r, _)) = c.rotor {
             need = need.max(r);
         }
+        let extra_cols = c
+            .attitude
+            .iter()
+            .flatten()
+            .chain(c.position.iter().flatten());
+        let extra_cols = extra_cols
+            .chain(c.magnetic.iter().flatten())
+            .chain(&c.wheels);
+        need = extra_cols.fold(need, |m, &k| m.max(k));
         let mut slot_of = vec![NO_SLOT; need + 1];
         let mut put = |col: usize, slot: u8| {
             if let Some(s) = slot_of.get_mut(col) {
@@ -137,6 +188,17 @@ impl CsvSource {
         }
         if let Some((r, _)) = c.rotor {
             put(r, 7);
+        }
+        let groups: [(Option<&[usize]>, usize); 4] = [
+            (c.attitude.as_ref().map(|v| &v[..]), SLOT_Q),
+            (c.position.as_ref().map(|v| &v[..]), SLOT_R),
+            (c.magnetic.as_ref().map(|v| &v[..]), SLOT_B),
+            (Some(&c.wheels[..]), SLOT_WHEELS),
+        ];
+        for (cols, first) in groups {
+            for (k, &col) in cols.unwrap_or(&[]).iter().enumerate() {
+                put(col, (first + k) as u8);
+            }
         }
         Ok(CsvSource {
             path: path.to_path_buf(),
@@ -246,7 +308,7 @@ impl CsvSource {
                 .accel
                 .map(|_| [v[4], v[5], v[6]].map(|x| x * self.ka));
             let r = self.c.rotor.map(|_| v[7] * self.c.rotor_scale);
-            return Ok(Some((v[0] * self.kt, w, a, r)));
+            return Ok(Some((v[0] * self.kt, w, a, r, self.extra(&v))));
         }
         self.general_row(n, line, scratch)
     }
@@ -295,8 +357,48 @@ impl CsvSource {
             }
             None => None,
         };
-        Ok(Some((t, w, a, r)))
+        let mut v = [0.0; SLOTS];
+        for (slot, (x, field)) in v.iter_mut().zip(f).enumerate().skip(SLOT_Q) {
+            if self.slot_used(slot) {
+                *x = text::number(path, n, slot_name(slot), field, dc, scratch)?;
+            }
+        }
+        Ok(Some((t, w, a, r, self.extra(&v))))
     }
+
+    /// Whether a column fills `slot` (the extra slots only).
+    fn slot_used(&self, slot: usize) -> bool {
+        let c = &self.c;
+        match slot {
+            s if s < SLOT_Q => true,
+            s if s < SLOT_R => c.attitude.is_some(),
+            s if s < SLOT_B => c.position.is_some(),
+            s if s < SLOT_WHEELS => c.magnetic.is_some(),
+            s => s - SLOT_WHEELS < c.wheels.len(),
+        }
+    }
+
+    /// The vehicle's and the spacecraft's values of a row by slot (zero where absent).
+    #[inline]
+    fn extra(&self, v: &[f64; SLOTS]) -> Extra {
+        let at = |k: usize| v.get(k).copied().unwrap_or(0.0);
+        Extra {
+            wheels: core::array::from_fn(|k| at(SLOT_WHEELS + k) as f32),
+            attitude: core::array::from_fn(|k| at(SLOT_Q + k) as f32),
+            position: core::array::from_fn(|k| at(SLOT_R + k)),
+            magnetic: core::array::from_fn(|k| at(SLOT_B + k) as f32),
+        }
+    }
+}
+
+/// The name of an extra slot's column, for messages.
+fn slot_name(slot: usize) -> &'static str {
+    const NAMES: [&str; SLOT_WHEELS - SLOT_Q] =
+        ["qw", "qx", "qy", "qz", "rx", "ry", "rz", "bx", "by", "bz"];
+    NAMES
+        .get(slot.wrapping_sub(SLOT_Q))
+        .copied()
+        .unwrap_or("rotor speed")
 }
 
 impl Source for CsvSource {
@@ -308,6 +410,10 @@ impl Source for CsvSource {
         Channels {
             accel: self.c.accel.is_some(),
             rotor: self.c.rotor.map(|(_, unit)| unit),
+            wheels: self.c.wheels.len(),
+            attitude: self.c.attitude.is_some(),
+            position: self.c.position.is_some(),
+            magnetic: self.c.magnetic.is_some(),
         }
     }
 
@@ -360,7 +466,7 @@ mod tests {
         let o = ReadOptions {
             gyro_unit: Some(GyroUnit::DegPerSec),
             time_unit: Some(TimeUnit::Ms),
-            accel_unit: None,
+            ..ReadOptions::default()
         };
         let r = read_csv(&p, &o).unwrap();
         assert_eq!(r.t, vec![0.0, 0.01]);
@@ -448,8 +554,8 @@ mod tests {
                 if n == 1 {
                     return Ok(Flow::Continue);
                 }
-                if let Some((t, w, a, r)) = src.row(n, line, &mut scratch)? {
-                    if let Some(s) = check.check(Location::Line(n), t, w, a, r)? {
+                if let Some((t, w, a, r, x)) = src.row(n, line, &mut scratch)? {
+                    if let Some(s) = check.check_with(Location::Line(n), t, w, a, r, x)? {
                         out.push(s);
                     }
                 }

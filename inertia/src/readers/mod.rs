@@ -29,7 +29,8 @@ pub mod ulog;
 mod units;
 
 pub use output::{
-    Channels, Flow, Reading, Recording, RotorSpeed, RotorUnit, Sample, Source, Visit,
+    Channels, Extra, Flow, Reading, Recording, RotorSpeed, RotorUnit, Sample, Source, Visit,
+    MAX_WHEELS,
 };
 pub use units::{
     ratios_warning, time_warning, unit_warnings, AccelCheck, UnitCheck, DEG_PER_SEC_SUSPECT_RAD_S,
@@ -179,7 +180,7 @@ impl TimeUnit {
 
 /// Options for formats that do not state their units (the named-column CSV). The binary
 /// formats and phyphox state theirs and ignore these.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct ReadOptions {
     /// Gyro unit of a CSV; `None` means rad/s.
     pub gyro_unit: Option<GyroUnit>,
@@ -187,6 +188,10 @@ pub struct ReadOptions {
     pub time_unit: Option<TimeUnit>,
     /// Accelerometer unit of a CSV; `None` means m/s^2.
     pub accel_unit: Option<AccelUnit>,
+    /// The rotor-speed columns a vehicle file names ([`crate::vehicle`]), in its order, at
+    /// most [`MAX_WHEELS`]: read into [`Extra::wheels`] as logged. A column the log lacks is
+    /// an error.
+    pub rotor_columns: Vec<String>,
 }
 
 /// The formats [`read`] knows.
@@ -434,6 +439,7 @@ impl Samples {
             gyro_filters: None,
             gyro_unit_stated: true,
             warnings,
+            ..Recording::default()
         };
         rec.warnings.extend(unit_warnings(&rec.t, &rec.gyro));
         Ok(rec)
@@ -447,6 +453,8 @@ pub(crate) fn collect(src: &dyn Source) -> Result<Recording, ReadError> {
     let mut gyro = Vec::new();
     let mut accel = Vec::new();
     let mut rotor = Vec::new();
+    let mut wheels = vec![Vec::new(); ch.wheels.min(MAX_WHEELS)];
+    let (mut attitude, mut position, mut magnetic) = (Vec::new(), Vec::new(), Vec::new());
     let reading = src.read_all(
         &mut |s| {
             t.push(s.t);
@@ -456,6 +464,18 @@ pub(crate) fn collect(src: &dyn Source) -> Result<Recording, ReadError> {
             }
             if ch.rotor.is_some() {
                 rotor.push(s.rotor);
+            }
+            for (w, &v) in wheels.iter_mut().zip(&s.extra.wheels) {
+                w.push(v);
+            }
+            if ch.attitude {
+                attitude.push(s.extra.attitude);
+            }
+            if ch.position {
+                position.push(s.extra.position);
+            }
+            if ch.magnetic {
+                magnetic.push(s.extra.magnetic);
             }
             Ok(Flow::Continue)
         },
@@ -469,6 +489,10 @@ pub(crate) fn collect(src: &dyn Source) -> Result<Recording, ReadError> {
         gyro,
         accel: ch.accel.then_some(accel),
         rotor: ch.rotor.map(|u| u.wrap(rotor)),
+        wheels,
+        attitude: ch.attitude.then_some(attitude),
+        position: ch.position.then_some(position),
+        magnetic: ch.magnetic.then_some(magnetic),
         gyro_full_scale: src.full_scale(),
         gyro_averaging: src.gyro_averaging(),
         gyro_filters: src.gyro_filters(),

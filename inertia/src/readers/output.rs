@@ -62,6 +62,15 @@ pub struct Recording {
     pub accel: Option<Vec<[f32; 3]>>,
     /// Rotor (flywheel, motor) speed of the first rotor, same length as `gyro` when present.
     pub rotor: Option<RotorSpeed>,
+    /// The vehicle file's rotor columns, in its order, as logged (one vector per column, each
+    /// as long as `gyro`; empty without a vehicle file).
+    pub wheels: Vec<Vec<f32>>,
+    /// Attitude quaternions `(qw, qx, qy, qz)`, `v_N = R(q) v_B`, when the log has them.
+    pub attitude: Option<Vec<[f32; 4]>>,
+    /// Positions in an Earth-centred inertial frame, m, when the log has them.
+    pub position: Option<Vec<[f64; 3]>>,
+    /// Magnetometer in the body frame, T, when the log has it.
+    pub magnetic: Option<Vec<[f32; 3]>>,
     /// Gyro full scale in rad/s when the log states it (saturation detection), else infinite.
     pub gyro_full_scale: f32,
     /// Each gyro sample is the mean rate over a window of this fraction of the sample
@@ -97,6 +106,25 @@ impl Recording {
     }
 }
 
+/// The most rotor-speed columns a vehicle file may name ([`crate::vehicle`]), as the core's
+/// fixed bound.
+pub const MAX_WHEELS: usize = identifier_core::MAX_ROTORS;
+
+/// What a sample may carry beyond the gyro, the accelerometer and the first rotor: the speeds
+/// of the columns a vehicle file names, and a spacecraft log's attitude, position and
+/// magnetometer ([`Channels`] says which are present; absent ones are zero).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Extra {
+    /// The vehicle file's rotor columns, in its order, as logged (its unit).
+    pub wheels: [f32; MAX_WHEELS],
+    /// Attitude quaternion `(qw, qx, qy, qz)`, scalar first: `v_N = R(q) v_B`.
+    pub attitude: [f32; 4],
+    /// Position in an Earth-centred inertial frame, m.
+    pub position: [f64; 3],
+    /// Magnetometer in the body frame, T.
+    pub magnetic: [f32; 3],
+}
+
 /// One sample: time (s), rate (rad/s), specific force (m/s^2; zero without an accelerometer)
 /// and the rotor speed in the channel's own unit ([`Channels::rotor`]; zero without one).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -109,6 +137,8 @@ pub struct Sample {
     pub accel: [f32; 3],
     /// Rotor speed as logged (eRPM or rad/s).
     pub rotor: f32,
+    /// Vehicle rotors and spacecraft columns.
+    pub extra: Extra,
 }
 
 /// The unit of a rotor-speed channel.
@@ -149,12 +179,20 @@ impl RotorUnit {
 }
 
 /// Which channels a log has besides time and gyro.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Channels {
     /// An accelerometer.
     pub accel: bool,
     /// A rotor-speed channel, and its unit.
     pub rotor: Option<RotorUnit>,
+    /// The vehicle file's rotor columns read ([`Extra::wheels`]).
+    pub wheels: usize,
+    /// Attitude quaternion columns ([`Extra::attitude`]).
+    pub attitude: bool,
+    /// Position columns ([`Extra::position`]).
+    pub position: bool,
+    /// Magnetometer columns ([`Extra::magnetic`]).
+    pub magnetic: bool,
 }
 
 /// What one reading found beyond the samples.

@@ -7,7 +7,9 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{collect, data_file, fields, number, quote, read_lines, text, Location, ReadError};
+use super::{
+    collect, data_file, fields, number, quote, read_lines, text, Extra, Location, ReadError,
+};
 use crate::readers::Recording;
 use crate::readers::{Channels, Reading, Source, Visit};
 
@@ -90,10 +92,7 @@ impl Source for PhyphoxSource {
     }
 
     fn channels(&self) -> Channels {
-        Channels {
-            accel: false,
-            rotor: None,
-        }
+        Channels::default()
     }
 
     fn full_scale(&self) -> f32 {
@@ -106,7 +105,9 @@ impl Source for PhyphoxSource {
         progress: &mut dyn FnMut(f32),
     ) -> Result<Reading, ReadError> {
         text::read_table(&self.file, visit, progress, &|n, line, scratch| {
-            Ok(self.row(n, line, scratch)?.map(|(t, w)| (t, w, None, None)))
+            Ok(self
+                .row(n, line, scratch)?
+                .map(|(t, w)| (t, w, None, None, Extra::default())))
         })
     }
 

@@ -14,7 +14,7 @@ use std::sync::mpsc::sync_channel;
 
 use super::check::Checker;
 use super::{quote, Location, ReadError};
-use crate::readers::{Flow, Reading, Visit};
+use crate::readers::{Extra, Flow, Reading, Visit};
 
 /// Read buffer: large enough that a line rarely straddles two reads.
 const BUFFER: usize = 1 << 20;
@@ -81,9 +81,9 @@ pub(crate) fn each_line(
     failed.map_or(Ok(()), Err)
 }
 
-/// One data row of a text table: time, gyro, accelerometer and rotor speed (units
-/// converted), `None` for a row to skip (blank).
-pub(crate) type TableRow = (f64, [f64; 3], Option<[f64; 3]>, Option<f64>);
+/// One data row of a text table: time, gyro, accelerometer, rotor speed (units converted)
+/// and the vehicle's and a spacecraft's columns, `None` for a row to skip (blank).
+pub(crate) type TableRow = (f64, [f64; 3], Option<[f64; 3]>, Option<f64>, Extra);
 
 /// Parses one data row of a table: `(line number, line, scratch) -> row`. It runs on the
 /// parsing threads ([`read_table`]), so it only reads its source.
@@ -331,9 +331,9 @@ pub(crate) fn read_table(
             };
             // The rows end where a row failed: visited in order, then that row's error.
             if failed.is_none() {
-                for (n, (t, w, a, r)) in parsed.rows {
+                for (n, (t, w, a, r, extra)) in parsed.rows {
                     let visited = check
-                        .check(Location::Line(n), t, w, a, r)
+                        .check_with(Location::Line(n), t, w, a, r, extra)
                         .and_then(|s| s.map_or(Ok(Flow::Continue), |s| visit(&s)));
                     match visited {
                         Ok(Flow::Continue) => {}
