@@ -6,8 +6,8 @@
 #   scripts/run.sh --log FILE [--rotor-inertia KG_M2 --rotor-axis x|y|z|-x|-y|-z [--rotor-poles N] [--rotor-raw | --rotor-unhold]
 #                  | --vehicle FILE.toml]
 #                  [--noise-std RAD_S] [--gyro-unit rad/s|deg/s] [--time-unit s|ms|us] [--json OUT.json]
-#                  [--refit-every N] [--lossless]
-#   scripts/run.sh --replay FILE.irpl [--refit-every N] [--lossless] [--json OUT.json]
+#                  [--refit-every N | --refit-every-s S] [--lossless]
+#   scripts/run.sh --replay FILE.irpl [--refit-every N | --refit-every-s S] [--lossless] [--json OUT.json]
 #   scripts/run.sh --help
 #
 # Without --log (a simulated spinning body):
@@ -36,7 +36,8 @@
 # `-icount $ICOUNT`, deterministic virtual time; default shift=3,sleep=off: 8 ns per
 # instruction) into a ring, a lower-priority interrupt steps the loop, and the fits run in
 # thread mode (docs/firmware.md, "Fits off the sample path"). --refit-every N: continuous
-# mode's re-fit every N samples fed (docs/firmware.md, "Continuous mode"). --lossless: a
+# mode's re-fit every N samples fed, or every S seconds of them at the log's rate
+# (docs/firmware.md, "Continuous mode"). --lossless: a
 # sample that finds the ring full waits for the next tick instead of being lost (a file can
 # wait, a sensor cannot; scripts/replay-check.sh uses it for the bit-for-bit comparison).
 # --replay FILE.irpl runs a replay file written elsewhere (`inertia export-replay`,
@@ -50,7 +51,7 @@ usage() { sed -n '2,/^set -euo/p' "${BASH_SOURCE[0]}" | sed '$d; s/^# \{0,1\}//'
 
 die() { echo "run.sh: $*" >&2; echo "run.sh: see scripts/run.sh --help" >&2; exit 2; }
 
-log_file="" vehicle="" replay_file="" refit_every="" lossless="" json="" rotor_inertia="" rotor_axis="" rotor_poles="" rotor_hold="" noise_std=""
+log_file="" vehicle="" replay_file="" refit_every="" refit_every_s="" lossless="" json="" rotor_inertia="" rotor_axis="" rotor_poles="" rotor_hold="" noise_std=""
 gyro_unit="" time_unit=""
 gen_args=()
 bus_every=0
@@ -71,6 +72,7 @@ while [ $# -gt 0 ]; do
         --replay) need "$@"; replay_file="$2"; shift 2 ;;
         --vehicle) need "$@"; vehicle="$2"; shift 2 ;;
         --refit-every) need "$@"; refit_every="$2"; shift 2 ;;
+        --refit-every-s) need "$@"; refit_every_s="$2"; shift 2 ;;
         --lossless) lossless=1; shift ;;
         --json) need "$@"; json="$2"; shift 2 ;;
         --rotor-inertia) need "$@"; rotor_inertia="$2"; shift 2 ;;
@@ -90,6 +92,11 @@ done
 if [ -n "$replay_file" ]; then
     [ -z "$log_file" ] || die "--replay and --log exclude each other"
     [ -f "$replay_file" ] && [ -r "$replay_file" ] || die "--replay $replay_file: no such readable file"
+fi
+if [ -n "$refit_every_s" ]; then
+    [ -z "$refit_every" ] || die "--refit-every and --refit-every-s exclude each other"
+    [ -n "$log_file$replay_file" ] || die "--refit-every-s applies to a replayed log: give --log or --replay"
+    [[ "$refit_every_s" =~ ^[0-9]+\.?[0-9]*$ ]] || die "--refit-every-s $refit_every_s: not a positive number of seconds"
 fi
 if [ -n "$refit_every" ]; then
     [ -n "$log_file$replay_file" ] || die "--refit-every applies to a replayed log: give --log or --replay"
@@ -189,6 +196,7 @@ if [ -n "$log_file$replay_file" ]; then
     set +e
     refit=()
     [ -z "$refit_every" ] || refit=(--refit-every "$refit_every")
+    [ -z "$refit_every_s" ] || refit=(--refit-every-s "$refit_every_s")
     [ -z "$lossless" ] || refit+=(--lossless)
     SERIAL="$OUT/uart.bin" ICOUNT="$ICOUNT" scripts/firmware-qemu.sh "$ELF" --replay "$OUT/replay.bin" \
         ${refit[@]+"${refit[@]}"} >"$OUT/defmt.txt"

@@ -112,6 +112,17 @@ impl FitScheduler {
         }
     }
 
+    /// The re-fit period in samples for one of `seconds` at `rate_hz` samples a second (0, no
+    /// re-fit, when either is not positive and finite or the period is beyond `u32`).
+    pub fn samples_for(seconds: f32, rate_hz: f32) -> u32 {
+        let n = seconds * rate_hz + 0.5;
+        if (1.0..4.0e9).contains(&n) {
+            n as u32
+        } else {
+            0
+        }
+    }
+
     /// The job due now, given the fit slot is free: an ended flight's fits first, then a
     /// periodic re-fit once `refit_every` more samples were fed.
     pub fn due<IF, C, R>(&mut self, lp: &SampleLoop<IF, C, R>) -> Option<FitKind>
@@ -483,6 +494,16 @@ mod tests {
         }
         reference.end_flight();
         reference
+    }
+
+    #[test]
+    fn refit_periods_in_seconds() {
+        assert_eq!(FitScheduler::samples_for(600.0, 10.0), 6000);
+        assert_eq!(FitScheduler::samples_for(0.25, 8000.0), 2000);
+        assert_eq!(FitScheduler::samples_for(0.0, 10.0), 0);
+        assert_eq!(FitScheduler::samples_for(-1.0, 10.0), 0);
+        assert_eq!(FitScheduler::samples_for(f32::NAN, 10.0), 0);
+        assert_eq!(FitScheduler::samples_for(1e9, 8000.0), 0);
     }
 
     #[test]

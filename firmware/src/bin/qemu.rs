@@ -23,7 +23,7 @@ use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use cortex_m_rt::{entry, exception};
 use critical_section::Mutex;
 use defmt_semihosting as _;
-use firmware::app::{FitJob, FitKind, Stepper};
+use firmware::app::{FitJob, FitKind, FitScheduler, Stepper};
 use firmware::log_format::{decode_sample, Header, HEADER_LEN, SAMPLE_LEN};
 use firmware::replay_format::{self, ReplayHeader};
 use firmware::uplink::{send_report, ByteSink};
@@ -184,17 +184,21 @@ fn main() -> ! {
             defmt::error!("usage: firmware-qemu --replay <replay file> [--refit-every N]");
             exit(3)
         };
-        let (mut refit_every, mut lossless) = (0u32, false);
+        let (mut refit_every, mut lossless) = (RefitEvery::Samples(0), false);
         while let Some(a) = it.next() {
             match (a, &mut it) {
                 (Ok("--lossless"), _) => lossless = true,
                 (Ok("--refit-every"), it) => match it.next().map(|n| n.map(str::parse::<u32>)) {
-                    Some(Ok(Ok(n))) => refit_every = n,
+                    Some(Ok(Ok(n))) => refit_every = RefitEvery::Samples(n),
+                    _ => exit(3),
+                },
+                (Ok("--refit-every-s"), it) => match it.next().map(|n| n.map(str::parse::<f32>)) {
+                    Some(Ok(Ok(s))) if s > 0.0 => refit_every = RefitEvery::Seconds(s),
                     _ => exit(3),
                 },
                 _ => {
                     defmt::error!(
-                        "usage: firmware-qemu --replay <replay file> [--refit-every N] [--lossless]"
+                        "usage: firmware-qemu --replay <replay file> [--refit-every N | --refit-every-s S] [--lossless]"
                     );
                     exit(3)
                 }
@@ -738,6 +742,15 @@ fn build_log_loop(
     )
 }
 
+/// Continuous mode's re-fit period as given on the command line.
+#[derive(Clone, Copy)]
+enum RefitEvery {
+    /// Samples fed (`--refit-every N`; 0: none).
+    Samples(u32),
+    /// Seconds of samples fed at the log's rate (`--refit-every-s S`).
+    Seconds(f32),
+}
+
 /// The replay mode's loop, built in one go with the log's pipeline settings and rotors. Not
 /// inlined: the construction's temporaries (a pipeline of tens of kilobytes among them) live
 /// in this frame, gone once it returns, not in [`replay`]'s for good.
@@ -769,7 +782,7 @@ fn build_replay_loop(
 // Not inlined into `main`: the loop is tens of kilobytes, and the two modes' loops in one
 // frame would need stack for both.
 #[inline(never)]
-fn replay(path: &str, refit_every: u32, lossless: bool, uart: &mut Usart1) -> ! {
+fn replay(path: &str, refit_every: RefitEvery, lossless: bool, uart: &mut Usart1) -> ! {
     let mut name = [0u8; 256];
     let bytes = path.as_bytes();
     if bytes.len() >= name.len() {
@@ -803,6 +816,10 @@ fn replay(path: &str, refit_every: u32, lossless: bool, uart: &mut Usart1) -> ! 
     for (i, r) in list.iter_mut().take(n_rotors).enumerate() {
         *r = replay_format::decode_rotor(&table, i);
     }
+    let refit_every = match refit_every {
+        RefitEvery::Samples(n) => n,
+        RefitEvery::Seconds(s) => FitScheduler::samples_for(s, header.rate_hz),
+    };
     let rotors = match Rotors::new(&list[..n_rotors]) {
         Ok(r) => r,
         Err(e) => {
