@@ -785,8 +785,12 @@ impl<const N: usize> Pipeline<N> {
         if self.rotor_seen {
             let start = e.tensor.or_else(|| self.estimator.absolute_guess());
             // A bias measured on the bench was removed from every sample: none is looked for.
+            // Without an accelerometer nothing measures it (a satellite, a log taken whole):
+            // the bias model is also taken where it moves the tensor (Hausman's test).
             if self.bias_measured() {
                 self.tensor_fit.close_without_bias(start);
+            } else if !self.use_gate {
+                self.tensor_fit.close_with_bias(start);
             } else {
                 self.tensor_fit.close(start);
             }
