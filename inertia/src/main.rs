@@ -82,7 +82,9 @@ struct CloseLoopArgs {
     accel_unit: Option<AccelUnit>,
     /// With a rotor, the base model becomes the inertia tensor with the rotor momentum
     /// (products of inertia and the rotor exact), on the free flights `identify` finds (or the
-    /// segments given).
+    /// segments given). With --vehicle, the tensor with the vehicle's rotors, and the gravity
+    /// gradient, a residual magnetic dipole, a body torque and a drifting gyro bias as the
+    /// candidates (docs/close-loop.md).
     #[command(flatten)]
     rotor: RotorArgs,
 }
