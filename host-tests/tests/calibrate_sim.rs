@@ -350,6 +350,7 @@ fn the_rotor_speed_resolution_keeps_the_tensor_std_honest() {
             axis: [0.0, 0.0, -1.0],
             poles: None,
         }),
+        vehicle: None,
         segments: None,
         noise_std: None,
         rotor_hold: RotorHold::Auto,

@@ -31,6 +31,7 @@ fn recording(sim: &SimThrow, lag: usize) -> Recording {
         gyro_unit_stated: true,
         gyro_filters: None,
         warnings: Vec::new(),
+        ..Recording::default()
     }
 }
 

@@ -783,11 +783,12 @@ impl<const N: usize> Pipeline<N> {
     fn close_tensor_fit(&mut self) {
         let e = self.estimator.estimate();
         if self.rotor_seen {
+            let start = e.tensor.or_else(|| self.estimator.absolute_guess());
             // A bias measured on the bench was removed from every sample: none is looked for.
             if self.bias_measured() {
-                self.tensor_fit.close_without_bias(e.tensor);
+                self.tensor_fit.close_without_bias(start);
             } else {
-                self.tensor_fit.close(e.tensor);
+                self.tensor_fit.close(start);
             }
         } else {
             let fe = self.trajectory.estimate();

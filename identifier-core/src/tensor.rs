@@ -188,6 +188,15 @@ impl Default for TensorSettings {
     }
 }
 
+/// The output-error fit's residual over the gyro's noise up to which the fit is taken to
+/// explain the data to the noise: beyond it the estimate is at most
+/// [`TensorStatus::ModelMismatch`] (with an exact momentum: a rotor read in steps leaves its
+/// reading's error too, see [`TensorSettings::momentum_resolution`]). A fit of the right model
+/// leaves the noise itself, up to
+/// the noise estimate's own error (a few tens of percent on short or slow logs); a gyro that
+/// truncates its readings or whose bias walks leaves half as much again.
+pub const OUTPUT_ERROR_FIT_RATIO: f32 = 1.5;
+
 /// The most a body may turn between two samples, rad (`|w|_1 dt`), for the step to be
 /// integrated: a longer step is a gap ([`TensorStatus::UnitsLookWrong`] when more than a tenth
 /// of the steps are). A time unit read wrong (ms as s) turns a thrown body by radians per
@@ -895,6 +904,20 @@ impl TensorEstimator {
         self.solve_all()
     }
 
+    /// The equation error's tensor in kg m^2 from the rotor momentum alone, whatever its
+    /// excitation measure says (that measure is the tensor up to scale's): a starting point
+    /// for the output-error fit where [`TensorEstimator::estimate`] gives none, as on a
+    /// satellite at rest turned by its wheels (total momentum zero, `J w = -h`). `None`
+    /// without rotor momentum or when the equations are singular.
+    pub(crate) fn absolute_guess(&self) -> Option<[[f32; 3]; 3]> {
+        let (nrm, _) = self.normal();
+        let lam = nrm.full();
+        let abs = solve_absolute(&lam, &nrm, false)?;
+        let j = abs.j;
+        let ok = j.iter().all(|x| x.is_finite()) && j[0] > 0.0 && j[1] > 0.0 && j[2] > 0.0;
+        ok.then(|| to_matrix(&j))
+    }
+
     fn solve_all(&self) -> TensorEstimate {
         let (nrm, stretches) = self.normal();
         let samples = self.counters.used;
@@ -1000,7 +1023,11 @@ impl TensorEstimator {
     /// `j` (entries xx, yy, zz, xy, xz, yz in kg m^2) of covariance `cov`, from another fit of
     /// the same samples (the output-error [`crate::TensorFit`]) whose residual is
     /// `residual_ratio` times the gyro noise: the full model, described and judged as the
-    /// estimator's own. `base` is returned unchanged when it carries no information.
+    /// estimator's own. `NoExcitation` from the equation error's own measure (which is that
+    /// of the tensor up to scale) gives way to the fit's `Converged` or `Converging`: a body
+    /// whose total momentum is zero (a satellite at rest, turned by its wheels alone, `J w =
+    /// -h`) leaves the homogeneous equations nothing, while the rotor's momentum still
+    /// determines `J` in kg m^2, as well as the fit's own covariance says.
     pub fn with_tensor(
         &self,
         base: TensorEstimate,
@@ -1008,10 +1035,15 @@ impl TensorEstimator {
         cov: Sym<6>,
         residual_ratio: f32,
     ) -> TensorEstimate {
-        if base.status == TensorStatus::NoExcitation {
+        let out = self.with_fit(base, j, cov, residual_ratio, Some((j, cov)));
+        let informative = matches!(
+            out.status,
+            TensorStatus::Converged | TensorStatus::Converging
+        );
+        if base.status == TensorStatus::NoExcitation && !informative {
             return base;
         }
-        self.with_fit(base, j, cov, residual_ratio, Some((j, cov)))
+        out
     }
 
     /// `base` with the tensor up to scale replaced by `nj` (entries xx, yy, zz, xy, xz, yz of
@@ -1063,7 +1095,24 @@ impl TensorEstimator {
         out.tensor = None;
         out.tensor_std = None;
         out.tensor_cov = None;
-        self.describe(out, nj, cov_n, absolute)
+        let mut out = self.describe(out, nj, cov_n, absolute);
+        // The fit's model is efficient and its covariance the bound's only where the residual
+        // is the gyro's noise: beyond [`OUTPUT_ERROR_FIT_RATIO`] times it (an effect the model lacks, coloured noise) the
+        // covariance comes from the residual seen, and the status says so instead of
+        // `Converged`: `ModelMismatch`, the estimate usable with its stated uncertainty.
+        // Where the momentum is read in steps ((F7), (F8) of the fit), the residual also holds
+        // the reading's expected error, and `mismatch_ratio` alone judges it.
+        let exact_momentum = !(self.settings.momentum_resolution > 0.0);
+        let fits = residual_ratio <= OUTPUT_ERROR_FIT_RATIO || !exact_momentum;
+        if !fits
+            && matches!(
+                out.status,
+                TensorStatus::Converged | TensorStatus::Converging
+            )
+        {
+            out.status = TensorStatus::ModelMismatch;
+        }
+        out
     }
 
     /// The estimate's description from the normalised tensor `nj` (entries xx, yy, zz, xy,

@@ -22,6 +22,7 @@
 //! Every number in the report is the same bits as when the whole recording is held (module
 //! `reference`, the tests' reference).
 
+pub mod gravity;
 mod inputs;
 mod passes;
 #[cfg(test)]
@@ -202,6 +203,11 @@ pub struct Report {
         skip_serializing_if = "Option::is_none"
     )]
     pub rotor_momentum_quantum: Option<f32>,
+    /// The gravity-gradient torque (G1) was folded into the known momentum ((G2) of
+    /// [`gravity`]): the log has attitude and position columns and a rotor momentum fixes the
+    /// scale. Absent otherwise.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub gravity_gradient: bool,
     /// Every free flight.
     pub throws: Vec<EstimateJson>,
     /// All throws together (the on-board result).
@@ -352,9 +358,56 @@ fn bits(v: [f32; 3]) -> [u32; 3] {
 }
 
 /// Runs the identification on a log read sample by sample (see the module documentation).
+/// An orbiting vehicle's log (attitude and position columns, a known rotor momentum) is
+/// identified with the gravity-gradient torque folded into the momentum ([`gravity`]),
+/// refitted at the tensor found until it settles.
 pub fn identify_source(
     src: &dyn Source,
     opts: &IdentifyOptions,
+    progress: &mut dyn Progress,
+) -> Result<Report, IdentifyError> {
+    let free = identify_pass(src, opts, None, progress)?;
+    let ch = src.channels();
+    if !(opts.momentum_known() && ch.attitude && ch.position) {
+        return Ok(free);
+    }
+    let mut report = free.clone();
+    for _ in 0..gravity::MAX_PASSES {
+        let Some(j) = report.pooled.tensor_kg_m2 else {
+            break;
+        };
+
+        let mut next = identify_pass(src, opts, Some(j), progress)?;
+        next.gravity_gradient = true;
+        let moved = match (next.pooled.tensor_kg_m2, next.pooled.tensor_std_kg_m2) {
+            (Some(a), Some(s)) => (0..9).fold(0.0f32, |m, k| {
+                let (r, c) = (k / 3, k % 3);
+                m.max((a[r][c] - j[r][c]).abs() / s[r][c])
+            }),
+            _ => f32::INFINITY,
+        };
+        report = next;
+        if moved.is_nan() || moved < 0.1 {
+            break;
+        }
+    }
+    // The model with the gravity gradient has no more free parameters than the one without:
+    // the one whose residual is smaller is the likelier (a simulated orbit without the
+    // torque keeps the torque-free model).
+    let ratio = |r: &Report| r.pooled.residual_ratio;
+    if report.gravity_gradient && ratio(&report) < ratio(&free) {
+        Ok(report)
+    } else {
+        Ok(free)
+    }
+}
+
+/// One identification, with the gravity gradient of a body of inertia `gravity` folded into
+/// the momentum when given.
+fn identify_pass(
+    src: &dyn Source,
+    opts: &IdentifyOptions,
+    gravity: Option<[[f32; 3]; 3]>,
     progress: &mut dyn Progress,
 ) -> Result<Report, IdentifyError> {
     let ch = src.channels();
@@ -454,6 +507,7 @@ pub fn identify_source(
         dt_med,
         rotor,
         vehicle: opts.vehicle.as_ref(),
+        gravity,
     };
     let mut trace = opts.trace.then(|| Trace {
         step: (n / 20000).max(1),
@@ -577,6 +631,7 @@ pub fn identify_source(
         gyro_bias: pooled.bias.unwrap_or([0.0; 3]),
         free_flight_detection: detection,
         rotor_momentum_quantum: (quantum > 0.0).then_some(quantum),
+        gravity_gradient: false,
         throws: throws.into_iter().map(|(_, j)| j).collect(),
         pooled: pooled_json,
         warnings,

@@ -42,6 +42,7 @@ fn report(tensor: Option<[[f32; 3]; 3]>, status: &str) -> Report {
         gyro_bias: [0.0; 3],
         free_flight_detection: false,
         rotor_momentum_quantum: None,
+        gravity_gradient: false,
         throws: vec![estimate(tensor, status)],
         pooled: estimate(tensor, status),
         warnings: Vec::new(),

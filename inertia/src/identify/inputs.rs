@@ -10,6 +10,7 @@ use crate::readers::ReadError;
 use crate::source::{Flow, Sample, Source};
 use crate::unhold::{Plan, Unhold, LOOKAHEAD};
 
+use super::gravity::GravityFold;
 use super::{IdentifyError, Rotor};
 use crate::vehicle::Vehicle;
 
@@ -55,6 +56,9 @@ pub(crate) struct Inputs<'a> {
     pub rotor: Option<RotorInput<'a>>,
     /// The vehicle file's rotors, if one was given (instead of `rotor`).
     pub vehicle: Option<&'a Vehicle>,
+    /// The gravity gradient (G1) of a body of this inertia (kg m^2), folded into the momentum
+    /// by (G2) from the log's attitude and position.
+    pub gravity: Option<[[f32; 3]; 3]>,
 }
 
 /// Turns samples (in order, with their rotor speed in rad/s) into inputs.
@@ -64,6 +68,7 @@ struct Emit<'v, 'w> {
     dt_med: f64,
     rotor: Option<Rotor>,
     vehicle: Option<&'v Vehicle>,
+    gravity: Option<GravityFold>,
     visit: &'v mut (dyn FnMut(&Input) -> Result<Flow, ReadError> + 'w),
 }
 
@@ -74,6 +79,13 @@ impl Emit<'_, '_> {
             (Some(r), _) => r.axis.map(|a| a * r.inertia * speed),
             (None, Some(v)) => v.momentum(&s.extra.wheels),
             (None, None) => [0.0; 3],
+        };
+        let h = match &mut self.gravity {
+            Some(g) => {
+                let e = g.step(s.t, s.extra.attitude, s.extra.position);
+                [h[0] + e[0], h[1] + e[1], h[2] + e[2]]
+            }
+            None => h,
         };
         let dt = match self.prev_t {
             None => self.dt_med as f32,
@@ -211,6 +223,7 @@ impl Inputs<'_> {
             dt_med: self.dt_med,
             rotor: self.rotor.map(|r| r.rotor),
             vehicle: self.vehicle,
+            gravity: self.gravity.map(GravityFold::new),
             visit,
         };
         let mut stopped = false;

@@ -228,6 +228,7 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
         gyro_bias: bias,
         free_flight_detection: detection,
         rotor_momentum_quantum: (quantum > 0.0).then_some(quantum),
+        gravity_gradient: false,
         throws,
         pooled,
         warnings,
