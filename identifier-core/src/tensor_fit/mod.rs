@@ -1043,7 +1043,8 @@ impl<const N: usize> TensorFit<N> {
     }
 
     /// [`TensorFit::close`] with the bias model also taken where it moves the tensor beyond
-    /// the difference's standard deviation ([`BiasModel::Checked`]): for a gyro whose bias
+    /// 3.9 standard deviations of the difference (Hausman's test per entry, on the window and
+    /// on the pool of all windows): for a gyro whose bias
     /// nothing measured on a long, slow flight (a satellite's tumble), where the plain model
     /// can fit to the noise with the bias taken for products of inertia.
     pub fn close_with_bias(&mut self, init: Option<[[f32; 3]; 3]>) -> StretchOutcome {
