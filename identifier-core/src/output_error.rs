@@ -1015,6 +1015,19 @@ pub(crate) struct StretchResult<const M: usize> {
     pub(crate) torque: Option<f32>,
     /// The score test of the gyro's scale factors rejected the model (false: not tested).
     pub(crate) scale: bool,
+    /// The bias model's fit of the same blocks where it was fitted but not taken (`tensor_fit`'s
+    /// checked bias): its parameters of interest, unit-noise covariance, cost and parameter
+    /// count, pooled apart for the pooled comparison of the two models.
+    pub(crate) alt: Option<Alternative<M>>,
+}
+
+/// A stretch's fit with the other bias model ([`StretchResult::alt`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Alternative<const M: usize> {
+    pub(crate) p: [f32; M],
+    pub(crate) cov: Sym<M>,
+    pub(crate) cost: f32,
+    pub(crate) params: usize,
 }
 
 /// What both fits keep between samples: the open stretch's blocks (`K` channels), the
@@ -1033,6 +1046,11 @@ pub(crate) struct FitState<const N: usize, const K: usize, const M: usize> {
     /// A closed stretch's score test found the gyro's scale factors off.
     pub(crate) scale: bool,
     pub(crate) last: StretchOutcome,
+    /// The stretches pooled with the bias model wherever it was fitted ([`StretchResult::alt`]
+    /// or taken), for the pooled comparison of the two models.
+    pub(crate) alt_pooled: Pooled<M>,
+    /// Every stretch in `pooled` is in `alt_pooled` too.
+    pub(crate) alt_complete: bool,
 }
 
 impl<const N: usize, const K: usize, const M: usize> FitState<N, K, M> {
@@ -1045,18 +1063,62 @@ impl<const N: usize, const K: usize, const M: usize> FitState<N, K, M> {
         torque_cost: 0.0,
         scale: false,
         last: StretchOutcome::Empty,
+        alt_pooled: Pooled::EMPTY,
+        alt_complete: true,
     };
 
     /// Ends the open stretch: `fit` fits its blocks (at least 8), the result is pooled, and the
-    /// buffer is emptied for the next stretch. What happened is returned and kept.
+    /// buffer is emptied for the next stretch. What happened is returned and kept. The bias
+    /// model's fit, where there is one, is pooled apart ([`FitState::alternative`]).
     pub(crate) fn close(
         &mut self,
         fit: impl FnOnce(&[Block<K>]) -> Option<StretchResult<M>>,
     ) -> StretchOutcome {
         let mut pooled = self.pooled;
-        let outcome = self.close_into(&mut pooled, fit);
+        let samples = self.buf.samples();
+        let mut other: Option<(Alternative<M>, bool, usize)> = None;
+        let outcome = self.close_into(&mut pooled, |blocks| {
+            let mut r = fit(blocks)?;
+            let own = Alternative {
+                p: r.p,
+                cov: r.cov,
+                cost: r.cost,
+                params: r.params,
+            };
+            let alt = r.alt.take();
+            other = Some(match alt {
+                Some(a) => (a, true, blocks.len()),
+                None => (own, r.bias.is_some(), blocks.len()),
+            });
+            Some(r)
+        });
         self.pooled = pooled;
+        if matches!(
+            outcome,
+            StretchOutcome::Fitted | StretchOutcome::FittedWithBias
+        ) {
+            match other {
+                Some((a, true, n)) => {
+                    let dof = (3 * n) as f32 - a.params as f32;
+                    if !self.alt_pooled.add(&a.p, &a.cov, a.cost, dof, samples) {
+                        self.alt_complete = false;
+                    }
+                }
+                _ => self.alt_complete = false,
+            }
+        }
         outcome
+    }
+
+    /// The pooled estimate with the bias model on every stretch (mean, covariance, noise),
+    /// when every pooled stretch had it fitted; `None` otherwise.
+    pub(crate) fn alternative(&self) -> Option<([f32; M], Sym<M>, f32)> {
+        let all = self.alt_complete && self.alt_pooled.stretches == self.pooled.stretches;
+        if all {
+            self.alt_pooled.mean()
+        } else {
+            None
+        }
     }
 
     /// Keeps a pooled stretch's torque test: whether it rejected, and its cost with the torque.

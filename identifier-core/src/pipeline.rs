@@ -68,8 +68,10 @@ pub struct PipelineSettings {
     /// sensitivity to its start make one trajectory drift from the motion by more than the
     /// gyro's noise, and the fit fails. The windows' estimates are pooled by their
     /// information, like the stretches of several throws; memory and the per-sample cost do
-    /// not grow with the flight. The default ([`WINDOW_TURN_RAD`]) is above any throw's
-    /// turn (35 rad/s for 0.6 s). Not finite or not positive: no windows.
+    /// not grow with the flight. Only without the free-flight gate (no accelerometer: a
+    /// satellite's continuous tumble, a log taken whole): a gated flight is a throw, which
+    /// turns less than the default ([`WINDOW_TURN_RAD`]; 35 rad/s for 0.6 s), and its fits run
+    /// when it ends, never inside it. Not finite: no windows.
     pub window_turn_rad: f32,
 }
 
@@ -811,8 +813,12 @@ impl<const N: usize> Pipeline<N> {
         if self.rotor_seen {
             let start = e.tensor.or_else(|| self.estimator.absolute_guess());
             // A bias measured on the bench was removed from every sample: none is looked for.
+            // Without an accelerometer nothing measures it (a satellite, a log taken whole):
+            // the bias model is also taken where it moves the tensor (Hausman's test).
             if self.bias_measured() {
                 self.tensor_fit.close_without_bias(start);
+            } else if !self.use_gate {
+                self.tensor_fit.close_with_bias(start);
             } else {
                 self.tensor_fit.close(start);
             }
@@ -1254,7 +1260,7 @@ impl<const N: usize> Pipeline<N> {
         if turn.is_finite() {
             self.turned += turn;
         }
-        if self.turned > self.settings.window_turn_rad {
+        if !self.use_gate && self.turned > self.settings.window_turn_rad {
             self.turned = 0.0;
             self.fits_pending = true;
         }

@@ -1094,6 +1094,7 @@ impl<const N: usize> RatioFit<N> {
                 lag1: 0.0,
                 torque,
                 scale: false,
+                alt: None,
             })
         });
         if matches!(

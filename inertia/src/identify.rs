@@ -71,7 +71,7 @@ use serde::Serialize;
 use crate::readers::ReadError;
 use crate::recording::Recording;
 pub use crate::recording::{estimate_noise, median_dt, white_noise};
-use crate::source::{RecordingSource, Source};
+use crate::source::{Flow, RecordingSource, Source};
 use crate::survey::{survey, Wanted};
 pub use crate::unhold::{slow_telemetry, unhold, RotorHold};
 use crate::vehicle::Vehicle;
@@ -367,6 +367,45 @@ fn bits(v: [f32; 3]) -> [u32; 3] {
     v.map(f32::to_bits)
 }
 
+/// The fastest a rotor of a vehicle turns, rad/s (about 57,000 rpm: a small drone motor
+/// without its propeller; reaction wheels turn at a tenth of it). A faster speed is a unit
+/// read wrong (eRPM or rpm taken for rad/s): the momentum, and with it the tensor's scale, is
+/// then off by the same factor while the fit stays perfect, so the estimate is
+/// `UnitsLookWrong`.
+pub const MAX_PLAUSIBLE_ROTOR_RAD_S: f32 = 6000.0;
+
+/// The warning for a vehicle rotor whose speed, in rad/s as its file's unit reads it, goes
+/// beyond [`MAX_PLAUSIBLE_ROTOR_RAD_S`] (`None` when none does).
+fn rotor_units_warning(src: &dyn Source, v: &Vehicle) -> Result<Option<String>, IdentifyError> {
+    let mut fastest = vec![0.0f32; v.rotors.len()];
+    src.read_all(
+        &mut |s| {
+            for ((m, &w), r) in fastest.iter_mut().zip(&s.extra.wheels).zip(&v.rotors) {
+                let k = r.to_rad_per_sec().unwrap_or(1.0);
+                *m = m.max((w * k).abs());
+            }
+            Ok(Flow::Continue)
+        },
+        &mut |_| {},
+    )?;
+    let over = v
+        .rotors
+        .iter()
+        .zip(&fastest)
+        .find(|(_, &m)| m > MAX_PLAUSIBLE_ROTOR_RAD_S);
+    Ok(over.map(|(r, m)| {
+        format!(
+            "rotor {:?} reaches {m:.0} rad/s ({:.0} rpm) as its column {:?} is read ({:?}): no \
+             motor or wheel turns that fast, so its unit looks wrong (speed_unit, poles?) and \
+             the tensor's scale with it",
+            r.name,
+            m * 60.0 / core::f32::consts::TAU,
+            r.column,
+            r.unit()
+        )
+    }))
+}
+
 /// Runs the identification on a log read sample by sample (see the module documentation).
 /// An orbiting vehicle's log (attitude and position columns, a known rotor momentum) is
 /// identified with the gravity-gradient torque folded into the momentum ([`gravity`]),
@@ -606,7 +645,14 @@ fn identify_pass(
             sv.gyro_units = Some(w);
         }
     }
-    if sv.accel_units.is_some() || sv.gyro_units.is_some() {
+    let rotor_units = match &opts.vehicle {
+        Some(v) => rotor_units_warning(src, v)?,
+        None => None,
+    };
+    if let Some(w) = &rotor_units {
+        warnings.push(w.clone());
+    }
+    if sv.accel_units.is_some() || sv.gyro_units.is_some() || rotor_units.is_some() {
         status = TensorStatus::UnitsLookWrong;
         let wrong = format!("{status:?}");
         for j in throws.iter_mut().map(|(_, j)| j).chain([&mut pooled_json]) {

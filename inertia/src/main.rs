@@ -82,7 +82,9 @@ struct CloseLoopArgs {
     accel_unit: Option<AccelUnit>,
     /// With a rotor, the base model becomes the inertia tensor with the rotor momentum
     /// (products of inertia and the rotor exact), on the free flights `identify` finds (or the
-    /// segments given).
+    /// segments given). With --vehicle, the tensor with the vehicle's rotors, and the gravity
+    /// gradient, a residual magnetic dipole, a body torque and a drifting gyro bias as the
+    /// candidates (docs/close-loop.md).
     #[command(flatten)]
     rotor: RotorArgs,
 }
@@ -609,8 +611,8 @@ fn run_close_loop(args: CloseLoopArgs) -> Result<ExitCode, String> {
         accel_unit: args.accel_unit,
         rotor_columns: RotorArgs::columns(vehicle.as_ref()),
     };
-    if vehicle.is_some() {
-        return Err("close-loop --vehicle: not available yet (use --rotor-*)".into());
+    if let Some(vehicle) = vehicle {
+        return run_close_loop_vehicle(&args, vehicle, &units);
     }
     if let Some(rotor) = args.rotor.rotor()? {
         return run_close_loop_tensor(&args, rotor, &units);
@@ -719,6 +721,70 @@ fn run_close_loop_tensor(
         close_loop::tensor_plots(&an, dir, &title).map_err(|e| e.to_string())?;
     }
     println!("{}", close_loop::tensor_summary_line(&an));
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `inertia close-loop --vehicle`: the tensor with the vehicle file's rotor momentum as the
+/// base model, candidates from the environment (gravity gradient, a residual magnetic dipole)
+/// and the gyro ([`close_loop::analyse_vehicle`]). Exit 3 for unusable input, 4 when the free
+/// flights cannot determine the tensor.
+fn run_close_loop_vehicle(
+    args: &CloseLoopArgs,
+    vehicle: Vehicle,
+    units: &ReadOptions,
+) -> Result<ExitCode, String> {
+    if args.rotor.rotor_raw || args.rotor.rotor_unhold {
+        return Err(
+            "--rotor-raw and --rotor-unhold go with --rotor-inertia and --rotor-axis (a vehicle \
+             file's speeds are taken as logged)"
+                .into(),
+        );
+    }
+    let rec = read(&args.input, units).map_err(|e| e.to_string())?;
+    // Rates that look like deg/s are refused as elsewhere; a spacecraft log may be slow, so
+    // only a median step above 10 s looks like a time column in ms or us.
+    let omega: Vec<[f64; 3]> = rec.gyro.iter().map(|w| w.map(f64::from)).collect();
+    close_loop::check_series_units_up_to(
+        &rec.t,
+        &omega,
+        units.gyro_unit.is_some(),
+        units.time_unit.is_some(),
+        close_loop::MAX_MEDIAN_STEP_VEHICLE_S,
+    )
+    .map_err(|e| format!("{}: {e}", args.input.display()))?;
+    for w in &rec.warnings {
+        eprintln!("warning: {w}");
+    }
+    let segments = args.segments.as_ref().map(parse_segments).transpose()?;
+    let opts = close_loop::VehicleOptions {
+        vehicle,
+        alpha: args.alpha,
+        segments,
+        block_s: None,
+    };
+    let an = match close_loop::analyse_vehicle(&rec, &opts) {
+        Ok(an) => an,
+        Err(e) => {
+            eprintln!("error: {}: {e}", args.input.display());
+            let code = match e {
+                close_loop::VehicleLoopError::Input(_) => 3,
+                close_loop::VehicleLoopError::Data(_) => 4,
+            };
+            return Ok(ExitCode::from(code));
+        }
+    };
+    write_json(&args.json, &an)?;
+    let title = args.title();
+    if let Some(dir) = &args.plots {
+        std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+        std::fs::write(
+            dir.join("summary.md"),
+            close_loop::vehicle_markdown(&an, &title),
+        )
+        .map_err(|e| format!("writing {}: {e}", dir.display()))?;
+        close_loop::vehicle_plots(&an, dir, &title).map_err(|e| e.to_string())?;
+    }
+    println!("{}", close_loop::vehicle_summary_line(&an));
     Ok(ExitCode::SUCCESS)
 }
 

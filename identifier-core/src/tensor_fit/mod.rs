@@ -186,8 +186,8 @@ use crate::linalg::{det, dot, solve, Gram2};
 use crate::output_error::StretchOutcome;
 use crate::output_error::{
     bias_found, bias_worth_fitting, higher_orders, levenberg, refit_cost, scaled_inverse, score,
-    score_beyond, score_rejects, substeps, torque_confirmed, whole_or_staged, without, Block,
-    FitState, Normal, NormalSums, Pooled, Readings, Start, StretchResult, TOLERANCE,
+    score_beyond, score_rejects, substeps, torque_confirmed, whole_or_staged, without, Alternative,
+    Block, FitState, Normal, NormalSums, Pooled, Readings, Start, StretchResult, TOLERANCE,
 };
 use crate::symmetric::{eigen_symmetric3, sqrt, Sym};
 
@@ -309,10 +309,33 @@ pub struct TensorFit<const N: usize> {
 /// all).
 pub type FlightTensorFit = TensorFit<256>;
 
+/// Whether a stretch's fit has a constant gyro bias `b` in (F2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum BiasModel {
+    /// None: the bias was measured and removed.
+    Without,
+    /// The bias model when its likelihood-ratio test finds one.
+    Tested,
+    /// [`BiasModel::Tested`], and also where the bias model moves an entry of interest by
+    /// more than [`HAUSMAN_Z`] standard deviations of the difference (Hausman's test, per
+    /// entry: `|p_b - p| > z sqrt(var_b - var)`), for a gyro whose bias nothing measures on a
+    /// long, slow flight. The likelihood-ratio test alone is a pre-test: where the bias and
+    /// the products of inertia are nearly interchangeable the plain model fits to the noise
+    /// with products off by many of its standard deviations (a satellite's gyro bias of 1e-4
+    /// rad/s against tumble rates of 0.05 rad/s), while the bias model's covariance counts the
+    /// confusion. Fitting the bias always costs the bias-free flight precision (three
+    /// parameters per window).
+    Checked,
+}
+
+/// The per-entry Hausman statistic beyond which [`BiasModel::Checked`] takes the bias model
+/// (a 0.01 % two-sided normal point).
+const HAUSMAN_Z: f32 = 3.9;
+
 /// Fits one stretch from `th` (`P` parameters without the bias, `PB` with it, the first `M`
 /// of interest; see [`normal`]): the plain model on all the blocks at once, and on growing
 /// prefixes only if that does not fit to twice `noise_floor` ([`whole_or_staged`]); then,
-/// when `test_bias`, the bias model if the likelihood-ratio test asks for it. On the
+/// the bias model as `bias` says ([`BiasModel`]). On the
 /// simulated flywheel throw the absolute fit of all the blocks is as accurate as the staged
 /// one alone, at two thirds of the cost.
 ///
@@ -335,7 +358,7 @@ fn fit_model<
     th: [f32; P],
     trace: f32,
     noise_floor: f32,
-    test_bias: bool,
+    bias: BiasModel,
     cells: &Cells,
     res: Resolution,
 ) -> Option<StretchResult<M>> {
@@ -362,10 +385,14 @@ fn fit_model<
     });
     let dof1 = (3 * total) as f32 - PB as f32;
     // One evaluation decides whether the bias model is worth its fit.
-    let worth = test_bias
-        && normal(blocks, &rule, total, &th1, trace, cells)
+    let worth = match bias {
+        BiasModel::Without => false,
+        // Checked: the bias model is always fitted, for its comparison with the plain one.
+        BiasModel::Checked => true,
+        BiasModel::Tested => normal(blocks, &rule, total, &th1, trace, cells)
             .and_then(|(_, f, g)| score(&f, &g))
-            .is_none_or(|sc| bias_worth_fitting(sc, cost0, dof0, noise_floor));
+            .is_none_or(|sc| bias_worth_fitting(sc, cost0, dof0, noise_floor)),
+    };
     let with_bias = if worth {
         levenberg(
             |p| normal(blocks, &rule, total, p, trace, cells),
@@ -378,8 +405,30 @@ fn fit_model<
     } else {
         None
     };
+    let mut alt = None;
     if let Some((t1, cost1, f1)) = with_bias {
-        if bias_found(cost0, cost1, dof1, noise_floor) {
+        let moved = || {
+            let s2 = (cost1 / dof1).max(noise_floor * noise_floor);
+            let c1 = scaled_inverse(&f1);
+            (0..M).any(|i| {
+                let d = t1.get(i).copied().unwrap_or(0.0) - th.get(i).copied().unwrap_or(0.0);
+                let diag = |c: &Sym<PB>| c.get(i).and_then(|r| r.get(i)).copied();
+                let vb = c1.as_ref().and_then(diag).unwrap_or(0.0);
+                let vp = cov0.get(i).and_then(|r| r.get(i)).copied().unwrap_or(0.0);
+                let v = s2 * (vb - vp).max(1e-6 * vb);
+                v > 0.0 && d * d > HAUSMAN_Z * HAUSMAN_Z * v
+            })
+        };
+        let found = bias_found(cost0, cost1, dof1, noise_floor);
+        if !found && bias == BiasModel::Checked {
+            alt = scaled_inverse(&f1).map(|c1| Alternative {
+                p: leading(&t1),
+                cov: leading_block(&c1),
+                cost: cost1,
+                params: PB,
+            });
+        }
+        if found || (bias == BiasModel::Checked && moved()) {
             if *cells != Cells::NONE && !cells.plausible(&t1) {
                 return None;
             }
@@ -413,6 +462,7 @@ fn fit_model<
                     lag1,
                     torque,
                     scale,
+                    alt: None,
                 });
             }
         }
@@ -439,6 +489,7 @@ fn fit_model<
         lag1,
         torque,
         scale,
+        alt,
     })
 }
 
@@ -652,7 +703,7 @@ fn fit_stretch(
     blocks: &[Block<6>],
     init: &Mat3,
     noise_floor: f32,
-    test_bias: bool,
+    bias: BiasModel,
     res: Resolution,
     shooting: bool,
 ) -> Option<StretchResult<6>> {
@@ -669,7 +720,7 @@ fn fit_stretch(
                 th,
                 0.0,
                 noise_floor,
-                test_bias,
+                bias,
                 &Cells::NONE,
                 res,
             )
@@ -692,15 +743,7 @@ fn fit_stretch(
             { P1 + CELLS + 3 },
             { P0 + CELLS + 6 },
             { P1 + CELLS + 6 },
-        >(
-            blocks,
-            leading(&th),
-            0.0,
-            noise_floor,
-            test_bias,
-            &cells,
-            res,
-        );
+        >(blocks, leading(&th), 0.0, noise_floor, bias, &cells, res);
         // Offsets that are no quantisation's ([`Cells::plausible`]: `None`): the plain fit.
         with.or_else(plain)
     };
@@ -879,7 +922,11 @@ fn fit_stretch_normalized(
             th,
             tr,
             noise_floor,
-            test_bias,
+            if test_bias {
+                BiasModel::Tested
+            } else {
+                BiasModel::Without
+            },
             &Cells::NONE,
             Resolution::EXACT,
         )?;
@@ -990,8 +1037,21 @@ impl<const N: usize> TensorFit<N> {
     /// first guess, such as [`crate::TensorEstimator`]'s), pools it and starts a new stretch.
     pub fn close(&mut self, init: Option<[[f32; 3]; 3]>) -> StretchOutcome {
         let (noise, q, ms) = (self.noise_std, self.resolution(), self.shooting);
-        self.state
-            .close(|blocks| init.and_then(|j| fit_stretch(blocks, &j, noise, true, q, ms)))
+        self.state.close(|blocks| {
+            init.and_then(|j| fit_stretch(blocks, &j, noise, BiasModel::Tested, q, ms))
+        })
+    }
+
+    /// [`TensorFit::close`] with the bias model also taken where it moves the tensor beyond
+    /// 3.9 standard deviations of the difference (Hausman's test per entry, on the window and
+    /// on the pool of all windows): for a gyro whose bias
+    /// nothing measured on a long, slow flight (a satellite's tumble), where the plain model
+    /// can fit to the noise with the bias taken for products of inertia.
+    pub fn close_with_bias(&mut self, init: Option<[[f32; 3]; 3]>) -> StretchOutcome {
+        let (noise, q, ms) = (self.noise_std, self.resolution(), self.shooting);
+        self.state.close(|blocks| {
+            init.and_then(|j| fit_stretch(blocks, &j, noise, BiasModel::Checked, q, ms))
+        })
     }
 
     /// [`TensorFit::close`] for a gyro whose bias is known and was removed (measured on a
@@ -1003,8 +1063,9 @@ impl<const N: usize> TensorFit<N> {
     /// the one measured on the bench, and moves `J` by percents.
     pub fn close_without_bias(&mut self, init: Option<[[f32; 3]; 3]>) -> StretchOutcome {
         let (noise, q, ms) = (self.noise_std, self.resolution(), self.shooting);
-        self.state
-            .close(|blocks| init.and_then(|j| fit_stretch(blocks, &j, noise, false, q, ms)))
+        self.state.close(|blocks| {
+            init.and_then(|j| fit_stretch(blocks, &j, noise, BiasModel::Without, q, ms))
+        })
     }
 
     /// Ends the open stretch of a flight whose rotor momentum does not fix the scale of `J`
@@ -1082,14 +1143,32 @@ impl<const N: usize> TensorFit<N> {
     /// The estimate pooled over the closed stretches (information-weighted, `output_error`),
     /// `None` before one was fitted.
     pub fn estimate(&self) -> Option<TensorFitEstimate> {
-        let (e, cov, noise) = self.state.pooled.mean()?;
+        let (mut e, mut cov, mut noise) = self.state.pooled.mean()?;
+        let mut biased = self.state.biased;
+        // The checked bias ([`BiasModel::Checked`]) over all the pooled stretches: where the
+        // bias model's pooled tensor differs from the one pooled as fitted by more than
+        // [`HAUSMAN_Z`] standard deviations of the difference on any entry, a bias common to
+        // the stretches moves it (each stretch's own comparison sees a sixth of it on six
+        // windows), and the bias model's pool is the estimate.
+        if let Some((ea, ca, na)) = self.state.alternative() {
+            let moved = (0..6).any(|i| {
+                let diag = |c: &Sym<6>| c.get(i).and_then(|r| r.get(i)).copied().unwrap_or(0.0);
+                let d = ea.get(i).copied().unwrap_or(0.0) - e.get(i).copied().unwrap_or(0.0);
+                let v = (diag(&ca) - diag(&cov)).max(1e-6 * diag(&ca));
+                v > 0.0 && d * d > HAUSMAN_Z * HAUSMAN_Z * v
+            });
+            if moved {
+                (e, cov, noise) = (ea, ca, na);
+                biased = true;
+            }
+        }
         Some(TensorFitEstimate {
             tensor: tensor_of(&e),
             cov,
             noise,
             stretches: self.state.pooled.stretches,
             samples: self.state.pooled.samples,
-            biased: self.state.biased,
+            biased,
             bias: self.state.bias,
             torque: self.state.torque,
             scale_rejected: self.state.scale,

@@ -273,5 +273,6 @@ pub(super) fn fit_segments(
         lag1: 0.0,
         torque: None,
         scale: false,
+        alt: None,
     })
 }

@@ -127,6 +127,22 @@ pub fn check_series_units(
     gyro_declared: bool,
     time_declared: bool,
 ) -> Result<(), String> {
+    check_series_units_up_to(t, w, gyro_declared, time_declared, MAX_MEDIAN_STEP_S)
+}
+
+/// Median time step above which a vehicle log (`--vehicle`: a spacecraft's attitude log, often
+/// at 1 Hz or slower) looks like ms or us read as seconds, s.
+pub const MAX_MEDIAN_STEP_VEHICLE_S: f64 = 10.0;
+
+/// [`check_series_units`] with the largest median time step taken as seconds given
+/// (`max_step_s`; the vehicle base model takes [`MAX_MEDIAN_STEP_VEHICLE_S`]).
+pub fn check_series_units_up_to(
+    t: &[f64],
+    w: &[[f64; 3]],
+    gyro_declared: bool,
+    time_declared: bool,
+    max_step_s: f64,
+) -> Result<(), String> {
     if !gyro_declared {
         let limit = f64::from(DEG_PER_SEC_SUSPECT_RAD_S);
         let (mut best, mut start) = (0.0f64, None::<usize>);
@@ -151,7 +167,7 @@ pub fn check_series_units(
         let mid = dt.len() / 2;
         let (_, median, _) = dt.select_nth_unstable_by(mid, f64::total_cmp);
         let median = *median;
-        if median > MAX_MEDIAN_STEP_S {
+        if median > max_step_s {
             return Err(format!(
                 "the median time step is {median} s ({:.3} Hz): that looks like a time column \
                  in ms or us read as seconds; give --time-unit ms or --time-unit us to convert \

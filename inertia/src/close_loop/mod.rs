@@ -17,15 +17,21 @@ pub mod plot;
 pub mod report;
 pub mod stats;
 pub mod tensor;
+pub mod vehicle_loop;
 
 // The API of `inertia close-loop` (all the binary uses). The modules above stay public for
 // the research tests that take the analysis apart.
 pub use analysis::{analyse, Analysis, Options};
-pub use input::check_series_units;
+pub use input::{check_series_units, check_series_units_up_to, MAX_MEDIAN_STEP_VEHICLE_S};
 pub use report::{markdown, plots, summary_line};
 pub use tensor::{
     analyse_tensor, markdown as tensor_markdown, plots as tensor_plots,
     summary_line as tensor_summary_line, TensorAnalysis, TensorLoopError, TensorOptions,
+};
+pub use vehicle_loop::{
+    analyse_vehicle, markdown as vehicle_markdown, plots as vehicle_plots,
+    summary_line as vehicle_summary_line, VehicleAnalysis, VehicleEffect, VehicleLoopError,
+    VehicleOptions,
 };
 
 use std::path::Path;

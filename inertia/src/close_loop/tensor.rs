@@ -222,7 +222,7 @@ pub struct TensorAnalysis {
 
 type V3 = [f64; 3];
 
-fn mat_vec(j: &[f64; 6], w: V3) -> V3 {
+pub(super) fn mat_vec(j: &[f64; 6], w: V3) -> V3 {
     let [xx, yy, zz, xy, xz, yz] = *j;
     [
         xx * w[0] + xy * w[1] + xz * w[2],
@@ -232,7 +232,7 @@ fn mat_vec(j: &[f64; 6], w: V3) -> V3 {
 }
 
 /// `E_k w` for the k-th entry of `J` (xx, yy, zz, xy, xz, yz).
-fn unit_mat_vec(k: usize, w: V3) -> V3 {
+pub(super) fn unit_mat_vec(k: usize, w: V3) -> V3 {
     let mut j = [0.0; 6];
     j[k] = 1.0;
     mat_vec(&j, w)
@@ -494,7 +494,7 @@ fn report(
 }
 
 /// Mean over the axes of the lag-one autocorrelation of the blocks' residuals.
-fn lag_one(res: &[V3]) -> f64 {
+pub(super) fn lag_one(res: &[V3]) -> f64 {
     let mut acc = 0.0;
     for k in 0..3 {
         let x: Vec<f64> = res.iter().map(|e| e[k]).collect();
@@ -508,7 +508,7 @@ fn lag_one(res: &[V3]) -> f64 {
 
 /// Upper tail of the F distribution with `(d1, d2)` degrees of freedom (Paulson's normal
 /// approximation, as the torque-free close-loop uses).
-fn f_sf(f: f64, d1: f64, d2: f64) -> f64 {
+pub(super) fn f_sf(f: f64, d1: f64, d2: f64) -> f64 {
     if f.is_nan() || f <= 0.0 {
         return 1.0;
     }
