@@ -10,9 +10,10 @@
 //! `cargo test --release -p host-tests --test quad_motors -- --nocapture`
 
 use std::io::Write;
+use std::path::Path;
 
 use host_tests::throw_sim::{board_throw_config, simulate, RotorProfile};
-use inertia::identify::{identify_source, IdentifyOptions, Quiet};
+use inertia::identify::{identify_source, IdentifyOptions, Quiet, Report};
 use inertia::source::open;
 use inertia::vehicle::Vehicle;
 use inertia::ReadOptions;
@@ -21,6 +22,21 @@ use inertia::ReadOptions;
 const MOTOR_INERTIA: f64 = 1.2e-5;
 /// Motor poles (a 14-pole outrunner): mechanical rad/s = eRPM / 7 * 2 pi / 60.
 const POLES: f64 = 14.0;
+
+/// `inertia identify --input csv --vehicle toml`, through the library.
+fn identify_with(csv: &Path, toml: &Path) -> Report {
+    let vehicle = Vehicle::load(toml).unwrap();
+    let read = ReadOptions {
+        rotor_columns: vehicle.columns(),
+        ..ReadOptions::default()
+    };
+    let src = open(csv, &read).unwrap();
+    let opts = IdentifyOptions {
+        vehicle: Some(vehicle),
+        ..IdentifyOptions::default()
+    };
+    identify_source(&*src, &opts, &mut Quiet).unwrap()
+}
 
 #[test]
 fn four_motors_without_propellers_give_the_tensor_in_kg_m2() {
@@ -68,17 +84,7 @@ fn four_motors_without_propellers_give_the_tensor_in_kg_m2() {
     // The columns' unit not declared: `m1_erpm` does not start with "erpm", so it is read as
     // rad/s, 67 times too fast: the tensor would be 67 times too large with a perfect fit.
     std::fs::write(&toml, file("")).unwrap();
-    let vehicle = Vehicle::load(&toml).unwrap();
-    let read = ReadOptions {
-        rotor_columns: vehicle.columns(),
-        ..ReadOptions::default()
-    };
-    let src = open(&csv, &read).unwrap();
-    let opts = IdentifyOptions {
-        vehicle: Some(vehicle),
-        ..IdentifyOptions::default()
-    };
-    let wrong = identify_source(&*src, &opts, &mut Quiet).unwrap();
+    let wrong = identify_with(&csv, &toml);
     println!(
         "unit not declared: {} ({:?})",
         wrong.pooled.tensor_status, wrong.warnings
@@ -86,17 +92,7 @@ fn four_motors_without_propellers_give_the_tensor_in_kg_m2() {
     assert_eq!(wrong.pooled.tensor_status, "UnitsLookWrong");
 
     std::fs::write(&toml, file("speed_unit = \"erpm\"\n")).unwrap();
-    let vehicle = Vehicle::load(&toml).unwrap();
-    let read = ReadOptions {
-        rotor_columns: vehicle.columns(),
-        ..ReadOptions::default()
-    };
-    let src = open(&csv, &read).unwrap();
-    let opts = IdentifyOptions {
-        vehicle: Some(vehicle),
-        ..IdentifyOptions::default()
-    };
-    let rep = identify_source(&*src, &opts, &mut Quiet).unwrap();
+    let rep = identify_with(&csv, &toml);
     let j = rep.pooled.tensor_kg_m2.expect("the tensor in kg m^2");
     let s = rep.pooled.tensor_std_kg_m2.unwrap();
     let (mut e2, mut t2, mut zmax) = (0.0, 0.0, 0.0f64);

@@ -516,11 +516,22 @@ pub struct CalibrateArgs {
     #[arg(long)]
     pub object_mass: Option<f64>,
     /// Rotor axis in the gyro frame: x, y, z, -x, -y or -z.
-    #[arg(long, value_parser = crate::identify::parse_axis, allow_hyphen_values = true)]
-    pub rotor_axis: [f32; 3],
+    #[arg(
+        long,
+        value_parser = crate::identify::parse_axis,
+        allow_hyphen_values = true,
+        required_unless_present = "vehicle"
+    )]
+    pub rotor_axis: Option<[f32; 3]>,
     /// Motor poles (for eRPM channels).
     #[arg(long)]
     pub rotor_poles: Option<u32>,
+    /// A vehicle file with the one rotor to calibrate (its axis, any unit vector, and its
+    /// poles; its inertia is what is calibrated and is not used): instead of `--rotor-axis`
+    /// and `--rotor-poles`. Its speed is the log's rotor channel (blackbox `erpm[0]`, CSV
+    /// `rotor_rad_s`, or the CSV column the file names).
+    #[arg(long, conflicts_with_all = ["rotor_axis", "rotor_poles"])]
+    pub vehicle: Option<std::path::PathBuf>,
     /// Where to write the JSON report.
     #[arg(long)]
     pub json: std::path::PathBuf,
@@ -819,6 +830,55 @@ fn object_throws(
 }
 
 /// Runs `inertia calibrate`.
+/// The rotor's axis and poles, and how to read the logs: from `--rotor-axis` and
+/// `--rotor-poles`, or from a vehicle file of one rotor (its column read as the rotor channel
+/// where the log has it, [`with_named_rotor`]).
+fn rotor_of(args: &CalibrateArgs) -> Result<RotorOf, String> {
+    let Some(path) = &args.vehicle else {
+        let axis = args
+            .rotor_axis
+            .ok_or("--rotor-axis (or --vehicle) is needed")?;
+        return Ok((axis, args.rotor_poles, crate::ReadOptions::default(), None));
+    };
+    let v = crate::vehicle::Vehicle::load(path).map_err(|e| e.to_string())?;
+    let [r] = v.rotors.as_slice() else {
+        return Err(format!(
+            "{}: calibrate takes a vehicle file of one rotor (it has {})",
+            path.display(),
+            v.rotors.len()
+        ));
+    };
+    let read = crate::ReadOptions {
+        rotor_columns: v.columns(),
+        ..crate::ReadOptions::default()
+    };
+    Ok((r.axis, r.poles, read, Some(r.unit())))
+}
+
+/// The rotor's axis, poles, the logs' read options and the unit of the vehicle file's column.
+type RotorOf = (
+    [f32; 3],
+    Option<u32>,
+    crate::ReadOptions,
+    Option<crate::vehicle::SpeedUnit>,
+);
+
+/// A recording whose rotor speed came from a vehicle file's named column (a CSV): that column
+/// as the rotor channel, in the unit the file declares (rad/s, rpm turned into rad/s, eRPM).
+fn with_named_rotor(mut rec: Recording, unit: Option<crate::vehicle::SpeedUnit>) -> Recording {
+    use crate::recording::RotorSpeed;
+    use crate::vehicle::SpeedUnit;
+    if let (None, Some(w), Some(unit)) = (&rec.rotor, rec.wheels.first(), unit) {
+        let rpm = 2.0 * core::f32::consts::PI / 60.0;
+        rec.rotor = Some(match unit {
+            SpeedUnit::RadPerSec => RotorSpeed::RadPerSec(w.clone()),
+            SpeedUnit::Rpm => RotorSpeed::RadPerSec(w.iter().map(|x| x * rpm).collect()),
+            SpeedUnit::Erpm => RotorSpeed::Erpm(w.clone()),
+        });
+    }
+    rec
+}
+
 pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
     let known: M3 = match args.proof_inertia.as_slice() {
         [a, b, c] => [[*a, 0.0, 0.0], [0.0, *b, 0.0], [0.0, 0.0, *c]],
@@ -836,6 +896,7 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
     if !args.object.is_empty() && args.object_mass.is_none() {
         return Err("--object needs --object-mass".into());
     }
+    let (axis, poles, read, unit) = rotor_of(args)?;
     // A throw that cannot be read or identified, or whose tensor is not usable, is left out
     // with its reason (a saturated or truncated log among good ones should not stop the
     // calibration); a group left without a throw is an error.
@@ -845,9 +906,10 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
             let mut used = Vec::new();
             for p in paths {
                 let source = p.display().to_string();
-                let throw = crate::read(p, &Default::default())
+                let throw = crate::read(p, &read)
                     .map_err(|e| e.to_string())
-                    .and_then(|rec| unit_throw(&rec, args.rotor_axis, args.rotor_poles));
+                    .map(|rec| with_named_rotor(rec, unit))
+                    .and_then(|rec| unit_throw(&rec, axis, poles));
                 match throw {
                     Ok(t) if usable(&t.tensor_status) => used.push(t),
                     Ok(t) => skipped.push(SkippedThrow {

@@ -160,7 +160,8 @@ fn an_object_by_difference_comes_with_an_honest_uncertainty() {
             proof_mass: 0.346,
             object: vec![proof[k].clone()],
             object_mass: Some(0.346),
-            rotor_axis: [0.0, 0.0, -1.0],
+            rotor_axis: Some([0.0, 0.0, -1.0]),
+            vehicle: None,
             rotor_poles: Some(14),
             json: std::env::temp_dir().join("unused.json"),
             plots: None,
@@ -212,7 +213,8 @@ fn a_bad_log_among_good_ones_is_left_out_with_its_reason() {
         proof_mass: 0.346,
         object: vec![],
         object_mass: None,
-        rotor_axis: [0.0, 0.0, -1.0],
+        rotor_axis: Some([0.0, 0.0, -1.0]),
+        vehicle: None,
         rotor_poles: Some(14),
         json: dir.join("unused.json"),
         plots: None,
@@ -262,7 +264,8 @@ fn several_object_throws_are_reported_each_and_their_spread_checked() {
         proof_mass: 0.346,
         object: proof[3..].to_vec(),
         object_mass: Some(0.346),
-        rotor_axis: [0.0, 0.0, -1.0],
+        rotor_axis: Some([0.0, 0.0, -1.0]),
+        vehicle: None,
         rotor_poles: Some(14),
         json: std::env::temp_dir().join("unused-several.json"),
         plots: None,
@@ -285,4 +288,46 @@ fn several_object_throws_are_reported_each_and_their_spread_checked() {
             assert!(row[i] <= t.tensor_std_kg_m2[i][i], "entry {i}");
         }
     }
+}
+
+/// A vehicle file of the one flywheel (axis and poles; its inertia is what is calibrated)
+/// gives the same calibration as `--rotor-axis -z --rotor-poles 14`.
+#[test]
+fn a_vehicle_file_of_one_rotor_calibrates_as_the_rotor_flags_do() {
+    let (Some(board), Some(proof)) = (logs("device_only"), logs("proof_body")) else {
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("calibrate_vehicle_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let vehicle = dir.join("flywheel.toml");
+    std::fs::write(
+        &vehicle,
+        "[[rotor]]\nname = \"flywheel\"\ncolumn = \"eRPM[0]\"\ninertia_kg_m2 = 1.689e-6\n\
+         axis = [0.0, 0.0, -1.0]\npoles = 14\n",
+    )
+    .unwrap();
+    let args = |vehicle: Option<PathBuf>| inertia::calibrate::CalibrateArgs {
+        board: board.clone(),
+        assembly: proof.clone(),
+        proof_inertia: vec![1.301e-4, 1.676e-4, 2.451e-4],
+        board_mass: 0.10067,
+        proof_mass: 0.346,
+        object: Vec::new(),
+        object_mass: None,
+        rotor_axis: vehicle.is_none().then_some([0.0, 0.0, -1.0]),
+        rotor_poles: vehicle.is_none().then_some(14),
+        vehicle,
+        json: dir.join("unused.json"),
+        plots: None,
+    };
+    let flags = inertia::calibrate::run(&args(None)).unwrap();
+    let file = inertia::calibrate::run(&args(Some(vehicle))).unwrap();
+    println!(
+        "j {:e} (flags) {:e} (vehicle file)",
+        flags.rotor_inertia_kg_m2, file.rotor_inertia_kg_m2
+    );
+    assert_eq!(
+        serde_json::to_string(&flags).unwrap(),
+        serde_json::to_string(&file).unwrap()
+    );
 }

@@ -349,29 +349,11 @@ struct Series {
     t_ref: f64,
 }
 
-/// `R(q)^T v` for `q = (w, x, y, z)`, `v_N = R(q) v_B` (normalised in `f64` first).
+/// `R(q)^T v` for `q = (w, x, y, z)`, `v_N = R(q) v_B` (normalised in `f64` first; zero for an
+/// unusable `q`).
 fn to_body(q: [f32; 4], v: V3) -> V3 {
-    let q = q.map(f64::from);
-    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-    let [w, x, y, z] = q.map(|c| c / n);
-    let r = [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - w * z),
-            2.0 * (x * z + w * y),
-        ],
-        [
-            2.0 * (x * y + w * z),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - w * x),
-        ],
-        [
-            2.0 * (x * z - w * y),
-            2.0 * (y * z + w * x),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ];
-    [0, 1, 2].map(|c| r[0][c] * v[0] + r[1][c] * v[1] + r[2][c] * v[2])
+    use crate::identify::gravity::{mul_t, rotation};
+    rotation(q).map_or([0.0; 3], |r| mul_t(&r, v))
 }
 
 /// A block: samples `s..=e`, its span and the sum of its squared trapezoid weights over its

@@ -37,7 +37,9 @@ pub(crate) struct GravityFold {
     prev: Option<(f64, [f64; 3])>,
 }
 
-fn rotation(q: [f32; 4]) -> Option<M3> {
+/// `R(q)` for the attitude `q = (w, x, y, z)`, scalar first, `v_N = R(q) v_B`, normalised in
+/// `f64` first; `None` for a zero or non-finite `q`.
+pub fn rotation(q: [f32; 4]) -> Option<M3> {
     let [w, x, y, z] = q.map(f64::from);
     let n = (w * w + x * x + y * y + z * z).sqrt();
     if !(n > 0.0 && n.is_finite()) {
@@ -67,7 +69,8 @@ fn mul(m: &M3, v: [f64; 3]) -> [f64; 3] {
     m.map(|row| row[0] * v[0] + row[1] * v[1] + row[2] * v[2])
 }
 
-fn mul_t(m: &M3, v: [f64; 3]) -> [f64; 3] {
+/// `m^T v` (a body-frame vector from an inertial one, for `m = R(q)`).
+pub fn mul_t(m: &M3, v: [f64; 3]) -> [f64; 3] {
     core::array::from_fn(|k| m[0][k] * v[0] + m[1][k] * v[1] + m[2][k] * v[2])
 }
 
