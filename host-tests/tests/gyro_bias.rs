@@ -76,7 +76,8 @@ fn a_bias_detected_in_flight_keeps_the_tensor_from_converging() {
     for bias in [0.0, 0.002, 0.01] {
         for seed in 0..4 {
             let meas = GyroModel::noisy(2e-3, seed).measure(&tr);
-            // One window for the whole 20 s flight (W1): the fits run at its end only.
+            // One window for the whole 20 s flight (W1, already so without rotor momentum):
+            // the fits run at its end only.
             let settings = PipelineSettings {
                 window_turn_rad: f32::INFINITY,
                 ..PipelineSettings::for_rate(1000.0, 2e-3)

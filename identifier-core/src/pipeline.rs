@@ -68,10 +68,14 @@ pub struct PipelineSettings {
     /// sensitivity to its start make one trajectory drift from the motion by more than the
     /// gyro's noise, and the fit fails. The windows' estimates are pooled by their
     /// information, like the stretches of several throws; memory and the per-sample cost do
-    /// not grow with the flight. Only without the free-flight gate (no accelerometer: a
-    /// satellite's continuous tumble, a log taken whole): a gated flight is a throw, which
-    /// turns less than the default ([`WINDOW_TURN_RAD`]; 35 rad/s for 0.6 s), and its fits run
-    /// when it ends, never inside it. Not finite: no windows.
+    /// not grow with the flight. Only with a rotor momentum and without the free-flight gate
+    /// (no accelerometer: a satellite's continuous tumble with its wheels, a log taken whole):
+    /// without rotor momentum the fits hold the integrated motion on its two invariants ((F6)
+    /// of the tensor fit, the ratio fit likewise), which keeps one trajectory of a long
+    /// gyro-only tumble at its bound, and windows would only cost information
+    /// (`scripts/bench-estimators.sh`); a gated flight is a throw, which turns less than the
+    /// default ([`WINDOW_TURN_RAD`]; 35 rad/s for 0.6 s), and its fits run when it ends,
+    /// never inside it. Not finite: no windows.
     pub window_turn_rad: f32,
 }
 
@@ -1260,7 +1264,7 @@ impl<const N: usize> Pipeline<N> {
         if turn.is_finite() {
             self.turned += turn;
         }
-        if !self.use_gate && self.turned > self.settings.window_turn_rad {
+        if !self.use_gate && self.rotor_seen && self.turned > self.settings.window_turn_rad {
             self.turned = 0.0;
             self.fits_pending = true;
         }
