@@ -24,7 +24,10 @@ use crate::recording::{Recording, RotorSpeed};
 /// content as [`crate::read`] does.
 pub fn open<'a>(path: &Path, opts: &ReadOptions) -> Result<Box<dyn Source + 'a>, ReadError> {
     Ok(match readers::detect(path)? {
-        Format::Blackbox => Box::new(readers::blackbox::BlackboxSource::open(path)?),
+        Format::Blackbox => Box::new(
+            readers::blackbox::BlackboxSource::open(path)?
+                .with_rotor_fields(&opts.rotor_columns)?,
+        ),
         Format::Ulog => Box::new(RecordingSource::owned(readers::ulog::read_ulog(path)?)),
         Format::Phyphox => Box::new(readers::phyphox::PhyphoxSource::open(path)?),
         Format::Csv => Box::new(readers::csv::CsvSource::open(path, opts)?),

@@ -331,3 +331,52 @@ fn a_vehicle_file_of_one_rotor_calibrates_as_the_rotor_flags_do() {
         serde_json::to_string(&file).unwrap()
     );
 }
+
+/// A vehicle file naming the blackbox field `eRPM[0]` reads the flywheel's speed from it: the
+/// same tensor as `--rotor-inertia --rotor-axis --rotor-poles`; a field the log lacks is named.
+#[test]
+fn a_vehicle_file_reads_a_blackbox_rotor_field() {
+    use inertia::identify::{identify_source, IdentifyOptions, Quiet, Rotor};
+    let Some(board) = logs("device_only") else {
+        return;
+    };
+    let text = |field: &str| {
+        format!(
+            "[[rotor]]\nname = \"flywheel\"\ncolumn = \"{field}\"\ninertia_kg_m2 = 1.689e-6\n\
+             axis = [0.0, 0.0, -1.0]\npoles = 14\n"
+        )
+    };
+    let v = inertia::vehicle::Vehicle::parse(Path::new("fly.toml"), &text("eRPM[0]")).unwrap();
+    let read = inertia::ReadOptions {
+        rotor_columns: v.columns(),
+        ..inertia::ReadOptions::default()
+    };
+    let src = inertia::source::open(&board[0], &read).unwrap();
+    let opts = IdentifyOptions {
+        vehicle: Some(v),
+        ..IdentifyOptions::default()
+    };
+    let by_file = identify_source(&*src, &opts, &mut Quiet).unwrap();
+    let src = inertia::source::open(&board[0], &inertia::ReadOptions::default()).unwrap();
+    let opts = IdentifyOptions {
+        rotor: Some(Rotor {
+            inertia: 1.689e-6,
+            axis: [0.0, 0.0, -1.0],
+            poles: Some(14),
+        }),
+        ..IdentifyOptions::default()
+    };
+    let by_flags = identify_source(&*src, &opts, &mut Quiet).unwrap();
+    assert_eq!(by_file.pooled.tensor_kg_m2, by_flags.pooled.tensor_kg_m2);
+
+    let v = inertia::vehicle::Vehicle::parse(Path::new("fly.toml"), &text("eRPM[7]")).unwrap();
+    let read = inertia::ReadOptions {
+        rotor_columns: v.columns(),
+        ..inertia::ReadOptions::default()
+    };
+    let e = inertia::source::open(&board[0], &read)
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(e.contains("eRPM[7]"), "{e}");
+}

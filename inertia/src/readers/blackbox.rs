@@ -36,7 +36,9 @@ use super::{collect, guard, Location, ReadError, BLACKBOX_MARKER};
 use crate::readers::Recording;
 #[cfg(doc)]
 use crate::readers::RotorSpeed;
-use crate::readers::{Channels, Flow, Reading, RotorUnit, Sample, Source, Visit};
+use crate::readers::{
+    Channels, Extra, Flow, Reading, RotorUnit, Sample, Source, Visit, MAX_WHEELS,
+};
 
 /// Raw gyro counts per deg/s (16-bit over +-2000 deg/s).
 pub const GYRO_LSB_PER_DEG_S: f64 = 16.384;
@@ -398,9 +400,51 @@ pub struct BlackboxSource {
     channels: Channels,
     /// Warnings about the file as a whole (firmware, units, several logs).
     notes: Vec<String>,
+    /// The main-frame fields a vehicle file names as its rotors' speeds (`eRPM[2]`), read into
+    /// [`crate::readers::Extra::wheels`] ([`BlackboxSource::with_rotor_fields`]).
+    wheels: Vec<String>,
 }
 
 impl BlackboxSource {
+    /// The same log with the main-frame fields `names` (a vehicle file's rotor columns, such
+    /// as `eRPM[2]`; case-insensitive) read as the rotors' speeds, as logged (an `eRPM[k]`
+    /// field in true eRPM); an error names a field the log does not have.
+    pub fn with_rotor_fields(mut self, names: &[String]) -> Result<Self, ReadError> {
+        if names.is_empty() {
+            return Ok(self);
+        }
+        if names.len() > MAX_WHEELS {
+            return Err(ReadError::new(&self.path, "more than eight rotor fields"));
+        }
+        let missing = {
+            let file = File::new(&self.data);
+            let Some(Ok(headers)) = file.parse(self.index) else {
+                return Err(ReadError::new(
+                    &self.path,
+                    "the log's headers no longer parse",
+                ));
+            };
+            let def = headers.main_frame_def();
+            let have: Vec<String> = def.iter().map(|f| f.name.to_string()).collect();
+            names
+                .iter()
+                .find(|n| !have.iter().any(|h| h.eq_ignore_ascii_case(n.trim())))
+                .map(|n| (n.clone(), have.join(", ")))
+        };
+        if let Some((n, have)) = missing {
+            return Err(ReadError::new(
+                &self.path,
+                format!(
+                    "the vehicle file names the rotor field {n:?}, which the log's main frames do \
+                     not have (they have {have})"
+                ),
+            ));
+        }
+        self.wheels = names.to_vec();
+        self.channels.wheels = names.len();
+        Ok(self)
+    }
+
     /// Reads the file and chooses its log.
     pub fn open(path: &Path) -> Result<Self, ReadError> {
         let data =
@@ -527,6 +571,7 @@ impl BlackboxSource {
             name,
             channels,
             notes,
+            wheels: Vec::new(),
         })
     }
 }
@@ -637,6 +682,7 @@ impl Source for BlackboxSource {
                 &headers,
                 &self.block,
                 (self.gyro_unit, delay),
+                &self.wheels,
                 visit,
                 progress,
             )
@@ -737,10 +783,22 @@ fn read_log(
     headers: &Headers,
     block: &[(String, String)],
     (gyro_unit, delay): (GyroAdcUnit, [f64; 2]),
+    wheel_names: &[String],
     visit: &mut Visit<'_>,
     progress: &mut dyn FnMut(f32),
 ) -> Result<Reading, ReadError> {
     let f = fields(headers).map_err(|e| ReadError::new(path, e))?;
+    // The vehicle's rotor fields: column, eRPM (logged / 100) or not.
+    let wheels: Vec<(usize, bool)> = wheel_names
+        .iter()
+        .filter_map(|n| {
+            let def = headers.main_frame_def();
+            let c = def
+                .iter()
+                .position(|fd| fd.name.eq_ignore_ascii_case(n.trim()))?;
+            Some((c, n.trim().to_ascii_lowercase().starts_with("erpm")))
+        })
+        .collect();
     let header = |k: &str| header_value(block, k);
     // P-frame predictors by field name. (The header lists include `time`, which the crate's
     // frame definition leaves out: match by name, never by position.)
@@ -775,6 +833,8 @@ fn read_log(
         .map(|k| f.acc.and_then(|a| replay_for(a[k], f.acc_signed[k])))
         .collect();
     let mut erpm_fix = f.erpm.and_then(|c| replay_for(c, false));
+    let mut wheel_fix: Vec<Option<Replay>> =
+        wheels.iter().map(|&(c, _)| replay_for(c, false)).collect();
     let acc_1g = headers
         .unknown()
         .get("acc_1G")
@@ -832,8 +892,20 @@ fn read_log(
                 value(v, false) * f64::from(ERPM_LOG_FACTOR)
             })
         });
+        let mut extra = Extra::default();
+        for ((o, &(c, erpm)), fx) in extra.wheels.iter_mut().zip(&wheels).zip(&mut wheel_fix) {
+            *o = frame.get_raw(c).map_or(f32::NAN, |v| {
+                let v = fx.as_mut().map_or(v, |r| r.step(v, intra));
+                let k = if erpm {
+                    f64::from(ERPM_LOG_FACTOR)
+                } else {
+                    1.0
+                };
+                (value(v, false) * k) as f32
+            });
+        }
         let t = frame.time_raw() as f64 * 1e-6;
-        if let Some(s) = check.check(at, t, w, a, r)? {
+        if let Some(s) = check.check_with(at, t, w, a, r, extra)? {
             let flow = advance.push(s, &mut |s| {
                 given += 1;
                 visit(&s)
