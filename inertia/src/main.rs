@@ -656,12 +656,10 @@ fn run_close_loop(args: CloseLoopArgs) -> Result<ExitCode, String> {
     }
     write_json(&args.json, &an)?;
     let title = args.title();
-    let md = close_loop::markdown(&an, &title);
     if let Some(dir) = &args.plots {
-        std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
-        std::fs::write(dir.join("summary.md"), &md)
-            .map_err(|e| format!("writing {}: {e}", dir.display()))?;
-        close_loop::plots(&an, dir, &title).map_err(|e| e.to_string())?;
+        write_report_dir(dir, &close_loop::markdown(&an, &title), |d| {
+            close_loop::plots(&an, d, &title)
+        })?;
     }
     println!("{}", close_loop::summary_line(&an));
     Ok(ExitCode::SUCCESS)
@@ -712,16 +710,24 @@ fn run_close_loop_tensor(
     write_json(&args.json, &an)?;
     let title = args.title();
     if let Some(dir) = &args.plots {
-        std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
-        std::fs::write(
-            dir.join("summary.md"),
-            close_loop::tensor_markdown(&an, &title),
-        )
-        .map_err(|e| format!("writing {}: {e}", dir.display()))?;
-        close_loop::tensor_plots(&an, dir, &title).map_err(|e| e.to_string())?;
+        write_report_dir(dir, &close_loop::tensor_markdown(&an, &title), |d| {
+            close_loop::tensor_plots(&an, d, &title)
+        })?;
     }
     println!("{}", close_loop::tensor_summary_line(&an));
     Ok(ExitCode::SUCCESS)
+}
+
+/// `summary.md` (the markdown `summary`) and the plots `plots` draws, in `dir` (created).
+fn write_report_dir(
+    dir: &std::path::Path,
+    summary: &str,
+    plots: impl FnOnce(&std::path::Path) -> anyhow::Result<()>,
+) -> Result<(), String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
+    std::fs::write(dir.join("summary.md"), summary)
+        .map_err(|e| format!("writing {}: {e}", dir.display()))?;
+    plots(dir).map_err(|e| e.to_string())
 }
 
 /// `inertia close-loop --vehicle`: the tensor with the vehicle file's rotor momentum as the
@@ -776,13 +782,9 @@ fn run_close_loop_vehicle(
     write_json(&args.json, &an)?;
     let title = args.title();
     if let Some(dir) = &args.plots {
-        std::fs::create_dir_all(dir).map_err(|e| format!("creating {}: {e}", dir.display()))?;
-        std::fs::write(
-            dir.join("summary.md"),
-            close_loop::vehicle_markdown(&an, &title),
-        )
-        .map_err(|e| format!("writing {}: {e}", dir.display()))?;
-        close_loop::vehicle_plots(&an, dir, &title).map_err(|e| e.to_string())?;
+        write_report_dir(dir, &close_loop::vehicle_markdown(&an, &title), |d| {
+            close_loop::vehicle_plots(&an, d, &title)
+        })?;
     }
     println!("{}", close_loop::vehicle_summary_line(&an));
     Ok(ExitCode::SUCCESS)

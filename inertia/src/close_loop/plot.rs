@@ -36,6 +36,40 @@ const COLORS: [RGBColor; 6] = [
     RGBColor(0, 0, 0),
 ];
 
+/// A residual's time (s) and its value per axis before and after the effects (kg m^2/s).
+pub type Residual = (f64, [f64; 3], [f64; 3]);
+
+/// `residuals.svg` in `dir`: one chart per axis of the residual of `equation` (a block's Euler
+/// equation, kg m^2/s) before and after the effects were added, from `(t, before, after)`.
+pub fn write_residuals(
+    dir: &Path,
+    title: &str,
+    equation: &str,
+    residuals: &[Residual],
+) -> Result<()> {
+    let titles: Vec<String> = ["x", "y", "z"]
+        .iter()
+        .map(|a| format!("{title}: residual of {equation}, {a} row, before and after"))
+        .collect();
+    let line = |name: &str, pick: &dyn Fn(&Residual) -> (f64, f64)| Series {
+        name: name.into(),
+        points: residuals.iter().map(pick).collect(),
+    };
+    let charts: Vec<Chart> = (0..3)
+        .map(|k| Chart {
+            title: &titles[k],
+            x_label: "t (s)",
+            y_label: "1e-6 kg m^2/s",
+            y_range: None,
+            series: vec![
+                line("tensor alone", &|(t, b, _)| (*t, 1e6 * b[k])),
+                line("with the effects added", &|(t, _, a)| (*t, 1e6 * a[k])),
+            ],
+        })
+        .collect();
+    write_svg(&dir.join("residuals.svg"), &charts)
+}
+
 /// Draws the charts stacked vertically into one SVG file at `path`.
 pub fn write_svg(path: &Path, charts: &[Chart]) -> Result<()> {
     if let Some(dir) = path.parent() {

@@ -892,37 +892,5 @@ pub fn markdown(an: &TensorAnalysis, title: &str) -> String {
 
 /// `residuals.svg`: the blocks' residual per axis before and after.
 pub fn plots(an: &TensorAnalysis, dir: &std::path::Path, title: &str) -> anyhow::Result<()> {
-    use super::plot::{write_svg, Chart, Series};
-    let axis = ["x", "y", "z"];
-    let titles: Vec<String> = axis
-        .iter()
-        .map(|a| format!("{title}: residual of (TB), {a} row, before and after"))
-        .collect();
-    let charts: Vec<Chart> = (0..3)
-        .map(|k| Chart {
-            title: &titles[k],
-            x_label: "t (s)",
-            y_label: "1e-6 kg m^2/s",
-            y_range: None,
-            series: vec![
-                Series {
-                    name: "tensor alone".into(),
-                    points: an
-                        .residuals
-                        .iter()
-                        .map(|(t, b, _)| (*t, 1e6 * b[k]))
-                        .collect(),
-                },
-                Series {
-                    name: "with the effects added".into(),
-                    points: an
-                        .residuals
-                        .iter()
-                        .map(|(t, _, a)| (*t, 1e6 * a[k]))
-                        .collect(),
-                },
-            ],
-        })
-        .collect();
-    write_svg(&dir.join("residuals.svg"), &charts)
+    super::plot::write_residuals(dir, title, "(TB)", &an.residuals)
 }
