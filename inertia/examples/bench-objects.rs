@@ -2,8 +2,12 @@
 //! (`../shared/data/thrown-fc/objects/`), each throw run through `inertia calibrate` exactly as
 //! the command line does (`--board` the five board throws, `--assembly` the five proof-body
 //! throws, `--object` one throw), then all of an object's throws pooled (`--object` every
-//! throw). Prints, per object, the Frobenius and principal-axis errors against the truth,
-//! the errors over the reported standard deviations, and the anchor's published figures.
+//! throw). Prints, per object, the errors against the truth with the anchor's own metric (the
+//! principal moments' error `|lambda - lambda_true| / |lambda_true|`, moments in ascending
+//! order, and the angle of the rotation between the two sets of principal axes, both as the
+//! anchor's `computeError` defines them), the whole tensor's Frobenius error (which also holds
+//! the axes' error), the errors over the reported standard deviations, and the anchor's
+//! published figures.
 //!
 //! Usage: `cargo run --release -p inertia --example bench-objects [-- --poles 14] [--plot SVG]`
 //! (`scripts/bench-objects.sh`). Skips with a message when `../shared` is absent.
@@ -56,11 +60,64 @@ fn axis_error(got: &M3, truth: &M3) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// The anchor's inertia error: `|lambda - lambda_true| / |lambda_true|` over the principal
+/// moments in ascending order (the axes' error is reported apart, [`rotation_error`]).
+fn moment_error(got: &M3, truth: &M3) -> f64 {
+    let (lg, _) = eigen(got);
+    let (lt, _) = eigen(truth);
+    let d: f64 = (0..3).map(|i| (lg[i] - lt[i]).powi(2)).sum();
+    let n: f64 = lt.iter().map(|x| x * x).sum();
+    (d / n).sqrt()
+}
+
+/// The anchor's alignment error: the angle of the rotation `E_true^T E` between the two
+/// right-handed sets of principal axes (ascending moments), the smallest over the four sign
+/// choices that keep them right-handed, degrees.
+fn rotation_error(got: &M3, truth: &M3) -> f64 {
+    let basis = |m: &M3| {
+        let (_, mut e) = eigen(m);
+        let c = cross3(e[0], e[1]);
+        if c[0] * e[2][0] + c[1] * e[2][1] + c[2] * e[2][2] < 0.0 {
+            e[2] = e[2].map(|x| -x);
+        }
+        e
+    };
+    let (eg, et) = (basis(got), basis(truth));
+    [
+        [1.0, 1.0, 1.0],
+        [1.0, -1.0, -1.0],
+        [-1.0, 1.0, -1.0],
+        [-1.0, -1.0, 1.0],
+    ]
+    .iter()
+    .map(|s: &[f64; 3]| {
+        // trace(E_true^T E S) = sum_i s_i (e_true_i . e_i)
+        let tr: f64 = (0..3)
+            .map(|i| s[i] * (0..3).map(|k| et[i][k] * eg[i][k]).sum::<f64>())
+            .sum();
+        ((tr - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
+    })
+    .fold(f64::INFINITY, f64::min)
+}
+
+fn cross3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
 struct Row {
     name: String,
     frob: f64,
     axes: f64,
+    /// The anchor's metric: principal moments' error and the axes' rotation angle (deg).
+    moments: f64,
+    rotation: f64,
     z: Vec<f64>,
+    /// Each principal moment's error over its reported std (object by difference only).
+    zm: Vec<f64>,
     /// Each diagonal entry's relative error and relative std.
     rel: [(f64, f64); 3],
 }
@@ -68,13 +125,25 @@ struct Row {
 impl Row {
     /// The throw's line: its errors and each entry's error over its std.
     fn line(&self) -> String {
-        let z: Vec<String> = self.z.iter().map(|z| format!("{z:+.1}")).collect();
+        let f = |v: &[f64]| -> String {
+            v.iter()
+                .map(|z| format!("{z:+.1}"))
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
+        let zm = if self.zm.is_empty() {
+            String::new()
+        } else {
+            format!(", moments' error/std {}", f(&self.zm))
+        };
         format!(
-            "{}: Frobenius {:.2} %, axes {:.2} deg, error/std {}",
+            "{}: moments {:.2} %, rotation {:.2} deg, Frobenius {:.2} %, axes {:.2} deg, error/std {}{zm}",
             self.name,
+            self.moments * 100.0,
+            self.rotation,
             self.frob * 100.0,
             self.axes,
-            z.join(" ")
+            f(&self.z)
         )
     }
 }
@@ -105,11 +174,22 @@ fn row(name: String, a: &CalibrateArgs, truth: &M3) -> Result<Row, String> {
     let rep = run(a)?;
     let got = rep.object_tensor_kg_m2.ok_or("no object tensor")?;
     let std = rep.object_tensor_std_kg_m2.ok_or("no object std")?;
+    let (lt, _) = eigen(truth);
+    let zm = match (
+        rep.object_principal_moments_kg_m2,
+        rep.object_principal_moments_std_kg_m2,
+    ) {
+        (Some(l), Some(s)) => (0..3).map(|i| (l[i] - lt[i]) / s[i]).collect(),
+        _ => Vec::new(),
+    };
     Ok(Row {
         name,
         frob: rel_frobenius(&got, truth),
         axes: axis_error(&got, truth),
+        moments: moment_error(&got, truth),
+        rotation: rotation_error(&got, truth),
         z: z_scores(&got, &std, truth),
+        zm,
         rel: relative(&got, &std, truth),
     })
 }
@@ -176,7 +256,10 @@ fn assembly_row(path: &Path, poles: u32, truth: &M3) -> Result<Row, String> {
             .into(),
         frob: rel_frobenius(&got, truth),
         axes: axis_error(&got, truth),
+        moments: moment_error(&got, truth),
+        rotation: rotation_error(&got, truth),
         z: z_scores(&got, &std, truth),
+        zm: Vec::new(),
         rel: relative(&got, &std, truth),
     })
 }
@@ -188,6 +271,14 @@ fn rms_diag(rows: &[&Row]) -> f64 {
         .flat_map(|r| r.z.iter().take(3).copied())
         .collect();
     rms(&d)
+}
+
+/// `mean / max` of a figure, with its unit.
+fn mean_max(v: impl Iterator<Item = f64>, unit: &str) -> String {
+    let v: Vec<f64> = v.collect();
+    let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let max = v.iter().fold(0.0f64, |a, &x| a.max(x));
+    format!("{mean:.2} / {max:.2} {unit}")
 }
 
 fn rms(v: &[f64]) -> f64 {
@@ -207,9 +298,9 @@ fn main() {
     let truth: serde_json::Value = serde_json::from_str(&truth).expect("truth.json");
     println!("objects by difference, {poles}-pole rotor, per throw and pooled");
     println!(
-        "| object | throws | per throw: mean / max Frobenius | mean / max axes | RMS(error/std): all, diagonal | pooled: Frobenius | axes | RMS(error/std) | anchor per throw |"
+        "| object | throws | per throw, the anchor's metric: moments mean / max | rotation mean / max | Frobenius mean / max | RMS(error/std): entries, diagonal, moments | pooled: moments | rotation | Frobenius | RMS(error/std): entries, moments | anchor per throw |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
     let plot = argv
         .iter()
         .position(|a| a == "--plot")
@@ -232,18 +323,18 @@ fn main() {
             .filter_map(|p| assembly_row(p, poles, &asm_truth).ok())
             .collect();
         let z: Vec<f64> = asm.iter().flat_map(|r| r.z.iter().copied()).collect();
-        let frob: Vec<f64> = asm.iter().map(|r| r.frob).collect();
         for r in &asm {
             println!("  assembly {name} {}", r.line());
         }
         let asm_refs: Vec<&Row> = asm.iter().collect();
         let asm_len = asm.len();
         assembly_lines.push(format!(
-            "| {name} | {}/{} | {:.2} % / {:.2} % | {:.2}, {:.2} |",
+            "| {name} | {}/{} | {} | {} | {} | {:.2}, {:.2} |",
             asm_len,
             throws.len(),
-            frob.iter().sum::<f64>() / frob.len().max(1) as f64 * 100.0,
-            frob.iter().fold(0.0f64, |a, &x| a.max(x)) * 100.0,
+            mean_max(asm.iter().map(|r| r.moments * 100.0), "%"),
+            mean_max(asm.iter().map(|r| r.rotation), "deg"),
+            mean_max(asm.iter().map(|r| r.frob * 100.0), "%"),
             rms(&z),
             rms_diag(&asm_refs)
         ));
@@ -285,35 +376,39 @@ fn main() {
             &args(throws.clone(), mass, poles),
             &truth_m,
         );
-        let n = ok.len().max(1) as f64;
-        let frob: Vec<f64> = ok.iter().map(|r| r.frob).collect();
-        let axes: Vec<f64> = ok.iter().map(|r| r.axes).collect();
         let z: Vec<f64> = ok.iter().flat_map(|r| r.z.iter().copied()).collect();
-        let (pf, pa, pz) = match &pooled {
+        let zm: Vec<f64> = ok.iter().flat_map(|r| r.zm.iter().copied()).collect();
+        let (pm, pr, pf, pz) = match &pooled {
             Ok(p) => (
+                format!("{:.2} %", p.moments * 100.0),
+                format!("{:.2} deg", p.rotation),
                 format!("{:.2} %", p.frob * 100.0),
-                format!("{:.2} deg", p.axes),
-                format!("{:.2}", rms(&p.z)),
+                format!("{:.2}, {:.2}", rms(&p.z), rms(&p.zm)),
             ),
-            Err(e) => (format!("failed: {e}"), String::new(), String::new()),
+            Err(e) => (
+                format!("failed: {e}"),
+                String::new(),
+                String::new(),
+                String::new(),
+            ),
         };
         println!(
-            "| {name} | {}/{} | {:.2} % / {:.2} % | {:.2} / {:.2} deg | {:.2}, {:.2} | {pf} | {pa} | {pz} | {} |",
+            "| {name} | {}/{} | {} | {} | {} | {:.2}, {:.2}, {:.2} | {pm} | {pr} | {pf} | {pz} | {} |",
             ok.len(),
             throws.len(),
-            frob.iter().sum::<f64>() / n * 100.0,
-            frob.iter().fold(0.0f64, |a, &x| a.max(x)) * 100.0,
-            axes.iter().sum::<f64>() / n,
-            axes.iter().fold(0.0f64, |a, &x| a.max(x)),
+            mean_max(ok.iter().map(|r| r.moments * 100.0), "%"),
+            mean_max(ok.iter().map(|r| r.rotation), "deg"),
+            mean_max(ok.iter().map(|r| r.frob * 100.0), "%"),
             rms(&z),
             rms_diag(&ok),
+            rms(&zm),
             o["anchor_object_error_per_throw"].as_str().unwrap_or("")
         );
     }
     println!();
     println!("assembly per throw (inertia identify, the anchor's rotor inertia) against the anchor's board plus the object");
-    println!("| object | throws | mean / max Frobenius | RMS(error/std): all, diagonal |");
-    println!("|---|---|---|---|");
+    println!("| object | throws | moments mean / max | rotation mean / max | Frobenius mean / max | RMS(error/std): entries, diagonal |");
+    println!("|---|---|---|---|---|---|");
     for l in assembly_lines {
         println!("{l}");
     }
