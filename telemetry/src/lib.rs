@@ -60,9 +60,9 @@ pub struct Estimate {
 }
 
 /// Names of the tensor estimate's status codes ([`Tensor::status`]), in code order: those of
-/// identifier-core's `TensorStatus`, then 8, `NoInformation` (the ratio estimators' status
-/// before any sample, which the firmware's pipeline does not report). A code never changes
-/// meaning: new ones are added at the end.
+/// identifier-core's `Status` as the tensor estimator gives them (0-7), then 8,
+/// `NoInformation` (the ratio estimators' status before any sample, which the firmware's
+/// pipeline does not report). A code never changes meaning: new ones are added at the end.
 pub const TENSOR_STATUS: [&str; 9] = [
     "TooFewSamples",
     "UnitsLookWrong",
