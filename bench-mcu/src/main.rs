@@ -798,7 +798,7 @@ fn main() -> ! {
         status, a[0], a[1], a[2], j[0][0], j[1][1], j[2][2]
     );
     let near = (0..3).all(|i| (a[i] - truth[i]).abs() <= 2e-4) && tf.is_some();
-    if status != Some(identifier_core::TensorStatus::Converged) || !near {
+    if status != Some(identifier_core::Status::Converged) || !near {
         println!("# check pipeline-end-of-flight-paper-20s FAILED");
         semihosting::process::exit(17);
     }

@@ -84,7 +84,7 @@ impl SavePolicy {
     /// Whether the report's estimate should be committed now.
     pub fn due(&mut self, r: &crate::app::Report) -> bool {
         let t = &r.tensor;
-        if t.status == identifier_core::TensorStatus::Converged && t.fed != self.saved_fed {
+        if t.status == identifier_core::Status::Converged && t.fed != self.saved_fed {
             self.saved_fed = t.fed;
             true
         } else {

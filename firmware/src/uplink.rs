@@ -3,7 +3,7 @@
 //! under QEMU (USART1 of `netduinoplus2`, captured with `-serial file:...`). The host decodes a
 //! capture with `inertia telemetry --input FILE`.
 
-use identifier_core::{Convergence, TensorStatus};
+use identifier_core::{Convergence, Status};
 
 use crate::app::{LoopCounters, Report, SensorStatus};
 
@@ -13,17 +13,19 @@ pub trait ByteSink {
     fn send(&mut self, bytes: &[u8]);
 }
 
-/// The code of a tensor status in [`telemetry::TENSOR_STATUS`].
-pub fn tensor_status_code(s: TensorStatus) -> u8 {
+/// The code of a status in [`telemetry::TENSOR_STATUS`]: 0-7 for those the tensor estimator
+/// gives, 8 for [`Status::NoInformation`] (added after them; codes never change).
+pub fn tensor_status_code(s: Status) -> u8 {
     match s {
-        TensorStatus::TooFewSamples => 0,
-        TensorStatus::UnitsLookWrong => 1,
-        TensorStatus::Saturated => 2,
-        TensorStatus::NoExcitation => 3,
-        TensorStatus::ModelMismatch => 4,
-        TensorStatus::PhysicallyImpossible => 5,
-        TensorStatus::Converging => 6,
-        TensorStatus::Converged => 7,
+        Status::TooFewSamples => 0,
+        Status::UnitsLookWrong => 1,
+        Status::Saturated => 2,
+        Status::NoExcitation => 3,
+        Status::ModelMismatch => 4,
+        Status::PhysicallyImpossible => 5,
+        Status::Converging => 6,
+        Status::Converged => 7,
+        Status::NoInformation => 8,
     }
 }
 
@@ -152,8 +154,8 @@ mod tests {
 
     #[test]
     fn status_codes_follow_the_names() {
-        use TensorStatus::*;
-        for s in [
+        use Status::*;
+        let all = [
             TooFewSamples,
             UnitsLookWrong,
             Saturated,
@@ -162,9 +164,13 @@ mod tests {
             PhysicallyImpossible,
             Converging,
             Converged,
-        ] {
+            NoInformation,
+        ];
+        for (code, s) in all.into_iter().enumerate() {
+            assert_eq!(usize::from(tensor_status_code(s)), code, "{s:?}");
             let name = telemetry::TENSOR_STATUS[usize::from(tensor_status_code(s))];
             assert_eq!(name, std::format!("{s:?}"));
         }
+        assert_eq!(telemetry::TENSOR_STATUS.len(), all.len());
     }
 }

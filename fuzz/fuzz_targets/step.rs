@@ -16,7 +16,7 @@ use identifier_core::{
     Identifier, InertiaRatios, Refined, RefinedSettings, SampleStatus, Settings,
     SignChangeCorrection,
 };
-use identifier_core::{FlightPipeline, PipelineSettings, TensorStatus};
+use identifier_core::{FlightPipeline, PipelineSettings, Status};
 use libfuzzer_sys::fuzz_target;
 
 struct Bytes<'a>(&'a [u8]);
@@ -228,7 +228,7 @@ impl Others {
                 if let Some(a) = r.a {
                     assert!(a.iter().all(|x| x.is_finite()), "{r:?}");
                 }
-                if r.status == TensorStatus::Converged {
+                if r.status == Status::Converged {
                     assert!(r.std_a.is_some_and(|s| s.iter().all(|x| x.is_finite())));
                 }
             }

@@ -6,7 +6,7 @@ use host_tests::throw_sim::{
     board_throw, clipped_toss, no_rotor_toss, simulate, still, tumbling_with_spinup,
     tumbling_with_spinup_config, SimThrow,
 };
-use identifier_core::{FlightPipeline, PipelineSettings, TensorStatus};
+use identifier_core::{FlightPipeline, PipelineSettings, Status};
 
 /// A scenario of the simulator: name and generator.
 type Scenario = (&'static str, fn(u64) -> SimThrow);
@@ -15,7 +15,7 @@ struct Outcome {
     fed_first: Option<f64>,
     fed_last: Option<f64>,
     fed: usize,
-    status: TensorStatus,
+    status: Status,
 }
 
 fn run(sim: &SimThrow) -> Outcome {
@@ -29,7 +29,7 @@ fn run(sim: &SimThrow) -> Outcome {
         fed_first: None,
         fed_last: None,
         fed: 0,
-        status: TensorStatus::TooFewSamples,
+        status: Status::TooFewSamples,
     };
     for k in 0..sim.t.len() {
         let h = axis.map(|a| a * j_r * sim.rotor_rad_s[k]);
@@ -91,7 +91,7 @@ fn still_and_clipped_are_never_converged() {
         assert_eq!(o.fed, 0);
         let o = run(&clipped_toss(seed));
         println!("clipped {seed}: fed {}, {:?}", o.fed, o.status);
-        assert_ne!(o.status, TensorStatus::Converged);
+        assert_ne!(o.status, Status::Converged);
     }
 }
 
@@ -106,7 +106,7 @@ fn far_from_the_centre_of_mass_hand_and_catch_still_excluded() {
             cfg.com_from_imu = com;
             let label = format!("IMU {com:?} from the centre of mass, seed {seed}");
             let o = fed_only_free_flight(&label, &simulate(&cfg));
-            assert_eq!(o.status, TensorStatus::Converged, "{label}");
+            assert_eq!(o.status, Status::Converged, "{label}");
         }
     }
 }

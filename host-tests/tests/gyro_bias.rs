@@ -4,7 +4,7 @@
 //! honest; without a bias the plain model is kept.
 use host_tests::gyro::GyroModel;
 use host_tests::rigid_body::Body;
-use identifier_core::{FlightPipeline, PipelineSettings, RatioSource, TensorStatus};
+use identifier_core::{FlightPipeline, PipelineSettings, RatioSource, Status};
 
 fn run(bias: f64, seeds: u64) -> ([f64; 3], [f64; 3], usize) {
     let body = Body::free([0.6, 1.54, 1.0]);
@@ -25,7 +25,7 @@ fn run(bias: f64, seeds: u64) -> ([f64; 3], [f64; 3], usize) {
         assert_eq!(r.source, RatioSource::Trajectory);
         // The fit with the bias explains the data; the tensor estimator (no bias model) taking
         // the bias for products of inertia is no reason to distrust it.
-        assert_eq!(r.status, TensorStatus::Converged, "bias {bias} seed {seed}");
+        assert_eq!(r.status, Status::Converged, "bias {bias} seed {seed}");
         if p.trajectory().estimate().is_some_and(|e| e.biased) {
             chose_bias += 1;
         }
@@ -96,23 +96,19 @@ fn a_bias_detected_in_flight_keeps_the_tensor_from_converging() {
                 // No bias measured on a still stretch (there is none): the equation error,
                 // which cannot tell a bias, is at most `Converging` until the end-of-flight
                 // fits (test `online_gyro_bias`).
-                assert_eq!(t.status, TensorStatus::Converging, "seed {seed}");
+                assert_eq!(t.status, Status::Converging, "seed {seed}");
             } else {
                 assert_eq!(
                     r.source,
                     RatioSource::RefinedBias,
                     "bias {bias} seed {seed}"
                 );
-                assert_eq!(
-                    t.status,
-                    TensorStatus::ModelMismatch,
-                    "bias {bias} seed {seed}"
-                );
+                assert_eq!(t.status, Status::ModelMismatch, "bias {bias} seed {seed}");
             }
             p.end_stretch();
             assert_eq!(
                 p.estimate().status,
-                TensorStatus::Converged,
+                Status::Converged,
                 "bias {bias} seed {seed}"
             );
         }

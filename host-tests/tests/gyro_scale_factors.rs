@@ -12,9 +12,9 @@
 
 use host_tests::gyro::GyroModel;
 use host_tests::rigid_body::Body;
-use identifier_core::{FlightPipeline, PipelineSettings, TensorStatus};
+use identifier_core::{FlightPipeline, PipelineSettings, Status};
 
-fn flight(scale: [f64; 3], seed: u64) -> (TensorStatus, TensorStatus, bool) {
+fn flight(scale: [f64; 3], seed: u64) -> (Status, Status, bool) {
     let rate = 500.0;
     let tr = Body::free([0.8, 1.3, 1.7]).simulate([1.2, 0.4, 0.9], 6.0, rate, 32);
     let mut g = GyroModel::noisy(2e-3, seed);
@@ -42,8 +42,8 @@ fn scale_factor_errors_are_never_converged() {
     for seed in 1..=100 {
         let (ratios, tensor, rejected) = flight([1.0, 1.005, 0.997], seed);
         assert!(rejected, "seed {seed}: not found");
-        assert_ne!(ratios, TensorStatus::Converged, "seed {seed}: ratios");
-        assert_ne!(tensor, TensorStatus::Converged, "seed {seed}: tensor");
+        assert_ne!(ratios, Status::Converged, "seed {seed}: ratios");
+        assert_ne!(tensor, Status::Converged, "seed {seed}: tensor");
     }
 }
 
@@ -52,7 +52,7 @@ fn exact_scale_factors_stay_converged() {
     for seed in 1..=100 {
         let (ratios, tensor, rejected) = flight([1.0; 3], seed);
         assert!(!rejected, "seed {seed}: a rigid body's ratios rejected");
-        assert_eq!(ratios, TensorStatus::Converged, "seed {seed}: ratios");
-        assert_eq!(tensor, TensorStatus::Converged, "seed {seed}: tensor");
+        assert_eq!(ratios, Status::Converged, "seed {seed}: ratios");
+        assert_eq!(tensor, Status::Converged, "seed {seed}: tensor");
     }
 }

@@ -5,7 +5,7 @@
 //! in between the choice may go either way. What must never happen is an `a` that says
 //! `Converged` while it is more than four of its standard deviations from the truth.
 use host_tests::gyro::{rotation, GyroModel};
-use identifier_core::{FlightPipeline, PipelineSettings, RatioSource, TensorStatus};
+use identifier_core::{FlightPipeline, PipelineSettings, RatioSource, Status};
 
 const SEEDS: u64 = 12;
 
@@ -37,7 +37,7 @@ fn a_misaligned_gyro_never_gives_a_confident_wrong_a() {
                 .fold(0.0, f64::max);
             worst = worst.max(z);
             assert!(
-                !(r.status == TensorStatus::Converged && z > 4.0),
+                !(r.status == Status::Converged && z > 4.0),
                 "angle {angle} rad, seed {seed}: Converged with |error| {z:.1} std ({:?})",
                 r.source
             );

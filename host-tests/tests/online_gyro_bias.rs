@@ -9,7 +9,7 @@
 
 use host_tests::gyro::GyroModel;
 use host_tests::rigid_body::Body;
-use identifier_core::{FlightPipeline, PipelineSettings, RatioSource, TensorStatus};
+use identifier_core::{FlightPipeline, PipelineSettings, RatioSource, Status};
 
 /// Largest `|a_i - truth_i| / std_i`, or 0 without an estimate.
 fn worst_z(a: Option<[f32; 3]>, s: Option<[f32; 3]>, truth: [f64; 3]) -> f64 {
@@ -46,7 +46,7 @@ fn an_unmeasured_gyro_bias_is_never_converged_during_the_flight() {
                     t.status, r.status, r.source
                 );
                 assert!(
-                    t.status != TensorStatus::Converged || zt < 4.0,
+                    t.status != Status::Converged || zt < 4.0,
                     "seed {seed}, {at} s: tensor Converged {zt:.1} std off"
                 );
                 // The ratios are held to the same, whichever estimator they come from. The
@@ -54,7 +54,7 @@ fn an_unmeasured_gyro_bias_is_never_converged_during_the_flight() {
                 // seconds, before its bias test can tell, so they too are capped at
                 // `Converging` while no bias was measured.
                 assert!(
-                    r.status != TensorStatus::Converged || zr < 4.0,
+                    r.status != Status::Converged || zr < 4.0,
                     "seed {seed}, {at} s: ratios ({:?}) Converged {zr:.1} std off",
                     r.source
                 );
@@ -66,7 +66,7 @@ fn an_unmeasured_gyro_bias_is_never_converged_during_the_flight() {
         p.end_stretch();
         let r = p.ratios();
         assert_eq!(r.source, RatioSource::Trajectory, "seed {seed}");
-        assert_eq!(r.status, TensorStatus::Converged, "seed {seed}");
+        assert_eq!(r.status, Status::Converged, "seed {seed}");
         let z = worst_z(r.a, r.std_a, truth);
         assert!(z < 4.0, "seed {seed}: the fit {z:.1} std off");
     }

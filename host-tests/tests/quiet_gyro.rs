@@ -10,7 +10,7 @@
 
 use host_tests::gyro::GyroModel;
 use host_tests::rigid_body::Body;
-use identifier_core::{FlightPipeline, PipelineSettings, RatioSource, TensorStatus};
+use identifier_core::{FlightPipeline, PipelineSettings, RatioSource, Status};
 
 #[test]
 fn a_quiet_gyro_gets_the_trajectory_fit() {
@@ -30,7 +30,7 @@ fn a_quiet_gyro_gets_the_trajectory_fit() {
         p.end_stretch();
         let r = p.ratios();
         assert_eq!(r.source, RatioSource::Trajectory, "seed {seed}");
-        assert_eq!(r.status, TensorStatus::Converged, "seed {seed}");
+        assert_eq!(r.status, Status::Converged, "seed {seed}");
         let (a, s) = (r.a.unwrap(), r.std_a.unwrap());
         for i in 0..3 {
             let z = (f64::from(a[i]) - truth[i]) / f64::from(s[i]);

@@ -8,7 +8,7 @@
 use host_tests::crb_tensor::a_of_tensor;
 use host_tests::throw_sim::{board_throw_config, simulate};
 use identifier_core::{
-    FlightPipeline, PipelineSettings, RatioSource, StretchOutcome, TensorMethod, TensorStatus,
+    FlightPipeline, PipelineSettings, RatioSource, Status, StretchOutcome, TensorMethod,
 };
 
 const IDX: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
@@ -47,7 +47,7 @@ fn run(bias: [f64; 3], seeds: u64) -> ([f64; 6], u32) {
             biased += 1;
         }
         let e = p.estimate();
-        assert_ne!(e.status, TensorStatus::ModelMismatch, "seed {seed}");
+        assert_ne!(e.status, Status::ModelMismatch, "seed {seed}");
         let (t, s) = (e.tensor.expect("absolute"), e.tensor_std.expect("std"));
         for (q, &(r, c)) in IDX.iter().enumerate() {
             let z = (t[r][c] as f64 - cfg.inertia[r][c]) / s[r][c] as f64;
@@ -191,7 +191,7 @@ fn a_rotor_telemetry_wrong_before_the_spin_up_is_flagged_with_its_error_covered(
             clean.status, clean.residual_ratio
         );
         assert_eq!(clean_outcome, StretchOutcome::Fitted, "seed {seed}");
-        assert_ne!(clean.status, TensorStatus::ModelMismatch, "seed {seed}");
+        assert_ne!(clean.status, Status::ModelMismatch, "seed {seed}");
         let peak = sim.rotor_rad_s.iter().fold(0.0f32, |a, &v| a.max(v));
         let spin_up = sim
             .rotor_rad_s
@@ -225,7 +225,7 @@ fn a_rotor_telemetry_wrong_before_the_spin_up_is_flagged_with_its_error_covered(
             StretchOutcome::Fitted,
             "seed {seed}: no bias fitted"
         );
-        assert_eq!(e.status, TensorStatus::ModelMismatch, "seed {seed}");
+        assert_eq!(e.status, Status::ModelMismatch, "seed {seed}");
         worst = worst.max(err);
         worst_z = worst_z.max(z);
     }

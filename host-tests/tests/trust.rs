@@ -5,7 +5,7 @@
 use host_tests::gyro::GyroModel;
 use host_tests::rigid_body::Body;
 use identifier_core::{
-    ExtendedIdentifier, ExtendedSettings, Identifier, Refined, RefinedSettings, Settings, Trust,
+    ExtendedIdentifier, ExtendedSettings, Identifier, Refined, RefinedSettings, Settings, Status,
 };
 
 const RATE: f64 = 1000.0;
@@ -14,9 +14,9 @@ const NOISE: f64 = 1e-3;
 
 /// The trust after each sample, for each estimator.
 struct Trail {
-    paper: Vec<Trust>,
-    refined: Vec<Trust>,
-    extended: Vec<Trust>,
+    paper: Vec<Status>,
+    refined: Vec<Status>,
+    extended: Vec<Status>,
 }
 
 impl Trail {
@@ -27,14 +27,14 @@ impl Trail {
             ("extended", &self.extended),
         ] {
             assert!(
-                !t.contains(&Trust::Converged),
+                !t.contains(&Status::Converged),
                 "{what}: {name} was Converged at sample {:?}",
-                t.iter().position(|x| *x == Trust::Converged)
+                t.iter().position(|x| *x == Status::Converged)
             );
         }
     }
 
-    fn last(&self) -> [Trust; 3] {
+    fn last(&self) -> [Status; 3] {
         [
             *self.paper.last().unwrap(),
             *self.refined.last().unwrap(),
@@ -95,21 +95,21 @@ fn tumble(model: GyroModel) -> Vec<[f64; 3]> {
 #[test]
 fn informative_data_converges_and_none_before_data() {
     let fresh = Refined::new(RefinedSettings::for_rate(1000.0, 1e-3)).unwrap();
-    assert_eq!(fresh.trust(), Trust::NoInformation);
+    assert_eq!(fresh.trust(), Status::NoInformation);
     let p = Identifier::new(Settings::default()).unwrap();
-    assert_eq!(p.trust(), Trust::NoInformation);
+    assert_eq!(p.trust(), Status::NoInformation);
     let noisy = run(&tumble(GyroModel::noisy(NOISE, 1)), DT, f32::INFINITY);
     let last = noisy.last();
     println!("noisy tumble: final trust {last:?}");
-    assert_eq!(last[1], Trust::Converged, "refined");
-    assert_eq!(last[2], Trust::Converged, "extended");
+    assert_eq!(last[1], Status::Converged, "refined");
+    assert_eq!(last[2], Status::Converged, "extended");
     // The paper's identifier never meets eps = 1e-3 on noisy data; on clean data it does.
     let clean = run(&tumble(GyroModel::ideal()), DT, f32::INFINITY);
     println!("clean tumble: final trust {:?}", clean.last());
-    assert_eq!(clean.last(), [Trust::Converged; 3]);
+    assert_eq!(clean.last(), [Status::Converged; 3]);
     // The first samples are never trusted.
     for t in [&clean.paper, &clean.refined, &clean.extended] {
-        assert_eq!(t[0], Trust::TooFewSamples);
+        assert_eq!(t[0], Status::TooFewSamples);
     }
 }
 
@@ -119,7 +119,7 @@ fn still_gyro_is_no_excitation() {
     let trail = run(&GyroModel::noisy(NOISE, 2).measure(&tr), DT, f32::INFINITY);
     println!("still: {:?}", trail.last());
     trail.never_converged("still gyro");
-    assert_eq!(trail.last(), [Trust::NoExcitation; 3]);
+    assert_eq!(trail.last(), [Status::NoExcitation; 3]);
     // A still gyro with a bias is no better.
     let biased = GyroModel {
         bias: [0.01, -0.02, 0.015],
@@ -128,7 +128,7 @@ fn still_gyro_is_no_excitation() {
     let trail = run(&biased.measure(&tr), DT, f32::INFINITY);
     println!("still with bias: {:?}", trail.last());
     trail.never_converged("still biased gyro");
-    assert_eq!(trail.last(), [Trust::NoExcitation; 3]);
+    assert_eq!(trail.last(), [Status::NoExcitation; 3]);
 }
 
 #[test]
@@ -140,7 +140,7 @@ fn degrees_per_second_look_wrong() {
     let trail = run(&deg, DT, f32::INFINITY);
     println!("deg/s: {:?}", trail.last());
     trail.never_converged("deg/s");
-    assert_eq!(trail.last(), [Trust::UnitsLookWrong; 3]);
+    assert_eq!(trail.last(), [Status::UnitsLookWrong; 3]);
     // A slow body in deg/s stays below the plausible rate: the consistency value catches it.
     let slow = Body::free([0.6, 1.54, 1.0]).simulate([0.3, 0.3, 0.3], 20.0, RATE, 4);
     let deg = GyroModel::noisy(NOISE, 5)
@@ -163,10 +163,10 @@ fn dt_ten_times_too_small_is_physically_impossible() {
     println!("dt/10: {:?}", trail.last());
     trail.never_converged("dt / 10");
     let last = trail.last();
-    assert_eq!(last[1], Trust::PhysicallyImpossible, "refined");
-    assert_eq!(last[2], Trust::PhysicallyImpossible, "extended");
+    assert_eq!(last[1], Status::PhysicallyImpossible, "refined");
+    assert_eq!(last[2], Status::PhysicallyImpossible, "extended");
     assert!(
-        matches!(last[0], Trust::PhysicallyImpossible | Trust::Converging),
+        matches!(last[0], Status::PhysicallyImpossible | Status::Converging),
         "paper {:?}",
         last[0]
     );
@@ -187,5 +187,5 @@ fn saturating_every_axis_is_saturated() {
     let trail = run(&y, DT, fs as f32);
     println!("saturated: {:?}", trail.last());
     trail.never_converged("saturated");
-    assert_eq!(trail.last(), [Trust::Saturated; 3]);
+    assert_eq!(trail.last(), [Status::Saturated; 3]);
 }

@@ -6,9 +6,9 @@
 
 use host_tests::gyro::GyroModel;
 use host_tests::rigid_body::{rk4, Trajectory};
-use identifier_core::{FlightPipeline, PipelineSettings, TensorStatus};
+use identifier_core::{FlightPipeline, PipelineSettings, Status};
 
-fn flight(c: [f64; 3], seed: u64) -> (TensorStatus, TensorStatus, bool) {
+fn flight(c: [f64; 3], seed: u64) -> (Status, Status, bool) {
     let m = [0.8, 1.3, 1.7];
     let f = |w: [f64; 3]| {
         [
@@ -46,8 +46,8 @@ fn a_constant_torque_is_never_converged() {
     for seed in 1..=6 {
         let (ratios, tensor, torque) = flight([2e-3, -1e-3, 1.5e-3], seed);
         assert!(torque, "seed {seed}: torque not found");
-        assert_ne!(ratios, TensorStatus::Converged, "seed {seed}: ratios");
-        assert_ne!(tensor, TensorStatus::Converged, "seed {seed}: tensor");
+        assert_ne!(ratios, Status::Converged, "seed {seed}: ratios");
+        assert_ne!(tensor, Status::Converged, "seed {seed}: tensor");
     }
 }
 
@@ -56,7 +56,7 @@ fn a_free_body_is_still_converged() {
     for seed in 1..=6 {
         let (ratios, tensor, torque) = flight([0.0; 3], seed);
         assert!(!torque, "seed {seed}: torque found on a free body");
-        assert_eq!(ratios, TensorStatus::Converged, "seed {seed}: ratios");
-        assert_eq!(tensor, TensorStatus::Converged, "seed {seed}: tensor");
+        assert_eq!(ratios, Status::Converged, "seed {seed}: ratios");
+        assert_eq!(tensor, Status::Converged, "seed {seed}: tensor");
     }
 }

@@ -49,7 +49,7 @@
 //! No heap, no `unsafe`, no panicking path, `f32` only, and only `+ - * /` (the one square
 //! root is a fixed count of Newton steps), so host and MCU run the same arithmetic.
 
-use crate::status::{physically_possible, precise, Exposure, Trust, Verdict, MIN_SAMPLES};
+use crate::status::{physically_possible, precise, Exposure, Status, Verdict, MIN_SAMPLES};
 
 /// Effects the extended identifier can estimate alongside `a` (see the module table (E)).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -99,7 +99,7 @@ pub struct ExtendedSettings {
     /// Longest sample interval still integrated; a longer one restarts the block.
     pub max_dt: f32,
     /// Standard deviation of every `a_i` (from `P`) below which the estimate is
-    /// [`Trust::Converged`] (see [`ExtendedIdentifier::trust`]). Must be finite and `> 0`.
+    /// [`Status::Converged`] (see [`ExtendedIdentifier::trust`]). Must be finite and `> 0`.
     pub tolerance: f32,
 }
 
@@ -175,12 +175,12 @@ pub struct ExtendedEstimate {
     /// What happened to this sample.
     pub status: ExtendedStatus,
     /// How far `a` can be trusted (see [`ExtendedIdentifier::trust`]).
-    pub trust: Trust,
+    pub trust: Status,
 }
 
 impl ExtendedEstimate {
     /// Inertia ratios implied by `a` ([`crate::InertiaRatios::from_a`]), `None` while the data
-    /// has carried no information ([`Trust::has_information`] false).
+    /// has carried no information ([`Status::has_information`] false).
     pub fn ratios(&self) -> Option<crate::InertiaRatios> {
         if !self.trust.has_information() {
             return None;
@@ -361,7 +361,7 @@ impl ExtendedIdentifier {
         &self.exposure
     }
 
-    /// How far the estimate can be trusted ([`Trust`], by [`Trust::assess`]), with
+    /// How far the estimate can be trusted ([`Status`], by [`Status::assess`]), with
     /// `var_i = P_ii s^2 k` the variance of the reported `a_i` (`s` the scale factor of the
     /// scale correction, 1 without; `k` = [`ExtendedIdentifier::noise_inflation`]), judged at
     /// each update of `theta`:
@@ -374,10 +374,10 @@ impl ExtendedIdentifier {
     ///
     /// `P` is a covariance only when `noise_std` is the actual gyro noise and the effects
     /// listed are the ones present.
-    pub fn trust(&self) -> Trust {
+    pub fn trust(&self) -> Status {
         let mut v = self.verdict;
         v.excited = v.excited && self.exposure.moved(self.settings.noise_std);
-        Trust::assess(&self.exposure, v)
+        Status::assess(&self.exposure, v)
     }
 
     /// `max(1, mean normalised innovation)` of the rows of (I) so far: how much larger the
@@ -439,7 +439,7 @@ impl ExtendedIdentifier {
             effect_params: [[p0, p1, p2], [p3, p4, p5]],
             scale,
             status,
-            trust: Trust::NoInformation,
+            trust: Status::NoInformation,
         }
     }
 

@@ -51,7 +51,7 @@ use crate::invariant::{phi, phi_of_squares, sign, squares, triple_product};
 use crate::linalg::{mul_vec, solve};
 use crate::settings::{Settings, SettingsError, SignChangeCorrection};
 use crate::status::{
-    ln_approx, Counters, Estimate, Exposure, SampleStatus, Trust, Verdict, MIN_SAMPLES,
+    ln_approx, Counters, Estimate, Exposure, SampleStatus, Status, Verdict, MIN_SAMPLES,
 };
 
 /// The last sample the integration runs from.
@@ -147,7 +147,7 @@ impl Identifier {
         }
     }
 
-    /// How far the estimate can be trusted ([`Trust`], by [`Trust::assess`]). The paper's
+    /// How far the estimate can be trusted ([`Status`], by [`Status::assess`]). The paper's
     /// identifier has no standard deviation of its own, so this is a **weaker** verdict than
     /// [`crate::Refined::trust`]'s, derived from:
     ///
@@ -166,7 +166,7 @@ impl Identifier {
     /// Weaker because the criterion measures stillness, not error: on noisy data the estimate
     /// (12) carries the noise of the current sample and a bias the criterion cannot see; use
     /// [`crate::Refined`] for a trust backed by a standard deviation.
-    pub fn trust(&self) -> Trust {
+    pub fn trust(&self) -> Status {
         let s = &self.settings;
         let settled = self.monitor.verdict(s.h) == Convergence::Converged;
         let a = self.delta;
@@ -179,7 +179,7 @@ impl Identifier {
             possible,
             settled,
         };
-        Trust::assess(&self.exposure, verdict)
+        Status::assess(&self.exposure, verdict)
     }
 
     /// What the data offered so far (counts, peak rate, excitation `E`).

@@ -5,19 +5,19 @@
 //!
 //! | you have | use | gives |
 //! |---|---|---|
-//! | a thrown or tumbling vehicle with gyro and accelerometer (and rotor speeds, if any rotor turns) | [`FlightPipeline`]: free-flight gate, guards, gyro bias, [`TensorEstimator`] | the tensor `J` in the sensor frame (kg m^2 with a known rotor momentum, else up to scale), principal moments and axes, `a`, standard deviations, a [`TensorStatus`] |
-//! | gyro samples of a free tumble, axes taken as principal | [`RatioFit`] (output-error fit of the whole flight, all axes jointly, on the Cramer-Rao bound; a gyro bias when its test finds one; fitted once per flight); [`Refined`] (per sample, near the bound); [`FlightPipeline::ratios`] chooses | `a` with standard deviations and a [`Trust`] or status |
+//! | a thrown or tumbling vehicle with gyro and accelerometer (and rotor speeds, if any rotor turns) | [`FlightPipeline`]: free-flight gate, guards, gyro bias, [`TensorEstimator`] | the tensor `J` in the sensor frame (kg m^2 with a known rotor momentum, else up to scale), principal moments and axes, `a`, standard deviations, a [`Status`] |
+//! | gyro samples of a free tumble, axes taken as principal | [`RatioFit`] (output-error fit of the whole flight, all axes jointly, on the Cramer-Rao bound; a gyro bias when its test finds one; fitted once per flight); [`Refined`] (per sample, near the bound); [`FlightPipeline::ratios`] chooses | `a` with standard deviations and a [`Status`] |
 //! | the same, for the tensor at the bound | [`TensorFit`] (output error, started from [`TensorEstimator`]'s tensor or the ratio fit's moments; the pipeline uses it when it fits to the noise) | `J` in kg m^2 with its covariance when a known rotor momentum fixes the scale ([`TensorFit::close`]), else `J / trace J` ([`TensorFit::close_normalized`]) |
 //! | the paper's method, as published | [`Identifier`] (V.F. Shcherbak's invariant relations, with the sign-change correction) | `a` and the paper's convergence criterion; on noisy data far above the bound (`scripts/bench-estimators.sh`) |
 //! | a model with one extra effect (bias, torque, damping, products, rotor) | [`ExtendedIdentifier`] | `a` and the effect |
 //!
-//! Nothing is to be trusted unless its status says so: [`TensorStatus::Converged`] or
-//! [`Trust::Converged`] are given only when the estimate's own standard deviations are within
-//! the tolerance, the estimate is physically possible and the data carried information; a
+//! Nothing is to be trusted unless its status says so: one [`Status`] for every estimator,
+//! [`Status::Converged`] given only when the estimate's own standard deviations are within the
+//! tolerance, the estimate is physically possible and the data carried information; a
 //! still gyro, deg/s data, a wrong time step or a clipped throw says why it is not.
 //!
 //! ```
-//! use identifier_core::{TensorEstimator, TensorSettings, TensorStatus};
+//! use identifier_core::{Status, TensorEstimator, TensorSettings};
 //!
 //! // A torque-free body with principal moments (0.6, 1.54, 1.0), sampled at 1 kHz.
 //! let m = [0.6f64, 1.54, 1.0];
@@ -40,7 +40,7 @@
 //! let e = est.estimate();
 //! let a = e.a.unwrap();
 //! assert!((a[0] - 0.9).abs() < 0.01 && (a[2] + 0.94).abs() < 0.01);
-//! assert!(e.status != TensorStatus::NoExcitation);
+//! assert!(e.status != Status::NoExcitation);
 //! ```
 //!
 //! # The paper's method
@@ -124,9 +124,9 @@ pub use refined_bias::RefinedBias;
 pub use rotors::{Rotor, RotorError, Rotors, AXIS_UNIT_TOLERANCE, MAX_ROTORS};
 pub use settings::{GainMatrix, Settings, SettingsError, SignChangeCorrection};
 pub use status::{Counters, Estimate, SampleStatus};
-pub use status::{Exposure, Trust, Verdict};
+pub use status::{Exposure, Status, Verdict};
 pub use tensor::{
     TensorCounters, TensorEstimate, TensorEstimator, TensorMethod, TensorModel, TensorSettings,
-    TensorStatus, MAX_STEP_TURN_RAD,
+    MAX_STEP_TURN_RAD,
 };
 pub use tensor_fit::{FlightTensorFit, TensorFit, TensorFitEstimate};

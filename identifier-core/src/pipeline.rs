@@ -20,10 +20,9 @@ use crate::output_error::StretchOutcome;
 use crate::ratio_fit::{FlightRatioFit, RatioFit, RatioFitEstimate};
 use crate::refined::{Refined, RefinedSettings};
 use crate::refined_bias::RefinedBias;
-use crate::status::{physically_possible, precise, SampleStatus, Trust};
+use crate::status::{physically_possible, precise, SampleStatus, Status};
 use crate::tensor::{
     products_wald, TensorEstimate, TensorEstimator, TensorMethod, TensorModel, TensorSettings,
-    TensorStatus,
 };
 use crate::tensor_fit::{FlightTensorFit, TensorFit};
 
@@ -189,7 +188,7 @@ pub struct Ratios {
     /// Standard deviations of `a`.
     pub std_a: Option<[f32; 3]>,
     /// Why it is or is not to be trusted.
-    pub status: TensorStatus,
+    pub status: Status,
     /// Which estimator gave them.
     pub source: RatioSource,
 }
@@ -203,12 +202,12 @@ pub const TRAJECTORY_FIT_RATIO: f32 = 2.0;
 
 /// The verdicts about the data themselves (too few samples, no excitation, units, clipping):
 /// they hold for every estimate from the same samples. `None` for the others.
-fn data_verdict(status: TensorStatus) -> Option<TensorStatus> {
+fn data_verdict(status: Status) -> Option<Status> {
     match status {
-        TensorStatus::TooFewSamples
-        | TensorStatus::NoExcitation
-        | TensorStatus::UnitsLookWrong
-        | TensorStatus::Saturated => Some(status),
+        Status::TooFewSamples
+        | Status::NoExcitation
+        | Status::UnitsLookWrong
+        | Status::Saturated => Some(status),
         _ => None,
     }
 }
@@ -491,7 +490,7 @@ impl<const N: usize> Pipeline<N> {
     /// * otherwise (during the first free flight, or no fit) the refined identifier's
     ///   ([`Refined`], fed exactly the same samples): it models the integral's own noise and
     ///   stays near the Cramer-Rao bound, and its standard deviation uses the noise seen in its
-    ///   residuals. Its [`Trust`] is reported as the [`TensorStatus`] of the same meaning, at
+    ///   residuals. Its [`Status`] is reported as it is (`NoInformation` as `TooFewSamples`), at
     ///   most `Converging` while no gyro bias was measured and no end-of-flight fit has ruled
     ///   one out (it has no bias model).
     ///
@@ -506,33 +505,32 @@ impl<const N: usize> Pipeline<N> {
     pub fn estimate_and_ratios(&self) -> (TensorEstimate, Ratios) {
         let own = self.estimator.estimate();
         let mut t = self.reported(own);
-        let converged =
-            |s: TensorStatus| matches!(s, TensorStatus::Converged | TensorStatus::Converging);
+        let converged = |s: Status| matches!(s, Status::Converged | Status::Converging);
         // Whether the sensor axes are principal axes, asked once for everything below.
         let principal = self.principal_axes(&own);
         if (self.torque_suspected(principal) || self.not_rigid(principal)) && converged(t.status) {
-            t.status = TensorStatus::ModelMismatch;
+            t.status = Status::ModelMismatch;
         }
-        if self.bias_unknown(&t) && t.status == TensorStatus::Converged {
-            t.status = TensorStatus::Converging;
+        if self.bias_unknown(&t) && t.status == Status::Converged {
+            t.status = Status::Converging;
         }
         let mut r = self.ratios_from(&t, principal);
         if r.source == RatioSource::Refined
-            && r.status == TensorStatus::Converged
+            && r.status == Status::Converged
             && self.refined_bias_unknown()
         {
-            r.status = TensorStatus::Converging;
+            r.status = Status::Converging;
         }
         let unmodelled_bias =
             r.source == RatioSource::RefinedBias && t.method == TensorMethod::EquationError;
         if unmodelled_bias && converged(t.status) {
-            t.status = TensorStatus::ModelMismatch;
+            t.status = Status::ModelMismatch;
         }
         // An accelerometer not in m/s^2 (`AccelUnits`): the gate's free flights and bias
         // mean nothing, so neither does what was fitted to them.
         if self.gate.accel_units().looks_wrong() {
-            t.status = TensorStatus::UnitsLookWrong;
-            r.status = TensorStatus::UnitsLookWrong;
+            t.status = Status::UnitsLookWrong;
+            r.status = Status::UnitsLookWrong;
         }
         (t, r)
     }
@@ -555,18 +553,15 @@ impl<const N: usize> Pipeline<N> {
         // its `a` is many times the constrained bound on a near-symmetric body), so it is used
         // only where the products are significant.
         let trust = self.refined.trust();
+        // The refined identifier's `NoInformation` (no sample yet) is reported as the tensor
+        // reports it: `TooFewSamples`.
         let status = match trust {
-            Trust::NoInformation | Trust::TooFewSamples => TensorStatus::TooFewSamples,
-            Trust::NoExcitation => TensorStatus::NoExcitation,
-            Trust::Saturated => TensorStatus::Saturated,
-            Trust::PhysicallyImpossible => TensorStatus::PhysicallyImpossible,
-            Trust::UnitsLookWrong => TensorStatus::UnitsLookWrong,
-            Trust::Converging => TensorStatus::Converging,
-            Trust::Converged => TensorStatus::Converged,
+            Status::NoInformation => Status::TooFewSamples,
+            s => s,
         };
         // The tensor's verdicts on the units and the clipping hold for the same samples.
         let status = match t.status {
-            TensorStatus::UnitsLookWrong | TensorStatus::Saturated => t.status,
+            Status::UnitsLookWrong | Status::Saturated => t.status,
             _ => status,
         };
         let informed = trust.has_information() && self.refined.noise_estimate().is_some();
@@ -594,12 +589,12 @@ impl<const N: usize> Pipeline<N> {
             // Otherwise the torque-free model does not hold on these data (on the racquet
             // tosses through air the tensor's `a` spreads by tens of percent): the
             // refined identifier's estimate is the least affected, and marked as such.
-            let tensor_fits = !principal && t.status == TensorStatus::Converged;
+            let tensor_fits = !principal && t.status == Status::Converged;
             if !fits && !tensor_fits && informed {
                 return self.refined_mismatch(status);
             }
         } else if self.trajectory.last_outcome() == StretchOutcome::Failed
-            && t.status != TensorStatus::Converged
+            && t.status != Status::Converged
             && informed
         {
             // The flight ended and its fit found no torque-free motion that the data follow
@@ -679,11 +674,11 @@ impl<const N: usize> Pipeline<N> {
     /// The refined identifier's ratios where the torque-free model does not hold on the flight
     /// (its fit above the noise or failed): `ModelMismatch` unless a data-side verdict of
     /// `status` says more ([`data_verdict`]).
-    fn refined_mismatch(&self, status: TensorStatus) -> Ratios {
+    fn refined_mismatch(&self, status: Status) -> Ratios {
         Ratios {
             a: Some(self.refined.block_estimate()),
             std_a: Some(self.refined.std_a()),
-            status: data_verdict(status).unwrap_or(TensorStatus::ModelMismatch),
+            status: data_verdict(status).unwrap_or(Status::ModelMismatch),
             source: RatioSource::Refined,
         }
     }
@@ -693,18 +688,10 @@ impl<const N: usize> Pipeline<N> {
     /// stay; then a bias that the tensor would rather explain by products of inertia is
     /// ambiguous (`ModelMismatch`), and `Converged` needs every standard deviation within
     /// `eps`.
-    fn trajectory_ratios(
-        &self,
-        fe: &RatioFitEstimate,
-        status: TensorStatus,
-        principal: bool,
-    ) -> Ratios {
+    fn trajectory_ratios(&self, fe: &RatioFitEstimate, status: Status, principal: bool) -> Ratios {
         let status = self.judge(status, fe.a, fe.std_a, principal);
         // No estimate where the data carry none (as the refined identifier reports it).
-        let informed = !matches!(
-            status,
-            TensorStatus::TooFewSamples | TensorStatus::NoExcitation
-        );
+        let informed = !matches!(status, Status::TooFewSamples | Status::NoExcitation);
         Ratios {
             a: informed.then_some(fe.a),
             std_a: informed.then_some(fe.std_a),
@@ -717,20 +704,14 @@ impl<const N: usize> Pipeline<N> {
     /// verdicts of `status` stay ([`data_verdict`]); then not physically possible; products of
     /// inertia wanted by the tensor (`!principal`: a model assuming principal axes is not to be
     /// trusted, `ModelMismatch`); `Converged` when every standard deviation is within `eps`.
-    fn judge(
-        &self,
-        status: TensorStatus,
-        a: [f32; 3],
-        std_a: [f32; 3],
-        principal: bool,
-    ) -> TensorStatus {
+    fn judge(&self, status: Status, a: [f32; 3], std_a: [f32; 3], principal: bool) -> Status {
         let var = std_a.map(|x| x * x);
         match data_verdict(status) {
             Some(v) => v,
-            None if !physically_possible(a, var) => TensorStatus::PhysicallyImpossible,
-            None if !principal => TensorStatus::ModelMismatch,
-            None if precise(var, self.settings.refined.eps) => TensorStatus::Converged,
-            None => TensorStatus::Converging,
+            None if !physically_possible(a, var) => Status::PhysicallyImpossible,
+            None if !principal => Status::ModelMismatch,
+            None if precise(var, self.settings.refined.eps) => Status::Converged,
+            None => Status::Converging,
         }
     }
 

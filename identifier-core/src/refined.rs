@@ -60,7 +60,7 @@
 use crate::convergence::{Convergence, ConvergenceMonitor};
 use crate::invariant::{sign, triple_product};
 use crate::status::{
-    physically_possible, precise, Counters, Estimate, Exposure, SampleStatus, Trust, Verdict,
+    physically_possible, precise, Counters, Estimate, Exposure, SampleStatus, Status, Verdict,
     MIN_SAMPLES,
 };
 
@@ -361,15 +361,15 @@ struct Last {
 /// noise as a wandering intercept. Fixed size, no heap, no buffers.
 ///
 /// ```
-/// use identifier_core::{Refined, RefinedSettings, Trust};
+/// use identifier_core::{Refined, RefinedSettings, Status};
 ///
-/// // A gyro lying still carries no information: no ratios, and the trust says why.
+/// // A gyro lying still carries no information: no ratios, and the status says why.
 /// let mut r = Refined::new(RefinedSettings::for_rate(1000.0, 1e-3)).unwrap();
 /// for k in 0..5000 {
 ///     let n = if k % 2 == 0 { 1e-3 } else { -1e-3 };
 ///     r.step([n, -n, n], 1e-3);
 /// }
-/// assert_eq!(r.trust(), Trust::NoExcitation);
+/// assert_eq!(r.trust(), Status::NoExcitation);
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -548,8 +548,8 @@ impl Refined {
         }
     }
 
-    /// How far the estimate of the last completed block can be trusted ([`Trust`], by
-    /// [`Trust::assess`]), with `var_i = (L^-1)_aa sigma^2` the filter's variance of `a_i`
+    /// How far the estimate of the last completed block can be trusted ([`Status`], by
+    /// [`Status::assess`]), with `var_i = (L^-1)_aa sigma^2` the filter's variance of `a_i`
     /// (`sigma` = [`RefinedSettings::noise_std`]):
     ///
     /// * enough: at least `MIN_SAMPLES` samples in completed blocks;
@@ -564,10 +564,10 @@ impl Refined {
     ///
     /// Evaluated at each completed block (no square root, three divisions); between blocks
     /// only the data-side counts change.
-    pub fn trust(&self) -> Trust {
+    pub fn trust(&self) -> Status {
         let mut v = self.verdict;
         v.excited = v.excited && self.exposure.moved(self.settings.noise_std);
-        Trust::assess(&self.exposure, v)
+        Status::assess(&self.exposure, v)
     }
 
     /// What the data offered so far (counts, peak rate, excitation `E`).

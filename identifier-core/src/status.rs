@@ -1,5 +1,5 @@
 //! What one step reports: the estimate (12), what happened to the sample, how far the estimate
-//! can be trusted ([`Trust`]), and counters for diagnosis.
+//! can be trusted ([`Status`]), and counters for diagnosis.
 
 use crate::convergence::Convergence;
 use crate::inertia::{consistency, InertiaRatios};
@@ -59,13 +59,13 @@ pub struct Estimate {
     pub status: SampleStatus,
     /// The paper's accuracy criterion, evaluated over identifiable time.
     pub convergence: Convergence,
-    /// How far `a` can be trusted, from the information the data carried (see [`Trust`]).
-    pub trust: Trust,
+    /// How far `a` can be trusted, from the information the data carried (see [`Status`]).
+    pub trust: Status,
 }
 
 impl Estimate {
     /// Inertia ratios `A2/A1`, `A3/A1` implied by `a` (see [`InertiaRatios::from_a`]);
-    /// `None` while the data has carried no information ([`Trust::has_information`] false):
+    /// `None` while the data has carried no information ([`Status::has_information`] false):
     /// before the first samples the estimate is only the initial value, not a body.
     pub fn ratios(&self) -> Option<InertiaRatios> {
         if !self.trust.has_information() {
@@ -125,11 +125,11 @@ impl Counters {
 /// Largest `|w_i|`, rad/s, that a thrown or flying rigid body plausibly reaches: a hand toss
 /// spins at about 12 rad/s, a racquet at 35 rad/s, a gyro's widest range (+-2000 deg/s) is
 /// 34.9 rad/s. A larger accepted rate means the samples are not in rad/s (deg/s data is
-/// 57.3x too large): [`Trust::UnitsLookWrong`].
+/// 57.3x too large): [`Status::UnitsLookWrong`].
 pub const MAX_PLAUSIBLE_RATE: f32 = 50.0;
 
 /// Fewest samples that must have entered the reported estimate before it is judged
-/// ([`Trust::TooFewSamples`] below this).
+/// ([`Status::TooFewSamples`] below this).
 pub const MIN_SAMPLES: u32 = 10;
 
 /// A rate must swing (largest minus smallest accepted value) by more than this many gyro
@@ -143,84 +143,135 @@ pub const SWING_SIGMAS: f32 = 20.0;
 pub const CONSISTENCY_FLOOR: f32 = 1e-4;
 
 /// How far an estimate can be trusted, decided from the information the data carried, never
-/// from the estimate's stillness alone. Shared by every estimator of the crate.
+/// from the estimate's stillness alone. One status for every estimator of the crate: the ratio
+/// estimators ([`crate::Identifier`], [`crate::Refined`], [`crate::ExtendedIdentifier`], each
+/// by its `trust` method and in its estimate's `trust`), the tensor estimator
+/// ([`crate::TensorEstimate::status`], also when it describes an output-error fit's tensor)
+/// and the pipeline's recommended ratios ([`crate::Ratios::status`]).
 ///
-/// [`Trust::assess`] gives the first status, in this order, whose condition holds:
+/// The ratio estimators decide it by [`Status::assess`], the first status, in this order,
+/// whose condition holds:
 ///
 /// | status | given when |
 /// |---|---|
-/// | [`Trust::NoInformation`] | no sample has been accepted and none was saturated |
-/// | [`Trust::Saturated`] | more than 1 % of the samples offered were at full scale (`100 saturated > accepted`) |
-/// | [`Trust::UnitsLookWrong`] | an accepted rate exceeded `MAX_PLAUSIBLE_RATE` |
-/// | [`Trust::TooFewSamples`] | fewer than `MIN_SAMPLES` samples are in the reported estimate |
-/// | [`Trust::NoExcitation`] | the data carried no information about `a` (estimator's rule) |
-/// | [`Trust::PhysicallyImpossible`] | the estimate is no rigid body beyond its uncertainty (`physically_possible`) |
-/// | [`Trust::Converging`] | the estimate's own precision is not yet the configured tolerance |
-/// | [`Trust::Converged`] | none of the above: informative data, a possible body, precise enough |
+/// | [`Status::NoInformation`] | no sample has been accepted and none was saturated |
+/// | [`Status::Saturated`] | more than 1 % of the samples offered were at full scale (`100 saturated > accepted`) |
+/// | [`Status::UnitsLookWrong`] | an accepted rate exceeded `MAX_PLAUSIBLE_RATE` |
+/// | [`Status::TooFewSamples`] | fewer than `MIN_SAMPLES` samples are in the reported estimate |
+/// | [`Status::NoExcitation`] | the data carried no information about `a` (estimator's rule) |
+/// | [`Status::PhysicallyImpossible`] | the estimate is no rigid body beyond its uncertainty (`physically_possible`) |
+/// | [`Status::Converging`] | the estimate's own precision is not yet the configured tolerance |
+/// | [`Status::Converged`] | none of the above: informative data, a possible body, precise enough |
+///
+/// They never give [`Status::ModelMismatch`]. The tensor estimator
+/// ([`crate::TensorEstimator::estimate`]) judges in its own order: [`Status::UnitsLookWrong`],
+/// [`Status::TooFewSamples`], [`Status::NoExcitation`], [`Status::Saturated`],
+/// [`Status::ModelMismatch`], [`Status::PhysicallyImpossible`], then [`Status::Converging`] or
+/// [`Status::Converged`]. Neither it nor the pipeline ([`crate::Pipeline::estimate_and_ratios`])
+/// gives [`Status::NoInformation`]: before any sample they say [`Status::TooFewSamples`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum Trust {
-    /// Nothing accepted yet: `a` is the initial value.
+pub enum Status {
+    /// Nothing accepted yet (and nothing saturated): `a` is the initial value. Only the ratio
+    /// estimators give it ([`Status::assess`]); the tensor estimator and the pipeline say
+    /// [`Status::TooFewSamples`] instead.
     NoInformation,
-    /// Fewer than `MIN_SAMPLES` samples in the reported estimate.
+    /// Too few samples in the reported estimate. Ratio estimators: fewer than `MIN_SAMPLES`.
+    /// Tensor estimator: fewer than [`crate::TensorSettings::min_samples`] samples, or fewer
+    /// equations than unknowns. The pipeline gives it as well where the refined identifier
+    /// says [`Status::NoInformation`].
     TooFewSamples,
-    /// Samples arrived but did not excite (1): a still gyro, a spin about a principal axis,
-    /// `|w1 w2 w3|` too small for too short a time. The estimator's rule is in its docs.
-    NoExcitation,
-    /// More than 1 % of the offered samples were at the gyro's full scale: the estimate has
-    /// gaps exactly where the motion is fastest. Widen the gyro's range.
-    Saturated,
-    /// The estimate is not a rigid body: some `|a_i| >= 1` or the consistency value
-    /// `a1 + a2 + a3 + a1 a2 a3` is far from 0, beyond the estimate's uncertainty. Typical
-    /// cause: a wrong time step (`dt` 10x too small gives `a` 10x too large), a gyro scale
-    /// error, an unmodelled torque.
-    PhysicallyImpossible,
-    /// Rates beyond `MAX_PLAUSIBLE_RATE`: the samples are probably not in rad/s.
+    /// The samples are probably not in the units assumed. Ratio estimators: an accepted rate
+    /// beyond `MAX_PLAUSIBLE_RATE` (deg/s data read as rad/s?). Tensor estimator: rates above
+    /// [`crate::TensorSettings::max_plausible_rate`] were seen, or more than a tenth of the
+    /// steps were gaps longer than [`crate::TensorSettings::max_dt`] or than
+    /// [`crate::MAX_STEP_TURN_RAD`] of turn (time in ms or us read as seconds?). The pipeline
+    /// gives it to both its estimates as well when the accelerometer's still samples say it is
+    /// not in m/s^2 ([`crate::AccelUnits`]).
     UnitsLookWrong,
-    /// Informative data, a possible body, not yet precise enough.
+    /// More than 1 % of the samples were at the gyro's full scale (a clipped throw): the
+    /// estimate has gaps exactly where the motion is fastest. Widen the gyro's range. Ratio
+    /// estimators: `100 saturated > accepted`; tensor estimator: `100 saturated > used +
+    /// saturated`.
+    Saturated,
+    /// The data carried no information to separate the unknowns. Ratio estimators: samples
+    /// arrived but did not excite (1): a still gyro, a spin about a principal axis,
+    /// `|w1 w2 w3|` too small for too short a time (each estimator's rule is in the docs of
+    /// its `trust` method). Tensor estimator: the information matrix is singular or its
+    /// excitation below [`crate::TensorSettings::min_excitation`]: still, a pure spin about
+    /// one axis, or too little motion to separate the entries.
+    NoExcitation,
+    /// The model does not explain the data: the residual is far above the gyro noise (wrong
+    /// time step, contact, thrust, an effect the model lacks). Tensor estimator: the residual
+    /// beyond [`crate::TensorSettings::mismatch_ratio`] times the noise, or an output-error
+    /// fit's beyond `OUTPUT_ERROR_FIT_RATIO` times it with an exact rotor momentum. Pipeline:
+    /// an unmodelled torque, a body that is not rigid or a gyro bias the tensor's model lacks,
+    /// or ratios from a model that does not fit the flight. Never given by
+    /// [`Status::assess`].
+    ModelMismatch,
+    /// The estimate is no rigid body beyond its uncertainty. Ratio estimators: some
+    /// `|a_i| >= 1` or the consistency value `a1 + a2 + a3 + a1 a2 a3` far from 0
+    /// (`physically_possible`; the paper's identifier by its own rule, once settled). Tensor
+    /// estimator: not an inertia tensor by more than three standard deviations: not positive
+    /// definite, or a principal moment larger than the sum of the other two. Typical cause: a
+    /// wrong time step (`dt` 10x too small gives `a` 10x too large), a gyro scale error, an
+    /// unmodelled torque.
+    PhysicallyImpossible,
+    /// Informative data, a possible body, not yet precise enough: a standard deviation above
+    /// the tolerance (the paper's identifier: its criterion not yet met; the tensor estimator:
+    /// [`crate::TensorSettings::tolerance`], or the estimate not yet a valid tensor although
+    /// within three standard deviations of one). The pipeline also holds a `Converged` here
+    /// while a gyro bias has been neither measured nor ruled out.
     Converging,
     /// The estimate's own standard deviations are below the tolerance, it is a possible body,
-    /// and the data carried information.
+    /// and the data carried information (the tensor estimator: also its residual within
+    /// [`crate::TensorSettings::mismatch_ratio`]). The only status whose estimate is to be
+    /// used ([`Status::trusted`]).
     Converged,
 }
 
-impl Trust {
-    /// False for [`Trust::NoInformation`], [`Trust::TooFewSamples`] and
-    /// [`Trust::NoExcitation`]: the estimate is still (mostly) the initial value, and
+impl Status {
+    /// False for [`Status::NoInformation`], [`Status::TooFewSamples`] and
+    /// [`Status::NoExcitation`]: the estimate is still (mostly) the initial value, and
     /// [`Estimate::ratios`] gives `None`.
     pub const fn has_information(self) -> bool {
         !matches!(
             self,
-            Trust::NoInformation | Trust::TooFewSamples | Trust::NoExcitation
+            Status::NoInformation | Status::TooFewSamples | Status::NoExcitation
         )
     }
 
-    /// The rule of the table on [`Trust`]: the data-side conditions from `exposure`, the
+    /// True only for [`Status::Converged`].
+    pub const fn trusted(self) -> bool {
+        matches!(self, Status::Converged)
+    }
+
+    /// The rule of the table on [`Status`]: the data-side conditions from `exposure`, the
     /// estimator-side ones from `verdict`.
-    pub fn assess(exposure: &Exposure, verdict: Verdict) -> Trust {
+    pub fn assess(exposure: &Exposure, verdict: Verdict) -> Status {
         if exposure.accepted == 0 && exposure.saturated == 0 {
-            Trust::NoInformation
+            Status::NoInformation
         } else if exposure.saturated > 0
             && u64::from(exposure.saturated) * 100 > u64::from(exposure.accepted)
         {
-            Trust::Saturated
+            Status::Saturated
         } else if exposure.peak_rate > MAX_PLAUSIBLE_RATE {
-            Trust::UnitsLookWrong
+            Status::UnitsLookWrong
         } else if !verdict.enough {
-            Trust::TooFewSamples
+            Status::TooFewSamples
         } else if !verdict.excited {
-            Trust::NoExcitation
+            Status::NoExcitation
         } else if !verdict.possible {
-            Trust::PhysicallyImpossible
+            Status::PhysicallyImpossible
         } else if !verdict.settled {
-            Trust::Converging
+            Status::Converging
         } else {
-            Trust::Converged
+            Status::Converged
         }
     }
 }
 
-/// The estimator's side of [`Trust::assess`]: four answers each estimator gives by its own
+/// The estimator's side of [`Status::assess`]: four answers each estimator gives by its own
 /// rule (documented on the estimator's `trust` method).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -397,49 +448,49 @@ mod trust_tests {
             possible: true,
             settled: true,
         };
-        assert_eq!(Trust::assess(&e, all), Trust::NoInformation);
+        assert_eq!(Status::assess(&e, all), Status::NoInformation);
         for _ in 0..100 {
             e.accept([1.0, -2.0, 3.0]);
         }
-        assert_eq!(Trust::assess(&e, all), Trust::Converged);
+        assert_eq!(Status::assess(&e, all), Status::Converged);
         assert_eq!(
-            Trust::assess(
+            Status::assess(
                 &e,
                 Verdict {
                     settled: false,
                     ..all
                 }
             ),
-            Trust::Converging
+            Status::Converging
         );
         assert_eq!(
-            Trust::assess(
+            Status::assess(
                 &e,
                 Verdict {
                     possible: false,
                     ..all
                 }
             ),
-            Trust::PhysicallyImpossible
+            Status::PhysicallyImpossible
         );
         assert_eq!(
-            Trust::assess(
+            Status::assess(
                 &e,
                 Verdict {
                     excited: false,
                     ..all
                 }
             ),
-            Trust::NoExcitation
+            Status::NoExcitation
         );
-        assert_eq!(Trust::assess(&e, Verdict::NONE), Trust::TooFewSamples);
+        assert_eq!(Status::assess(&e, Verdict::NONE), Status::TooFewSamples);
         e.saturate();
-        assert_eq!(Trust::assess(&e, all), Trust::Converged);
+        assert_eq!(Status::assess(&e, all), Status::Converged);
         e.saturate();
-        assert_eq!(Trust::assess(&e, all), Trust::Saturated);
+        assert_eq!(Status::assess(&e, all), Status::Saturated);
         let mut e = Exposure::new();
         e.accept([60.0, 0.0, 0.0]);
-        assert_eq!(Trust::assess(&e, all), Trust::UnitsLookWrong);
+        assert_eq!(Status::assess(&e, all), Status::UnitsLookWrong);
         assert_eq!(e.swing(), [0.0; 3]);
     }
 

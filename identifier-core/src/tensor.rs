@@ -66,7 +66,7 @@
     clippy::neg_cmp_op_on_partial_ord
 )]
 
-use crate::status::SampleStatus;
+use crate::status::{SampleStatus, Status};
 use crate::symmetric::{cholesky, cholesky_inverse, cholesky_solve, eigen_symmetric3, sqrt, Sym};
 
 /// Samples summed in `f32` before they are added to the stretch's sums (two-level summation
@@ -92,7 +92,7 @@ pub struct TensorSettings {
     /// and a new one started (see the module docs). `> 0`.
     pub stretch_noise: f32,
     /// Largest standard deviation of every `a_i` (and relative standard deviation of every
-    /// principal moment) for [`TensorStatus::Converged`].
+    /// principal moment) for [`Status::Converged`].
     pub tolerance: f32,
     /// Fewest samples used before any estimate is given.
     pub min_samples: u32,
@@ -106,10 +106,10 @@ pub struct TensorSettings {
     /// are at most 4.6 of their standard deviations.
     pub products_chi2: f32,
     /// Residual standard deviation over the gyro noise beyond which the model does not describe
-    /// the data (wrong time step, contact, thrust): [`TensorStatus::ModelMismatch`].
+    /// the data (wrong time step, contact, thrust): [`Status::ModelMismatch`].
     pub mismatch_ratio: f32,
     /// Least [`TensorEstimate::excitation`] for an estimate to be given at all (below it:
-    /// [`TensorStatus::NoExcitation`]). Pure gyro noise gives about 1.
+    /// [`Status::NoExcitation`]). Pure gyro noise gives about 1.
     pub min_excitation: f32,
     /// Quantum of the rotor momentum as it is read, kg m^2/s: the rotor inertia times the
     /// speed telemetry's step (DShot eRPM: 100 eRPM, `100 / (poles / 2) * 2 pi / 60` rad/s).
@@ -190,7 +190,7 @@ impl Default for TensorSettings {
 
 /// The output-error fit's residual over the gyro's noise up to which the fit is taken to
 /// explain the data to the noise: beyond it the estimate is at most
-/// [`TensorStatus::ModelMismatch`] (with an exact momentum: a rotor read in steps leaves its
+/// [`Status::ModelMismatch`] (with an exact momentum: a rotor read in steps leaves its
 /// reading's error too, see [`TensorSettings::momentum_resolution`]). A fit of the right model
 /// leaves the noise itself, up to
 /// the noise estimate's own error (a few tens of percent on short or slow logs); a gyro that
@@ -198,46 +198,10 @@ impl Default for TensorSettings {
 pub const OUTPUT_ERROR_FIT_RATIO: f32 = 1.5;
 
 /// The most a body may turn between two samples, rad (`|w|_1 dt`), for the step to be
-/// integrated: a longer step is a gap ([`TensorStatus::UnitsLookWrong`] when more than a tenth
+/// integrated: a longer step is a gap ([`Status::UnitsLookWrong`] when more than a tenth
 /// of the steps are). A time unit read wrong (ms as s) turns a thrown body by radians per
 /// step; a satellite's 1 Hz gyro at 0.5 rad/s turns it by half of one.
 pub const MAX_STEP_TURN_RAD: f32 = 1.0;
-
-/// Why an estimate is or is not to be trusted. Exactly one applies; the first in this order
-/// that holds is reported.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum TensorStatus {
-    /// Fewer than [`TensorSettings::min_samples`] samples, or fewer equations than unknowns.
-    TooFewSamples,
-    /// Rates above [`TensorSettings::max_plausible_rate`] were seen (deg/s data read as
-    /// rad/s?), or more than a tenth of the steps were gaps longer than
-    /// [`TensorSettings::max_dt`] or than [`MAX_STEP_TURN_RAD`] of turn (time in ms or us read
-    /// as seconds?).
-    UnitsLookWrong,
-    /// More than 1 % of the samples were saturated (a clipped throw).
-    Saturated,
-    /// The information matrix is singular: still, a pure spin about one axis, or too little
-    /// motion to separate the entries.
-    NoExcitation,
-    /// The residual is far above the gyro noise ([`TensorSettings::mismatch_ratio`]): wrong
-    /// time step, contact, thrust, or a model that does not fit.
-    ModelMismatch,
-    /// The estimate is not an inertia tensor by more than three standard deviations: not
-    /// positive definite, or a principal moment larger than the sum of the other two.
-    PhysicallyImpossible,
-    /// Valid so far but not yet within [`TensorSettings::tolerance`].
-    Converging,
-    /// Within tolerance, physically valid, from data that carried information.
-    Converged,
-}
-
-impl TensorStatus {
-    /// True only for [`TensorStatus::Converged`].
-    pub const fn trusted(self) -> bool {
-        matches!(self, TensorStatus::Converged)
-    }
-}
 
 /// Which model the estimate uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -255,7 +219,7 @@ pub enum TensorModel {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TensorEstimate {
     /// Why the estimate is or is not to be trusted.
-    pub status: TensorStatus,
+    pub status: Status,
     /// Model used.
     pub model: TensorModel,
     /// `J` in kg m^2 when the rotor momentum determines the scale (relative standard
@@ -670,7 +634,7 @@ fn quad(c: &Sym<6>, g: &[f32; 6]) -> f32 {
 /// sample with the rotor momentum at that sample. Fixed size, no heap, no buffers.
 ///
 /// ```
-/// use identifier_core::{TensorEstimator, TensorSettings, TensorStatus};
+/// use identifier_core::{Status, TensorEstimator, TensorSettings};
 ///
 /// // Rates in deg/s fed as rad/s (60 "rad/s" spins are beyond any thrown body): never
 /// // trusted, and the status says why.
@@ -679,7 +643,7 @@ fn quad(c: &Sym<6>, g: &[f32; 6]) -> f32 {
 ///     let t = k as f32 * 1e-3;
 ///     e.step([60.0 + t, -30.0, 80.0 - t], [0.0; 3], 1e-3);
 /// }
-/// assert_eq!(e.estimate().status, TensorStatus::UnitsLookWrong);
+/// assert_eq!(e.estimate().status, Status::UnitsLookWrong);
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -922,7 +886,7 @@ impl TensorEstimator {
         let (nrm, stretches) = self.normal();
         let samples = self.counters.used;
         let mut out = TensorEstimate {
-            status: TensorStatus::TooFewSamples,
+            status: Status::TooFewSamples,
             model: TensorModel::Full,
             tensor: None,
             tensor_std: None,
@@ -941,7 +905,7 @@ impl TensorEstimator {
         };
         let c = &self.counters;
         if c.implausible > 0 || c.gaps.saturating_mul(10) > c.used {
-            out.status = TensorStatus::UnitsLookWrong;
+            out.status = Status::UnitsLookWrong;
             return out;
         }
         if samples < self.settings.min_samples || nrm.equations < 12 {
@@ -954,7 +918,7 @@ impl TensorEstimator {
         let full_n = solve_normalized(&lam, nrm.equations, false);
         let princ_n = solve_normalized(&lam, nrm.equations, true);
         let Some(full_n) = full_n else {
-            out.status = TensorStatus::NoExcitation;
+            out.status = Status::NoExcitation;
             return out;
         };
         let mut model = TensorModel::Full;
@@ -972,7 +936,7 @@ impl TensorEstimator {
         }
         out.excitation = 1.0 / (sigma2 * nrm.equations as f32 * maxvar);
         if !(out.excitation >= self.settings.min_excitation) {
-            out.status = TensorStatus::NoExcitation;
+            out.status = Status::NoExcitation;
             return out;
         }
         // The rows are not whitened (equal weights): a perfect fit leaves `J n`, of variance
@@ -1036,11 +1000,8 @@ impl TensorEstimator {
         residual_ratio: f32,
     ) -> TensorEstimate {
         let out = self.with_fit(base, j, cov, residual_ratio, Some((j, cov)));
-        let informative = matches!(
-            out.status,
-            TensorStatus::Converged | TensorStatus::Converging
-        );
-        if base.status == TensorStatus::NoExcitation && !informative {
+        let informative = matches!(out.status, Status::Converged | Status::Converging);
+        if base.status == Status::NoExcitation && !informative {
             return base;
         }
         out
@@ -1065,7 +1026,7 @@ impl TensorEstimator {
         let out = self.with_fit(base, nj, cov_n, residual_ratio, None);
         // Lifted from `NoExcitation` only as far as `Converged`: a still gyro's noise still
         // gives the fit a finite covariance, and "converging" would say more than it knows.
-        if base.status == TensorStatus::NoExcitation && out.status != TensorStatus::Converged {
+        if base.status == Status::NoExcitation && out.status != Status::Converged {
             return base;
         }
         out
@@ -1082,10 +1043,7 @@ impl TensorEstimator {
         residual_ratio: f32,
         absolute: Option<([f32; 6], Sym<6>)>,
     ) -> TensorEstimate {
-        if matches!(
-            base.status,
-            TensorStatus::TooFewSamples | TensorStatus::UnitsLookWrong
-        ) {
+        if matches!(base.status, Status::TooFewSamples | Status::UnitsLookWrong) {
             return base;
         }
         let mut out = base;
@@ -1104,13 +1062,8 @@ impl TensorEstimator {
         // the reading's expected error, and `mismatch_ratio` alone judges it.
         let exact_momentum = !(self.settings.momentum_resolution > 0.0);
         let fits = residual_ratio <= OUTPUT_ERROR_FIT_RATIO || !exact_momentum;
-        if !fits
-            && matches!(
-                out.status,
-                TensorStatus::Converged | TensorStatus::Converging
-            )
-        {
-            out.status = TensorStatus::ModelMismatch;
+        if !fits && matches!(out.status, Status::Converged | Status::Converging) {
+            out.status = Status::ModelMismatch;
         }
         out
     }
@@ -1161,7 +1114,7 @@ impl TensorEstimator {
 
         // Principal moments and axes, ratios.
         let Some(eig) = eigen_symmetric3(&nmat) else {
-            out.status = TensorStatus::NoExcitation;
+            out.status = Status::NoExcitation;
             return out;
         };
         let unit = match absolute {
@@ -1204,15 +1157,15 @@ impl TensorEstimator {
         let c = &self.counters;
         let seen = c.used.saturating_add(c.saturated);
         out.status = if c.implausible > 0 || c.gaps.saturating_mul(10) > c.used {
-            TensorStatus::UnitsLookWrong
+            Status::UnitsLookWrong
         } else if c.saturated.saturating_mul(100) > seen {
-            TensorStatus::Saturated
+            Status::Saturated
         } else if out.residual_ratio > self.settings.mismatch_ratio {
-            TensorStatus::ModelMismatch
+            Status::ModelMismatch
         } else if impossible {
-            TensorStatus::PhysicallyImpossible
+            Status::PhysicallyImpossible
         } else if !valid {
-            TensorStatus::Converging
+            Status::Converging
         } else {
             let tol = self.settings.tolerance;
             let a_ok = std_a.is_some_and(|s| s.iter().all(|&x| x < tol));
@@ -1222,9 +1175,9 @@ impl TensorEstimator {
                 .zip(var_l.iter())
                 .all(|(&l, &v)| sqrt(v) < tol * l);
             if a_ok && m_ok {
-                TensorStatus::Converged
+                Status::Converged
             } else {
-                TensorStatus::Converging
+                Status::Converging
             }
         };
         out

@@ -1,7 +1,7 @@
 //! The tensor estimator against an f64 RK4 simulation of Euler's equation with a rotor
 //! (a non-diagonal body with a flywheel spin-up; a principal-axis body without rotor; a still
 //! gyro; a pure spin).
-use identifier_core::{TensorEstimator, TensorModel, TensorSettings, TensorStatus};
+use identifier_core::{Status, TensorEstimator, TensorModel, TensorSettings};
 
 type V = [f64; 3];
 type M = [[f64; 3]; 3];
@@ -146,7 +146,7 @@ fn absolute_tensor_with_flywheel() {
     assert!(fro / fro_true < 0.01);
     assert!(worst < 5.0);
     assert_eq!(est.model, TensorModel::Full);
-    assert_eq!(est.status, TensorStatus::Converged);
+    assert_eq!(est.status, Status::Converged);
 }
 
 #[test]
@@ -165,7 +165,7 @@ fn ratios_without_rotor_principal_body() {
     for i in 0..3 {
         assert!(((a[i] as f64 - truth[i]) / sd[i] as f64).abs() < 5.0);
     }
-    assert_eq!(est.status, TensorStatus::Converged);
+    assert_eq!(est.status, Status::Converged);
 }
 
 #[test]
@@ -178,7 +178,7 @@ fn still_gyro_is_not_converged() {
     }
     let est = e.estimate();
     println!("{:?} excitation {}", est.status, est.excitation);
-    assert_eq!(est.status, TensorStatus::NoExcitation);
+    assert_eq!(est.status, Status::NoExcitation);
     assert!(est.a.is_none());
 }
 
@@ -188,7 +188,7 @@ fn pure_spin_is_no_excitation() {
     let s = simulate(&j, 0.0, [0.0, 0.0, 10.0], 1000.0, 5.0, 2e-3, 4);
     let est = run(&s, 1000.0, 2e-3);
     println!("{:?} {:?}", est.status, est.a);
-    assert_ne!(est.status, TensorStatus::Converged);
+    assert_ne!(est.status, Status::Converged);
 }
 
 #[test]
@@ -201,7 +201,7 @@ fn deg_per_s_and_wrong_dt_are_not_converged() {
         .collect();
     let est = run(&deg, 1000.0, 2e-3);
     println!("deg/s: {:?} {:?}", est.status, est.a);
-    assert_ne!(est.status, TensorStatus::Converged);
+    assert_ne!(est.status, Status::Converged);
     let mut e = TensorEstimator::new(TensorSettings::for_rate(10000.0, 2e-3)).unwrap();
     for (w, h) in &s {
         e.step(*w, *h, 1e-4);
@@ -211,7 +211,7 @@ fn deg_per_s_and_wrong_dt_are_not_converged() {
         "dt/10: {:?} {:?} ratio {}",
         est.status, est.a, est.residual_ratio
     );
-    assert_ne!(est.status, TensorStatus::Converged);
+    assert_ne!(est.status, Status::Converged);
 }
 
 #[test]

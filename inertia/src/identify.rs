@@ -65,7 +65,7 @@ mod throws;
 
 use std::ops::Range;
 
-use identifier_core::{PipelineSettings, Ratios, TensorEstimate, TensorStatus};
+use identifier_core::{PipelineSettings, Ratios, Status, TensorEstimate};
 use serde::Serialize;
 
 use crate::readers::ReadError;
@@ -653,14 +653,14 @@ fn identify_pass(
         warnings.push(w.clone());
     }
     if sv.accel_units.is_some() || sv.gyro_units.is_some() || rotor_units.is_some() {
-        status = TensorStatus::UnitsLookWrong;
+        status = Status::UnitsLookWrong;
         let wrong = format!("{status:?}");
         for j in throws.iter_mut().map(|(_, j)| j).chain([&mut pooled_json]) {
             j.status.clone_from(&wrong);
             j.tensor_status.clone_from(&wrong);
         }
     }
-    if status != TensorStatus::Converged {
+    if status != Status::Converged {
         warnings.push(format!("pooled estimate is not to be trusted: {status:?}"));
     }
     // A throw whose output-error fit failed (no motion of the model follows its samples: a

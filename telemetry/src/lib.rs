@@ -60,8 +60,10 @@ pub struct Estimate {
 }
 
 /// Names of the tensor estimate's status codes ([`Tensor::status`]), in code order: those of
-/// identifier-core's `TensorStatus`.
-pub const TENSOR_STATUS: [&str; 8] = [
+/// identifier-core's `Status` as the tensor estimator gives them (0-7), then 8,
+/// `NoInformation` (the ratio estimators' status before any sample, which the firmware's
+/// pipeline does not report). A code never changes meaning: new ones are added at the end.
+pub const TENSOR_STATUS: [&str; 9] = [
     "TooFewSamples",
     "UnitsLookWrong",
     "Saturated",
@@ -70,6 +72,7 @@ pub const TENSOR_STATUS: [&str; 8] = [
     "PhysicallyImpossible",
     "Converging",
     "Converged",
+    "NoInformation",
 ];
 
 /// The free-flight pipeline's tensor estimate (identifier-core's `FlightPipeline`).
@@ -264,6 +267,22 @@ mod tests {
                 in_free_flight: k == 3,
             },
         }
+    }
+
+    #[test]
+    fn status_names_by_code() {
+        let name = |status| {
+            Tensor {
+                status,
+                ..report(0).tensor
+            }
+            .status_name()
+        };
+        assert_eq!(name(0), "TooFewSamples");
+        assert_eq!(name(4), "ModelMismatch");
+        assert_eq!(name(7), "Converged");
+        assert_eq!(name(8), "NoInformation");
+        assert_eq!(name(9), "?");
     }
 
     #[test]

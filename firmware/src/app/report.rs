@@ -3,7 +3,7 @@
 //! ([`crate::uplink::to_telemetry`]) are each made from it by one function.
 
 use icm42688::Config;
-use identifier_core::{Convergence, InertiaRatios, TensorStatus};
+use identifier_core::{Convergence, InertiaRatios, Status};
 
 use super::SensorStatus;
 
@@ -20,7 +20,7 @@ pub const FAILED_REPORT_AFTER: f32 = 1.5;
 pub struct TensorReport {
     /// Why `a` is or is not to be trusted
     /// ([`FlightPipeline::ratios`](identifier_core::FlightPipeline::ratios)).
-    pub status: TensorStatus,
+    pub status: Status,
     /// The recommended ratios `a`
     /// ([`FlightPipeline::ratios`](identifier_core::FlightPipeline::ratios): the tensor's
     /// with a rotor or products of inertia, else the refined identifier's on the same

@@ -9,7 +9,7 @@
 //! Usage: `cargo run --release -p host-tests --bin shooting-bench [-- SEEDS]` (16 by default).
 //! A benchmark: it asserts nothing.
 use host_tests::throw_sim::{board_throw_config, simulate, SimThrow, ThrowConfig};
-use identifier_core::{FlightPipeline, PipelineSettings, TensorEstimate, TensorStatus};
+use identifier_core::{FlightPipeline, PipelineSettings, Status, TensorEstimate};
 
 /// One scenario: its name and what it changes in the simulated throw.
 struct Scenario {
@@ -116,8 +116,8 @@ impl Tally {
         }
         self.frob2 += d / n;
         self.n += 1;
-        self.converged += usize::from(e.status == TensorStatus::Converged);
-        self.mismatch += usize::from(e.status == TensorStatus::ModelMismatch);
+        self.converged += usize::from(e.status == Status::Converged);
+        self.mismatch += usize::from(e.status == Status::ModelMismatch);
     }
 
     fn row(&self) -> String {

@@ -3,7 +3,7 @@
 
 use std::ops::Range;
 
-use identifier_core::{FlightPipeline, PipelineSettings, TensorStatus};
+use identifier_core::{FlightPipeline, PipelineSettings, Status};
 
 use super::{
     estimate_noise, median_dt, slow_telemetry, unhold, white_noise, EstimateJson, IdentifyError,
@@ -211,7 +211,7 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
         .unwrap_or(0);
     let mut pooled = EstimateJson::from(&pooled_est, &pooled_ratios, rec.t[first], rec.t[last]);
     pooled.samples = pooled_inputs;
-    if pooled_ratios.status != TensorStatus::Converged {
+    if pooled_ratios.status != Status::Converged {
         warnings.push(format!(
             "pooled estimate is not to be trusted: {:?}",
             pooled_ratios.status
