@@ -288,10 +288,13 @@ pub fn detect(path: &Path) -> Result<Format, ReadError> {
 }
 
 /// Reads the log at `path` (a file, or a phyphox export's folder), its format detected from
-/// the content.
+/// the content, with the rotor columns `opts` names (CSV, blackbox and ULog logs) as
+/// [`crate::source::open`] reads them.
 pub fn read(path: &Path, opts: &ReadOptions) -> Result<Recording, ReadError> {
     match detect(path)? {
-        Format::Blackbox => blackbox::read_blackbox(path),
+        Format::Blackbox => {
+            collect(&blackbox::BlackboxSource::open(path)?.with_rotor_fields(&opts.rotor_columns)?)
+        }
         Format::Ulog => ulog::read_ulog_with(path, opts),
         Format::Phyphox => phyphox::read_phyphox(path),
         Format::Csv => csv::read_csv(path, opts),
