@@ -850,6 +850,7 @@ fn rotor_of(args: &CalibrateArgs) -> Result<RotorOf, String> {
     };
     let read = crate::ReadOptions {
         rotor_columns: v.columns(),
+        rotor_names: v.names(),
         ..crate::ReadOptions::default()
     };
     Ok((r.axis, r.poles, read, Some(r.unit())))

@@ -510,8 +510,8 @@ fn identify_pass(
         }
         if ch.wheels != v.rotors.len() {
             return Err(IdentifyError::Rotor(format!(
-                "the log was read with {} of the vehicle file's {} rotor columns (CSV columns \
-                 and blackbox fields are named; for a ULog's rotor use --rotor-*)",
+                "the log was read with {} of the vehicle file's {} rotor columns (CSV columns, \
+                 blackbox fields and ULog topic fields are named)",
                 ch.wheels,
                 v.rotors.len()
             )));

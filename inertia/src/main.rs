@@ -159,6 +159,11 @@ impl RotorArgs {
         vehicle.map(Vehicle::columns).unwrap_or_default()
     }
 
+    /// Those columns' rotors' names, for messages.
+    fn names(vehicle: Option<&Vehicle>) -> Vec<String> {
+        vehicle.map(Vehicle::names).unwrap_or_default()
+    }
+
     /// The rotor, when given: `--rotor-inertia` (positive) and `--rotor-axis` together.
     fn rotor(&self) -> Result<Option<Rotor>, String> {
         match (self.rotor_inertia, self.rotor_axis) {
@@ -462,6 +467,7 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
         time_unit: args.time_unit,
         accel_unit: args.accel_unit,
         rotor_columns: RotorArgs::columns(vehicle.as_ref()),
+        rotor_names: RotorArgs::names(vehicle.as_ref()),
     };
     let iopts = IdentifyOptions {
         rotor,
@@ -610,6 +616,7 @@ fn run_close_loop(args: CloseLoopArgs) -> Result<ExitCode, String> {
         time_unit: args.time_unit,
         accel_unit: args.accel_unit,
         rotor_columns: RotorArgs::columns(vehicle.as_ref()),
+        rotor_names: RotorArgs::names(vehicle.as_ref()),
     };
     if let Some(vehicle) = vehicle {
         return run_close_loop_vehicle(&args, vehicle, &units);
@@ -863,6 +870,7 @@ fn run_export_replay(args: ExportReplayArgs) -> Result<ExitCode, String> {
         time_unit: args.time_unit,
         accel_unit: args.accel_unit,
         rotor_columns: RotorArgs::columns(vehicle.as_ref()),
+        rotor_names: RotorArgs::names(vehicle.as_ref()),
     };
     let rec = read(&args.input, &opts).map_err(|e| e.to_string())?;
     let rotors = match &vehicle {

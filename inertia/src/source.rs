@@ -28,7 +28,9 @@ pub fn open<'a>(path: &Path, opts: &ReadOptions) -> Result<Box<dyn Source + 'a>,
             readers::blackbox::BlackboxSource::open(path)?
                 .with_rotor_fields(&opts.rotor_columns)?,
         ),
-        Format::Ulog => Box::new(RecordingSource::owned(readers::ulog::read_ulog(path)?)),
+        Format::Ulog => Box::new(RecordingSource::owned(readers::ulog::read_ulog_with(
+            path, opts,
+        )?)),
         Format::Phyphox => Box::new(readers::phyphox::PhyphoxSource::open(path)?),
         Format::Csv => Box::new(readers::csv::CsvSource::open(path, opts)?),
     })

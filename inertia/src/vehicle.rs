@@ -4,7 +4,8 @@
 //! ```toml
 //! [[rotor]]
 //! name = "rw1"
-//! column = "rw1_rad_s"         # CSV column (or a blackbox field such as "eRPM[2]")
+//! column = "rw1_rad_s"         # CSV column (or a blackbox field such as "eRPM[2]", a ULog
+//!                              # field such as "esc_status.esc[2].esc_rpm")
 //! inertia_kg_m2 = 2.387e-5     # about the rotor's own axis
 //! axis = [0.5736, 0.0, 0.8192] # unit vector in the gyro frame, positive speed direction
 //! # optional: poles = 14 (eRPM fields), speed_unit = "rad/s" | "rpm" | "erpm"
@@ -202,6 +203,11 @@ impl Vehicle {
     /// The columns to read, in the file's order.
     pub fn columns(&self) -> Vec<String> {
         self.rotors.iter().map(|r| r.column.clone()).collect()
+    }
+
+    /// The rotors' names, in the file's order.
+    pub fn names(&self) -> Vec<String> {
+        self.rotors.iter().map(|r| r.name.clone()).collect()
     }
 
     /// The rotors as the core takes them.

@@ -668,3 +668,46 @@ fn a_ulog_the_parser_panics_on_is_an_error() {
         "{msg}"
     );
 }
+
+/// `read` (the whole-log reading of `close-loop`, `calibrate` and `export-replay`) takes a
+/// blackbox log's rotor fields as `source::open` does (`identify`'s reading), and refuses a
+/// field the log lacks.
+#[test]
+fn read_takes_a_blackbox_logs_rotor_fields_as_the_source_does() {
+    use log_writers::blackbox::{blackbox, Frame};
+    let frames: Vec<Frame> = (0..200u64)
+        .map(|i| Frame {
+            time_us: 1_000_000 + 125 * i,
+            gyro: [100, -50, 30 + i as i64],
+            accel: None,
+            erpm: Some(20 + i),
+        })
+        .collect();
+    let bytes = blackbox("Betaflight 4.4.2 (abc) STM32F405", &[], &frames);
+    let p = tmp("rotor_fields.bbl", &bytes);
+    let opts = ReadOptions {
+        rotor_columns: vec!["eRPM[0]".into()],
+        ..ReadOptions::default()
+    };
+    let rec = read(&p, &opts).unwrap();
+    let src = inertia::source::open(&p, &opts).unwrap();
+    let mut streamed = Vec::new();
+    src.read_all(
+        &mut |s| {
+            streamed.push(s.extra.wheels[0]);
+            Ok(inertia::source::Flow::Continue)
+        },
+        &mut |_| {},
+    )
+    .unwrap();
+    assert_eq!(rec.wheels.len(), 1);
+    assert_eq!(rec.wheels[0], streamed);
+    // True eRPM: the logged eRPM / 100 times 100.
+    assert_eq!(rec.wheels[0].first(), Some(&2000.0));
+    let opts = ReadOptions {
+        rotor_columns: vec!["eRPM[3]".into()],
+        ..ReadOptions::default()
+    };
+    let e = read(&p, &opts).err().unwrap().to_string();
+    assert!(e.contains("eRPM[3]"), "{e}");
+}

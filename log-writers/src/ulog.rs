@@ -20,7 +20,13 @@ pub fn msg(out: &mut Vec<u8>, kind: u8, payload: &[u8]) {
 
 /// An `add_logged` message: multi id 0, `msg_id`, the topic's `name`.
 pub fn add_logged(out: &mut Vec<u8>, msg_id: u16, name: &str) {
-    let mut a = vec![0u8];
+    add_logged_instance(out, 0, msg_id, name);
+}
+
+/// An `add_logged` message for instance `multi_id` of the topic `name` (several instances of
+/// one topic, each under its own `msg_id`).
+pub fn add_logged_instance(out: &mut Vec<u8>, multi_id: u8, msg_id: u16, name: &str) {
+    let mut a = vec![multi_id];
     a.extend_from_slice(&msg_id.to_le_bytes());
     a.extend_from_slice(name.as_bytes());
     msg(out, b'A', &a);

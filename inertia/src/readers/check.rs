@@ -56,20 +56,8 @@ impl Checker {
     }
 
     /// Checks one sample: `Ok(None)` when it repeats the previous timestamp (dropped).
-    /// `accel` and `rotor` must be given for every sample or for none.
-    pub(crate) fn check(
-        &mut self,
-        at: Location,
-        t: f64,
-        gyro: [f64; 3],
-        accel: Option<[f64; 3]>,
-        rotor: Option<f64>,
-    ) -> Result<Option<Sample>, ReadError> {
-        self.check_with(at, t, gyro, accel, rotor, Extra::default())
-    }
-
-    /// [`Checker::check`] with the vehicle's rotor columns and a spacecraft's columns, which
-    /// must be finite too.
+    /// `accel` and `rotor` must be given for every sample or for none; the vehicle's rotor
+    /// columns and a spacecraft's columns in `extra` must be finite too.
     pub(crate) fn check_with(
         &mut self,
         at: Location,

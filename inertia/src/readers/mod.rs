@@ -26,6 +26,7 @@ mod output;
 pub mod phyphox;
 mod text;
 pub mod ulog;
+mod ulog_rotors;
 mod units;
 
 pub use output::{
@@ -190,8 +191,11 @@ pub struct ReadOptions {
     pub accel_unit: Option<AccelUnit>,
     /// The rotor-speed columns a vehicle file names ([`crate::vehicle`]), in its order, at
     /// most [`MAX_WHEELS`]: read into [`Extra::wheels`] as logged. A column the log lacks is
-    /// an error.
+    /// an error. In a ULog they are `topic.field` or `topic:N.field` ([`ulog`]).
     pub rotor_columns: Vec<String>,
+    /// The names of the rotors those columns belong to, in the same order, for messages (a
+    /// column a ULog lacks is refused with its rotor named); may be left empty.
+    pub rotor_names: Vec<String>,
 }
 
 /// The formats [`read`] knows.
@@ -284,11 +288,14 @@ pub fn detect(path: &Path) -> Result<Format, ReadError> {
 }
 
 /// Reads the log at `path` (a file, or a phyphox export's folder), its format detected from
-/// the content.
+/// the content, with the rotor columns `opts` names (CSV, blackbox and ULog logs) as
+/// [`crate::source::open`] reads them.
 pub fn read(path: &Path, opts: &ReadOptions) -> Result<Recording, ReadError> {
     match detect(path)? {
-        Format::Blackbox => blackbox::read_blackbox(path),
-        Format::Ulog => ulog::read_ulog(path),
+        Format::Blackbox => {
+            collect(&blackbox::BlackboxSource::open(path)?.with_rotor_fields(&opts.rotor_columns)?)
+        }
+        Format::Ulog => ulog::read_ulog_with(path, opts),
         Format::Phyphox => phyphox::read_phyphox(path),
         Format::Csv => csv::read_csv(path, opts),
     }
@@ -373,6 +380,8 @@ pub(crate) struct Samples {
     gyro: Vec<[f32; 3]>,
     accel: Vec<[f32; 3]>,
     rotor: Vec<f32>,
+    /// The vehicle file's rotors ([`Samples::push`]), one vector per rotor.
+    wheels: Vec<Vec<f32>>,
 }
 
 /// How a reader's rotor values become a [`RotorSpeed`] (`RotorSpeed::Erpm` or `RadPerSec`).
@@ -386,10 +395,20 @@ impl Samples {
             gyro: Vec::new(),
             accel: Vec::new(),
             rotor: Vec::new(),
+            wheels: Vec::new(),
         }
     }
 
-    /// Adds one sample. `accel` and `rotor` must be given for every sample or for none.
+    /// Collects `wheels` rotor speeds besides ([`Samples::push`]; at most
+    /// [`MAX_WHEELS`]).
+    pub(crate) fn with_wheels(mut self, wheels: usize) -> Self {
+        self.wheels = vec![Vec::new(); wheels.min(MAX_WHEELS)];
+        self
+    }
+
+    /// Adds one sample. `accel` and `rotor` must be given for every sample or for none;
+    /// `wheels` are the speeds of the rotors [`Samples::with_wheels`] set up, as logged (each
+    /// must be finite; a missing one is refused as not finite).
     pub(crate) fn push(
         &mut self,
         at: Location,
@@ -397,9 +416,17 @@ impl Samples {
         gyro: [f64; 3],
         accel: Option<[f64; 3]>,
         rotor: Option<f64>,
+        wheels: &[f64],
     ) -> Result<(), ReadError> {
         let (with_accel, with_rotor) = (accel.is_some(), rotor.is_some());
-        if let Some(s) = self.check.check(at, t, gyro, accel, rotor)? {
+        let mut extra = Extra::default();
+        for (k, o) in extra.wheels.iter_mut().take(self.wheels.len()).enumerate() {
+            *o = wheels.get(k).map_or(f32::NAN, |&v| v as f32);
+        }
+        if let Some(s) = self.check.check_with(at, t, gyro, accel, rotor, extra)? {
+            for (w, &v) in self.wheels.iter_mut().zip(&s.extra.wheels) {
+                w.push(v);
+            }
             self.t.push(s.t);
             self.gyro.push(s.gyro);
             if with_accel {
@@ -434,6 +461,7 @@ impl Samples {
             gyro: self.gyro,
             accel,
             rotor,
+            wheels: self.wheels,
             gyro_full_scale,
             gyro_averaging: 0.0,
             gyro_filters: None,

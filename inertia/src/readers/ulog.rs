@@ -6,8 +6,9 @@
 //! | `sensor_combined.gyro_rad[0..2]` | rad/s | `gyro` |
 //! | `sensor_combined.gyro_integral_dt` (optional) | microseconds | [`Recording::gyro_averaging`]: its median over the median time step |
 //! | `sensor_combined.accelerometer_m_s2[0..2]` | m/s^2 | `accel` |
-//! | `esc_status.esc[0].esc_rpm` (optional) | mechanical rpm | `rotor`, [`RotorSpeed::RadPerSec`], sample-and-hold onto the gyro times |
+//! | `esc_status.esc[0].esc_rpm` (optional; not read with a vehicle file's rotor fields) | mechanical rpm | `rotor`, [`RotorSpeed::RadPerSec`], sample-and-hold onto the gyro times |
 //! | `sensor_combined.gyro_clipping` (optional) | bit `k` set: axis `k` clipped | that axis at the full scale (saturated) |
+//! | a vehicle file's rotor fields (optional): `topic.field`, `topic:N.field` ([`ReadOptions::rotor_columns`]) | as logged; the vehicle file's `speed_unit` | [`Recording::wheels`], the last value at or before each gyro time; gyro samples before a field's first message left out (`ulog_rotors`) |
 //!
 //! The gyro's range is not in the log. With `gyro_clipping` the full scale is taken as
 //! 2000 deg/s (PX4's IMU drivers' range), or the largest unclipped rate when that is higher,
@@ -22,51 +23,19 @@
 //! logged at 250 Hz comes out many standard deviations off yet `Converged` (the test
 //! `a_px4_gyro_that_averages_over_its_interval_is_read_as_means`).
 //!
-//! The first instance (lowest multi id) of each topic is read. Axes are PX4's body frame as
-//! logged.
+//! The first instance (lowest multi id) of each topic is read (a vehicle file's rotor field may
+//! name another, `topic:N.field`). Axes are PX4's body frame as logged.
 
-use std::collections::HashMap;
 use std::path::Path;
 
-use px4_ulog::full_parser::{read_file, MultiId, SomeVec};
+use px4_ulog::full_parser::read_file;
 
-use super::{guard, Location, ReadError, RotorWrap, Samples};
+use super::ulog_rotors::{self, as_f64, first_instance, Topic};
+use super::{guard, Location, ReadError, ReadOptions, RotorWrap, Samples, MAX_WHEELS};
 use crate::readers::{Recording, RotorSpeed};
-
-/// One field of a topic as `f64`s (integers converted exactly up to 2^53).
-fn as_f64(v: &SomeVec) -> Vec<f64> {
-    match v {
-        SomeVec::Int8(x) => x.iter().map(|&a| f64::from(a)).collect(),
-        SomeVec::UInt8(x) => x.iter().map(|&a| f64::from(a)).collect(),
-        SomeVec::Int16(x) => x.iter().map(|&a| f64::from(a)).collect(),
-        SomeVec::UInt16(x) => x.iter().map(|&a| f64::from(a)).collect(),
-        SomeVec::Int32(x) => x.iter().map(|&a| f64::from(a)).collect(),
-        SomeVec::UInt32(x) => x.iter().map(|&a| f64::from(a)).collect(),
-        SomeVec::Int64(x) => x.iter().map(|&a| a as f64).collect(),
-        SomeVec::UInt64(x) => x.iter().map(|&a| a as f64).collect(),
-        SomeVec::Float(x) => x.iter().map(|&a| f64::from(a)).collect(),
-        SomeVec::Double(x) => x.clone(),
-        SomeVec::Bool(x) => x.iter().map(|&a| f64::from(u8::from(a))).collect(),
-        SomeVec::Char(x) => x.iter().map(|&a| f64::from(u32::from(a))).collect(),
-    }
-}
-
-type Topic = HashMap<String, SomeVec>;
 
 /// The gyro range PX4's IMU drivers set, rad/s (2000 deg/s).
 const PX4_GYRO_RANGE_RAD_S: f64 = 2000.0 * core::f64::consts::PI / 180.0;
-
-/// The first instance of a topic.
-fn first_instance<'a>(
-    messages: &'a HashMap<String, HashMap<MultiId, Topic>>,
-    name: &str,
-) -> Option<&'a Topic> {
-    let instances = messages.get(name)?;
-    instances
-        .iter()
-        .min_by_key(|(id, _)| id.value())
-        .map(|(_, t)| t)
-}
 
 fn column(
     path: &Path,
@@ -84,6 +53,14 @@ fn column(
 
 /// Reads a ULog file.
 pub fn read_ulog(path: &Path) -> Result<Recording, ReadError> {
+    read_ulog_with(path, &ReadOptions::default())
+}
+
+/// Reads a ULog file with the rotor fields `opts` names ([`ReadOptions::rotor_columns`],
+/// `topic.field` or `topic:N.field`) held onto the gyro's times into
+/// [`Recording::wheels`], as logged (see the module documentation). The units `opts` gives
+/// are for CSV logs and are not used.
+pub fn read_ulog_with(path: &Path, opts: &ReadOptions) -> Result<Recording, ReadError> {
     let Some(name) = path.to_str() else {
         return Err(ReadError::new(
             path,
@@ -136,8 +113,33 @@ pub fn read_ulog(path: &Path) -> Result<Recording, ReadError> {
         .unwrap_or((0.0, 0.0));
     let t: Vec<f64> = t.iter().map(|&x| x - shift_us).collect();
 
-    // esc_status: esc[0].esc_rpm, sample-and-hold onto the gyro times.
-    let rotor = match first_instance(&parsed.messages, "esc_status") {
+    // The vehicle file's rotor fields, held onto the gyro's (moved) times.
+    if opts.rotor_columns.len() > MAX_WHEELS {
+        return Err(ReadError::new(
+            path,
+            format!("more than {MAX_WHEELS} rotor fields"),
+        ));
+    }
+    let series = opts
+        .rotor_columns
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            let name = opts.rotor_names.get(k).map_or("", String::as_str);
+            ulog_rotors::series(path, &parsed.messages, c, name)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let held = ulog_rotors::hold(path, &series, &t)?;
+    warnings.extend(held.warnings);
+
+    // esc_status: esc[0].esc_rpm, sample-and-hold onto the gyro times (the `--rotor-*`
+    // flags' rotor; not read when a vehicle file names the rotors).
+    let esc_status = if opts.rotor_columns.is_empty() {
+        first_instance(&parsed.messages, "esc_status")
+    } else {
+        None
+    };
+    let rotor = match esc_status {
         Some(esc) => {
             let te = column(path, esc, "esc_status", "timestamp")?;
             let rpm = column(path, esc, "esc_status", "esc[0].esc_rpm")?;
@@ -185,9 +187,13 @@ pub fn read_ulog(path: &Path) -> Result<Recording, ReadError> {
         // Strictly above every unclipped rate: only the clipped axes read at it.
         PX4_GYRO_RANGE_RAD_S.max(widest * (1.0 + 1e-6)) as f32
     });
-    let mut samples = Samples::new(path);
+    let mut samples = Samples::new(path).with_wheels(series.len());
     let mut clipped_samples = 0usize;
-    for i in 0..n {
+    let mut wheels = vec![0.0; series.len()];
+    for i in held.skip..n {
+        for (o, v) in wheels.iter_mut().zip(&held.values) {
+            *o = v[i - held.skip];
+        }
         let a = accel.as_ref().map(|a| [a[0][i], a[1][i], a[2][i]]);
         let r = rotor.as_ref().map(|r| r[i]);
         let mut w = [gyro[0][i], gyro[1][i], gyro[2][i]];
@@ -201,7 +207,7 @@ pub fn read_ulog(path: &Path) -> Result<Recording, ReadError> {
             }
             clipped_samples += usize::from(any);
         }
-        samples.push(Location::Frame(i), t[i] * 1e-6, w, a, r)?;
+        samples.push(Location::Frame(i), t[i] * 1e-6, w, a, r, &wheels)?;
     }
     if clipped_samples > 0 {
         warnings.push(format!(
