@@ -1,12 +1,16 @@
 #!/usr/bin/env bash
 # The Basilisk spacecraft logs with true rates (inertia/tests/data/spacecraft: sat6u-pyramid-10hz,
-# peer-cubesat-1hz) through `inertia::identify::identify` with their vehicle files, white gyro
-# noise of the truth file's std added per seed: the tensor's errors against the Cramer-Rao bound
-# of the model the product fits (its windows (W1), one initial rate each), the calibration of its
-# stated std, the statuses, and derivative least squares (the peer's method family) on the same
-# noisy logs (host-tests/src/bin/spacecraft-bench.rs). A benchmark: it prints figures, it
-# asserts nothing.
-# Usage: scripts/bench-spacecraft.sh [SEEDS] [more spacecraft-bench options]   (default 100 seeds)
+# peer-cubesat-1hz, leo-gg-1hz, mems-walk-10hz) through `inertia::identify::identify` with their
+# vehicle files, a gyro made per seed from the true rates (white noise of the truth file's std;
+# on mems-walk-10hz the fixture's kind of MEMS gyro: bias random walk, constant bias, white
+# noise, truncated to its LSB): the tensor's errors, the calibration of its stated std, the
+# statuses, derivative least squares (the peer's method family) on the same noisy logs, and
+# where the bench has it (sat6u, peer) the Cramer-Rao bound of the model the product fits (its
+# windows (W1), one initial rate each); on leo-gg (gravity-gradient fold) and mems-walk (bias,
+# walk, truncation) no ratio to a bound is printed (host-tests/src/bin/spacecraft-bench.rs). A
+# benchmark: it prints figures, it asserts nothing.
+# Usage: scripts/bench-spacecraft.sh [SEEDS] [--fixture NAME]... [more spacecraft-bench options]
+#        (default 100 seeds, every fixture)
 set -euo pipefail
 source "$(dirname "${BASH_SOURCE[0]}")/setup.sh"
 cd "$ROOT"

@@ -806,6 +806,7 @@ def mems_walk_10hz() -> Scenario:
         gyro=Gyro(noise_std_rad_s=2.0e-4, bias_rad_s=np.array([4.0e-4, -3.0e-4, 2.0e-4]),
                   walk_step_std_rad_s=3.0e-6, walk_bound_rad_s=5.0e-4,
                   lsb_rad_s=math.radians(500.0 / 32768.0)),
+        write_clean=True,
     )
 
 
@@ -887,7 +888,7 @@ def leo_wheels() -> list[Wheel]:
 
 
 def leo_scenario(name: str, description: str, seed: int, periods: float, *, gravity_gradient: bool,
-                 dipole: Optional[np.ndarray] = None) -> Scenario:
+                 dipole: Optional[np.ndarray] = None, write_clean: bool = False) -> Scenario:
     return Scenario(
         name=name,
         description=description,
@@ -907,6 +908,7 @@ def leo_scenario(name: str, description: str, seed: int, periods: float, *, grav
         dipole_a_m2=dipole,
         magnetometer_noise_t=LEO_MAGNETOMETER_NOISE_T if dipole is not None else 0.0,
         write_quaternion=True,
+        write_clean=write_clean,
     )
 
 
@@ -915,7 +917,7 @@ def leo_gg_1hz() -> Scenario:
         "leo-gg-1hz",
         "500 km circular orbit (51.6 deg), two periods, Earth point-mass gravity with the "
         "GravityGradientEffector, slow tumble, four-wheel pyramid with a mild speed profile, 1 Hz",
-        seed=500, periods=2.0, gravity_gradient=True)
+        seed=500, periods=2.0, gravity_gradient=True, write_clean=True)
 
 
 def leo_free_1hz() -> Scenario:
