@@ -2,9 +2,9 @@
 //! Euler's equation integrated over blocks, (TB)) and [`super::vehicle_loop`] (a vehicle file's
 //! rotors, (TB) averaged over its start time across one block, (TBA)). Both fit the six entries
 //! of `J` and the candidate effects' parameters by least squares on three rows per block or
-//! equation (`Fit`) and choose the effects by F tests round by round (`select`). What is
-//! theirs (the rows, each effect's columns, and how a model is fitted) they give through
-//! `Candidates`.
+//! equation (`Fit`), choose the effects by F tests round by round (`select`), and report
+//! the rounds and the model before and after in the same tables. What is theirs (the rows, each
+//! effect's columns, and how a model is fitted) they give through `Candidates`.
 //!
 //! **Selection.** Each round fits every candidate not yet chosen with the model so far, tests
 //! it by the F test of the larger model against the nested one, and adds the best of those
@@ -163,11 +163,17 @@ impl Fit {
     }
 }
 
+/// An effect as the reports name it.
+pub(super) trait Named: Copy + PartialEq {
+    /// Its name in the markdown tables.
+    fn label(self) -> String;
+}
+
 /// A model family the selection works on: how it fits a model with a set of effects, and what
 /// a candidate's record shows.
 pub(super) trait Candidates {
     /// The candidate effects.
-    type Effect: Copy + PartialEq;
+    type Effect: Named;
     /// A model's fit: its least squares and whatever is fitted outside it.
     type Fit;
 
@@ -411,4 +417,84 @@ fn drop_insignificant<M: Candidates>(
         *cur = f0;
     }
     removed
+}
+
+/// The markdown table of the model before and after (`rows`: name, residual RMS, its ratio to
+/// the gyro noise's share, lag-one autocorrelation, principal moments), the ratio with
+/// `ratio_digits` decimals and the moments with `moment_digits`.
+pub(super) fn fits_table(
+    rows: [(&str, f64, f64, f64, [f64; 3]); 2],
+    ratio_digits: usize,
+    moment_digits: usize,
+) -> String {
+    let mut s = String::from(
+        "| model | residual RMS (kg m^2/s) | / gyro noise's share | lag-1 autocorrelation | principal moments (kg m^2) |\n|---|---|---|---|---|\n",
+    );
+    for (name, rms, ratio, lag1, m) in rows {
+        s += &format!(
+            "| {name} | {rms:.3e} | {ratio:.r$} | {lag1:.2} | {:.d$e}, {:.d$e}, {:.d$e} |\n",
+            m[0],
+            m[1],
+            m[2],
+            r = ratio_digits,
+            d = moment_digits
+        );
+    }
+    s
+}
+
+/// The markdown table of the rounds: every candidate's F, p and residual, the one chosen and
+/// those dropped.
+pub(super) fn rounds_table<E: Named>(rounds: &[Round<E>]) -> String {
+    let mut s = String::from(
+        "\n| round | candidate | F | p | residual RMS | chosen |\n|---|---|---|---|---|---|\n",
+    );
+    for (i, r) in rounds.iter().enumerate() {
+        for c in &r.candidates {
+            s += &format!(
+                "| {} | {} | {:.1} | {:.1e} | {:.3e} | {} |\n",
+                i + 1,
+                c.effect.label(),
+                c.f,
+                c.p,
+                c.residual_rms,
+                if r.chosen == Some(c.effect) {
+                    "yes"
+                } else {
+                    ""
+                }
+            );
+        }
+        for e in r.removed.iter().flatten() {
+            s += &format!("| {} | {} | | | | dropped |\n", i + 1, e.label());
+        }
+    }
+    s
+}
+
+/// `name = value +- std, ...` of an effect's parameters, the values with `digits` decimals.
+pub(super) fn param_list(names: &[&str], values: &[f64], std: &[f64], digits: usize) -> String {
+    let v: Vec<String> = names
+        .iter()
+        .zip(values.iter().zip(std.iter()))
+        .map(|(n, (v, sd))| format!("{n} = {v:.digits$e} +- {sd:.1e}"))
+        .collect();
+    v.join(", ")
+}
+
+/// The effects' names joined, or `none`.
+pub(super) fn names_or_none(names: &[String]) -> String {
+    if names.is_empty() {
+        "none".to_string()
+    } else {
+        names.join(", ")
+    }
+}
+
+/// The report's last line: how far the tensor moved, in percent with `digits` decimals.
+pub(super) fn moved_line(change: f64, digits: usize) -> String {
+    format!(
+        "\nThe tensor moved by {:.digits$} % (Frobenius) from before to after.\n",
+        100.0 * change
+    )
 }

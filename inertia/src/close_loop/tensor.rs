@@ -49,7 +49,7 @@ use serde::Serialize;
 
 use super::model::cross;
 use super::selection::{
-    self, mat_vec, unit_mat_vec, Candidates, Fit, LoopError, Rank, Rules, Steps, V3,
+    self, mat_vec, unit_mat_vec, Candidates, Fit, LoopError, Named, Rank, Rules, Steps, V3,
 };
 use crate::identify::{identify, slow_telemetry, unhold, IdentifyOptions, Rotor, RotorHold};
 use crate::Recording;
@@ -201,6 +201,12 @@ pub struct TensorAnalysis {
     /// Residual per block before and after, per axis: `(t_mid, before, after)`.
     #[serde(skip)]
     pub residuals: Vec<(f64, [f64; 3], [f64; 3])>,
+}
+
+impl Named for TensorEffect {
+    fn label(self) -> String {
+        format!("{self:?}")
+    }
 }
 
 /// The samples of one block: time, rate (bias removed), momentum, and the momenta the rotor
@@ -702,7 +708,7 @@ fn perpendiculars(u: V3) -> (V3, V3) {
 
 /// One line for the terminal.
 pub fn summary_line(an: &TensorAnalysis) -> String {
-    let names: Vec<String> = an.after.effects.iter().map(|e| format!("{e:?}")).collect();
+    let names: Vec<String> = an.after.effects.iter().map(|e| e.label()).collect();
     format!(
         "tensor base model, {} blocks of {:.1} ms: residual {:.3e} -> {:.3e} kg m^2/s ({:.1}x -> {:.1}x the gyro noise's share); effects added: {}; tensor moved {:.2} %",
         an.blocks,
@@ -711,11 +717,7 @@ pub fn summary_line(an: &TensorAnalysis) -> String {
         an.after.residual_rms,
         an.before.residual_over_noise,
         an.after.residual_over_noise,
-        if names.is_empty() {
-            "none".to_string()
-        } else {
-            names.join(", ")
-        },
+        selection::names_or_none(&names),
         100.0 * an.tensor_change
     )
 }
@@ -731,49 +733,21 @@ pub fn markdown(an: &TensorAnalysis, title: &str) -> String {
         an.noise_std,
         an.on_board_status
     );
-    s += "| model | residual RMS (kg m^2/s) | / gyro noise's share | lag-1 autocorrelation | principal moments (kg m^2) |\n|---|---|---|---|---|\n";
-    for (name, r) in [("before (tensor)", &an.before), ("after", &an.after)] {
-        s += &format!(
-            "| {name} | {:.3e} | {:.1} | {:.2} | {:.4e}, {:.4e}, {:.4e} |\n",
-            r.residual_rms,
-            r.residual_over_noise,
-            r.residual_lag1,
-            r.principal_moments[0],
-            r.principal_moments[1],
-            r.principal_moments[2]
-        );
-    }
-    s += "\n| round | candidate | F | p | residual RMS | chosen |\n|---|---|---|---|---|---|\n";
-    for (i, r) in an.rounds.iter().enumerate() {
-        for c in &r.candidates {
-            s += &format!(
-                "| {} | {:?} | {:.1} | {:.1e} | {:.3e} | {} |\n",
-                i + 1,
-                c.effect,
-                c.f,
-                c.p,
-                c.residual_rms,
-                if r.chosen == Some(c.effect) {
-                    "yes"
-                } else {
-                    ""
-                }
-            );
-        }
-    }
-    for e in &an.after.effect_params {
-        let v: Vec<String> = e
-            .names
-            .iter()
-            .zip(e.values.iter().zip(e.std.iter()))
-            .map(|(n, (v, sd))| format!("{n} = {v:.3e} +- {sd:.1e}"))
-            .collect();
-        s += &format!("\n{:?}: {}\n", e.effect, v.join(", "));
-    }
-    s += &format!(
-        "\nThe tensor moved by {:.2} % (Frobenius) from before to after.\n",
-        100.0 * an.tensor_change
+    let row = |name, r: &TensorFitReport| {
+        let (rms, lag1, m) = (r.residual_rms, r.residual_lag1, r.principal_moments);
+        (name, rms, r.residual_over_noise, lag1, m)
+    };
+    s += &selection::fits_table(
+        [row("before (tensor)", &an.before), row("after", &an.after)],
+        1,
+        4,
     );
+    s += &selection::rounds_table(&an.rounds);
+    for e in &an.after.effect_params {
+        let v = selection::param_list(&e.names, &e.values, &e.std, 3);
+        s += &format!("\n{}: {v}\n", e.effect.label());
+    }
+    s += &selection::moved_line(an.tensor_change, 2);
     s
 }
 

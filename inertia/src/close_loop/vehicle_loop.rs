@@ -77,7 +77,8 @@ use serde::Serialize;
 
 use super::model::cross;
 use super::selection::{
-    self, j6, mat_vec, unit_mat_vec, Candidates, Fit, LoopError, Rank, Rules, Selection, Steps, V3,
+    self, j6, mat_vec, unit_mat_vec, Candidates, Fit, LoopError, Named, Rank, Rules, Selection,
+    Steps, V3,
 };
 use super::stats;
 use crate::identify::{identify, IdentifyOptions, RotorHold};
@@ -143,6 +144,12 @@ impl VehicleEffect {
             VehicleEffect::GravityGradient => &["gamma"],
             VehicleEffect::MagneticDipole => &["m_x", "m_y", "m_z"],
         }
+    }
+}
+
+impl Named for VehicleEffect {
+    fn label(self) -> String {
+        self.name().to_string()
     }
 }
 
@@ -1108,11 +1115,7 @@ pub fn summary_line(an: &VehicleAnalysis) -> String {
         an.after.residual_rms,
         an.before.residual_over_noise,
         an.after.residual_over_noise,
-        if names.is_empty() {
-            "none".to_string()
-        } else {
-            names.join(", ")
-        },
+        selection::names_or_none(&names),
         100.0 * an.tensor_change
     )
 }
@@ -1154,50 +1157,21 @@ pub fn markdown(an: &VehicleAnalysis, title: &str) -> String {
     for u in &an.unavailable {
         s += &format!("Not a candidate: {} ({}).\n\n", u.effect.name(), u.reason);
     }
-    s += "| model | residual RMS (kg m^2/s) | / gyro noise's share | lag-1 autocorrelation | principal moments (kg m^2) |\n|---|---|---|---|---|\n";
-    for (name, r) in [("before (tensor)", &an.before), ("after", &an.after)] {
-        s += &format!(
-            "| {name} | {:.3e} | {:.2} | {:.2} | {:.5e}, {:.5e}, {:.5e} |\n",
-            r.residual_rms,
-            r.residual_over_noise,
-            r.residual_lag1,
-            r.principal_moments[0],
-            r.principal_moments[1],
-            r.principal_moments[2]
-        );
-    }
-    s += "\n| round | candidate | F | p | residual RMS | chosen |\n|---|---|---|---|---|---|\n";
-    for (i, r) in an.rounds.iter().enumerate() {
-        for c in &r.candidates {
-            s += &format!(
-                "| {} | {} | {:.1} | {:.1e} | {:.3e} | {} |\n",
-                i + 1,
-                c.effect.name(),
-                c.f,
-                c.p,
-                c.residual_rms,
-                if r.chosen == Some(c.effect) {
-                    "yes"
-                } else {
-                    ""
-                }
-            );
-        }
-        for e in r.removed.iter().flatten() {
-            s += &format!("| {} | {} | | | | dropped |\n", i + 1, e.name());
-        }
-    }
+    let row = |name, r: &VehicleFitReport| {
+        let (rms, lag1, m) = (r.residual_rms, r.residual_lag1, r.principal_moments);
+        (name, rms, r.residual_over_noise, lag1, m)
+    };
+    s += &selection::fits_table(
+        [row("before (tensor)", &an.before), row("after", &an.after)],
+        2,
+        5,
+    );
+    s += &selection::rounds_table(&an.rounds);
     for e in &an.effects {
-        let v: Vec<String> = e
-            .names
-            .iter()
-            .zip(e.values.iter().zip(e.std.iter()))
-            .map(|(n, (v, sd))| format!("{n} = {v:.4e} +- {sd:.1e}"))
-            .collect();
         s += &format!(
             "\n{}: {}; {} {:.3e} {} (partial F {:.1}, p {:.1e})\n",
             e.effect.name(),
-            v.join(", "),
+            selection::param_list(&e.names, &e.values, &e.std, 4),
             e.size_what,
             e.size,
             e.size_unit,
@@ -1205,10 +1179,7 @@ pub fn markdown(an: &VehicleAnalysis, title: &str) -> String {
             e.p
         );
     }
-    s += &format!(
-        "\nThe tensor moved by {:.3} % (Frobenius) from before to after.\n",
-        100.0 * an.tensor_change
-    );
+    s += &selection::moved_line(an.tensor_change, 3);
     s
 }
 
