@@ -498,3 +498,114 @@ pub(super) fn moved_line(change: f64, digits: usize) -> String {
         100.0 * change
     )
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    enum E {
+        A,
+        B,
+    }
+
+    impl Named for E {
+        fn label(self) -> String {
+            format!("{self:?}")
+        }
+    }
+
+    /// Fits given by a table: the RSS of each set of effects over 300 rows, `A` with `pa`
+    /// parameters and `B` with `pb`.
+    struct Table {
+        rss: [f64; 4],
+        pa: usize,
+        pb: usize,
+    }
+
+    impl Table {
+        /// `rss` is indexed by (A in the model) + 2 (B in the model).
+        fn at(&self, effects: &[E]) -> Fit {
+            let (a, b) = (effects.contains(&E::A), effects.contains(&E::B));
+            let k = 6 + usize::from(a) * self.pa + usize::from(b) * self.pb;
+            Fit {
+                theta: vec![0.0; k],
+                cov: vec![vec![0.0; k]; k],
+                xtx_inv: vec![vec![0.0; k]; k],
+                rss: self.rss[usize::from(a) + 2 * usize::from(b)],
+                n: 300,
+                residuals: Vec::new(),
+            }
+        }
+    }
+
+    impl Candidates for Table {
+        type Effect = E;
+        type Fit = Fit;
+
+        fn fit(&self, effects: &[E], _: &Fit) -> Option<Fit> {
+            Some(self.at(effects))
+        }
+
+        fn ls(fit: &Fit) -> &Fit {
+            fit
+        }
+
+        fn params(&self, _: &Fit, _: E) -> (Vec<f64>, Option<Vec<f64>>) {
+            (Vec::new(), None)
+        }
+    }
+
+    fn run(t: &Table, alpha: f64, rank: Rank, steps: Steps) -> Selection<E, Fit> {
+        select(t, t.at(&[]), &[E::A, E::B], &Rules { alpha, rank, steps })
+    }
+
+    #[test]
+    fn the_largest_f_and_the_smallest_p_can_choose_differently() {
+        // A: one parameter, F about 30; B: six parameters, F about 20 but the smaller p-value.
+        let t = Table {
+            rss: [100.0, 90.71, 70.59, 70.0],
+            pa: 1,
+            pb: 6,
+        };
+        let by_f = run(&t, 1e-3, Rank::LargestF, Steps::Forward);
+        let by_p = run(&t, 1e-3, Rank::SmallestP, Steps::Forward);
+        let round1 = &by_f.rounds[0].candidates;
+        assert!(
+            round1[0].f > round1[1].f && round1[1].p < round1[0].p,
+            "{round1:?}"
+        );
+        assert_eq!(by_f.rounds[0].chosen, Some(E::A));
+        assert_eq!(by_p.rounds[0].chosen, Some(E::B));
+        assert!(by_f.rounds.iter().all(|r| r.removed.is_none()));
+    }
+
+    #[test]
+    fn the_backward_step_drops_an_effect_the_next_one_explains() {
+        // B alone has the larger F (one parameter against A's six); with A in the model it adds
+        // nothing.
+        let t = Table {
+            rss: [100.0, 58.0, 60.0, 57.95],
+            pa: 6,
+            pb: 1,
+        };
+        let back = run(
+            &t,
+            0.5,
+            Rank::LargestF,
+            Steps::ForwardBackward { max_rounds: 8 },
+        );
+        assert_eq!(back.rounds[0].chosen, Some(E::B));
+        assert_eq!(back.rounds[1].chosen, Some(E::A));
+        assert_eq!(back.rounds[1].removed, Some(vec![E::B]));
+        assert_eq!(back.chosen, [E::A]);
+        // The last round tries B again and stops: nothing significant, nothing dropped.
+        let last = back.rounds.last().unwrap();
+        assert_eq!(
+            (last.chosen, last.removed.as_deref()),
+            (None, Some(&[][..]))
+        );
+        let fwd = run(&t, 0.5, Rank::LargestF, Steps::Forward);
+        assert_eq!(fwd.chosen, [E::B, E::A]);
+    }
+}
