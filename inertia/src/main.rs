@@ -708,8 +708,8 @@ fn run_close_loop_tensor(
         Err(e) => {
             eprintln!("error: {}: {e}", args.input.display());
             let code = match e {
-                close_loop::TensorLoopError::Input(_) => 3,
-                close_loop::TensorLoopError::Data(_) => 4,
+                close_loop::LoopError::Input(_) => 3,
+                close_loop::LoopError::Data(_) => 4,
             };
             return Ok(ExitCode::from(code));
         }
@@ -780,8 +780,8 @@ fn run_close_loop_vehicle(
         Err(e) => {
             eprintln!("error: {}: {e}", args.input.display());
             let code = match e {
-                close_loop::VehicleLoopError::Input(_) => 3,
-                close_loop::VehicleLoopError::Data(_) => 4,
+                close_loop::LoopError::Input(_) => 3,
+                close_loop::LoopError::Data(_) => 4,
             };
             return Ok(ExitCode::from(code));
         }

@@ -15,6 +15,7 @@ pub mod input;
 pub mod model;
 pub mod plot;
 pub mod report;
+pub mod selection;
 pub mod stats;
 pub mod tensor;
 pub mod vehicle_loop;
@@ -24,14 +25,14 @@ pub mod vehicle_loop;
 pub use analysis::{analyse, Analysis, Options};
 pub use input::{check_series_units, check_series_units_up_to, MAX_MEDIAN_STEP_VEHICLE_S};
 pub use report::{markdown, plots, summary_line};
+pub use selection::LoopError;
 pub use tensor::{
     analyse_tensor, markdown as tensor_markdown, plots as tensor_plots,
-    summary_line as tensor_summary_line, TensorAnalysis, TensorLoopError, TensorOptions,
+    summary_line as tensor_summary_line, TensorAnalysis, TensorOptions,
 };
 pub use vehicle_loop::{
     analyse_vehicle, markdown as vehicle_markdown, plots as vehicle_plots,
-    summary_line as vehicle_summary_line, VehicleAnalysis, VehicleEffect, VehicleLoopError,
-    VehicleOptions,
+    summary_line as vehicle_summary_line, VehicleAnalysis, VehicleEffect, VehicleOptions,
 };
 
 use std::path::Path;

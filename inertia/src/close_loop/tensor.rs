@@ -37,9 +37,10 @@
 //!
 //! Each round adds the candidate whose F statistic is largest when it is significant at
 //! `alpha / (candidates left)` (Bonferroni, family-wise `alpha` per round) and stops when none
-//! is. The F test takes the blocks' residuals as independent with equal variance; neighbouring
-//! blocks share an end sample and a real rotor's vibration colours the residual, so the
-//! p-values are approximate (the report says how white the residual is).
+//! is ([`super::selection`], forward only). The F test takes the blocks' residuals as
+//! independent with equal variance; neighbouring blocks share an end sample and a real rotor's
+//! vibration colours the residual, so the p-values are approximate (the report says how white
+//! the residual is).
 //!
 //! The free flights are those `inertia identify` feeds its on-board pipeline (gate, guards,
 //! gyro bias from the bench), or the given segments; the rotor speed the same as there.
@@ -47,6 +48,9 @@
 use serde::Serialize;
 
 use super::model::cross;
+use super::selection::{
+    self, mat_vec, unit_mat_vec, Candidates, Fit, LoopError, Named, Rank, Rules, Steps, V3,
+};
 use crate::identify::{identify, slow_telemetry, unhold, IdentifyOptions, Rotor, RotorHold};
 use crate::Recording;
 
@@ -159,33 +163,12 @@ pub struct EffectParams {
     pub std: Vec<f64>,
 }
 
-/// One candidate tried in a round.
-#[derive(Clone, Debug, Serialize)]
-pub struct TensorCandidate {
-    /// The effect.
-    pub effect: TensorEffect,
-    /// F statistic of adding it.
-    pub f: f64,
-    /// Its p-value.
-    pub p: f64,
-    /// RMS residual with it, kg m^2/s.
-    pub residual_rms: f64,
-    /// Its parameters fitted with the model so far ([`TensorEffect::param_names`]).
-    pub params: Vec<f64>,
-    /// The tensor fitted with it, kg m^2 (what `J` would be were it added).
-    pub tensor_kg_m2: [[f64; 3]; 3],
-}
+/// One candidate tried in a round (its parameters in the order of
+/// [`TensorEffect::param_names`]; no standard deviations).
+pub type TensorCandidate = selection::Candidate<TensorEffect>;
 
-/// One selection round.
-#[derive(Clone, Debug, Serialize)]
-pub struct TensorRound {
-    /// Every candidate tried.
-    pub candidates: Vec<TensorCandidate>,
-    /// The one added, if any was significant.
-    pub chosen: Option<TensorEffect>,
-    /// The level each candidate was tested at.
-    pub level: f64,
-}
+/// One selection round (no backward step: nothing is dropped).
+pub type TensorRound = selection::Round<TensorEffect>;
 
 /// What [`analyse_tensor`] found.
 #[derive(Clone, Debug, Serialize)]
@@ -220,22 +203,10 @@ pub struct TensorAnalysis {
     pub residuals: Vec<(f64, [f64; 3], [f64; 3])>,
 }
 
-type V3 = [f64; 3];
-
-pub(super) fn mat_vec(j: &[f64; 6], w: V3) -> V3 {
-    let [xx, yy, zz, xy, xz, yz] = *j;
-    [
-        xx * w[0] + xy * w[1] + xz * w[2],
-        xy * w[0] + yy * w[1] + yz * w[2],
-        xz * w[0] + yz * w[1] + zz * w[2],
-    ]
-}
-
-/// `E_k w` for the k-th entry of `J` (xx, yy, zz, xy, xz, yz).
-pub(super) fn unit_mat_vec(k: usize, w: V3) -> V3 {
-    let mut j = [0.0; 6];
-    j[k] = 1.0;
-    mat_vec(&j, w)
+impl Named for TensorEffect {
+    fn label(self) -> String {
+        format!("{self:?}")
+    }
 }
 
 /// The samples of one block: time, rate (bias removed), momentum, and the momenta the rotor
@@ -378,15 +349,7 @@ impl Block {
 }
 
 /// Least squares of the stacked rows; `None` when singular.
-struct Ls {
-    x: Vec<f64>,
-    cov: Vec<Vec<f64>>,
-    rss: f64,
-    n: usize,
-    residuals: Vec<V3>,
-}
-
-fn solve(blocks: &[Block], j: &[f64; 6], effects: &[TensorEffect]) -> Option<Ls> {
+fn solve(blocks: &[Block], j: &[f64; 6], effects: &[TensorEffect]) -> Option<Fit> {
     let mut rows = Vec::new();
     let mut ys = Vec::new();
     for b in blocks {
@@ -410,18 +373,19 @@ fn solve(blocks: &[Block], j: &[f64; 6], effects: &[TensorEffect]) -> Option<Ls>
             e
         })
         .collect();
-    Some(Ls {
+    Some(Fit {
         cov: fit.cov(),
+        xtx_inv: fit.xtx_inv,
         rss: fit.rss,
         n: ys.len(),
-        x,
+        theta: x,
         residuals,
     })
 }
 
 /// Fits the model with `effects`, relinearising the nonlinear effects at the new `J` (three
 /// passes).
-fn fit_model(blocks: &[Block], j0: &[f64; 6], effects: &[TensorEffect]) -> Option<(Ls, [f64; 6])> {
+fn fit_model(blocks: &[Block], j0: &[f64; 6], effects: &[TensorEffect]) -> Option<Fit> {
     let nonlinear = effects
         .iter()
         .any(|e| matches!(e, TensorEffect::GyroBias | TensorEffect::GyroScale));
@@ -429,37 +393,85 @@ fn fit_model(blocks: &[Block], j0: &[f64; 6], effects: &[TensorEffect]) -> Optio
     let mut out = None;
     for _ in 0..if nonlinear { 3 } else { 1 } {
         let ls = solve(blocks, &j, effects)?;
-        j = [ls.x[0], ls.x[1], ls.x[2], ls.x[3], ls.x[4], ls.x[5]];
+        j = ls.j();
         out = Some(ls);
     }
-    out.map(|ls| (ls, j))
+    out
 }
 
-fn report(
-    ls: &Ls,
-    j: &[f64; 6],
-    effects: &[TensorEffect],
-    noise: f64,
+/// A fit of (TB): the least squares, and the rotor lag with its standard deviation when it is
+/// in the model (searched, not a column).
+struct TbFit {
+    ls: Fit,
     lag: Option<(f64, f64)>,
-) -> TensorFitReport {
-    let t = [[j[0], j[3], j[4]], [j[3], j[1], j[5]], [j[4], j[5], j[2]]];
-    let sd = |k: usize| {
-        ls.cov
-            .get(k)
-            .and_then(|r| r.get(k))
+}
+
+/// (TB) over the free flights' blocks, for [`selection::select`].
+struct Throws<'a> {
+    /// The blocks with the logged rotor speed read `delta` seconds later.
+    make_blocks: &'a dyn Fn(f64) -> Vec<Block>,
+    /// The blocks as logged (no lag).
+    blocks: &'a [Block],
+}
+
+impl Candidates for Throws<'_> {
+    type Effect = TensorEffect;
+    type Fit = TbFit;
+
+    /// The linear effects fitted at the lag of `from` when the lag is in the model; the lag,
+    /// when it is added, searched with them ([`search_lag`]).
+    fn fit(&self, effects: &[TensorEffect], from: &TbFit) -> Option<TbFit> {
+        let linear: Vec<TensorEffect> = effects
+            .iter()
             .copied()
-            .unwrap_or(f64::NAN)
-            .max(0.0)
-            .sqrt()
-    };
-    let s = [sd(0), sd(1), sd(2), sd(3), sd(4), sd(5)];
-    let ts = [[s[0], s[3], s[4]], [s[3], s[1], s[5]], [s[4], s[5], s[2]]];
-    let (ev, _) = crate::calibrate::eigen(&t);
+            .filter(|x| *x != TensorEffect::RotorLag)
+            .collect();
+        let j = from.ls.j();
+        if !effects.contains(&TensorEffect::RotorLag) {
+            let ls = fit_model(self.blocks, &j, &linear)?;
+            return Some(TbFit { ls, lag: None });
+        }
+        match from.lag {
+            Some(lag) => {
+                let ls = fit_model(&(self.make_blocks)(lag.0), &j, &linear)?;
+                Some(TbFit { ls, lag: Some(lag) })
+            }
+            None => {
+                let (ls, d, sd) = search_lag(self.make_blocks, &j, &linear)?;
+                Some(TbFit {
+                    ls,
+                    lag: Some((d, sd)),
+                })
+            }
+        }
+    }
+
+    fn ls(fit: &TbFit) -> &Fit {
+        &fit.ls
+    }
+
+    fn n_params(fit: &TbFit) -> usize {
+        fit.ls.theta.len() + usize::from(fit.lag.is_some())
+    }
+
+    fn params(&self, fit: &TbFit, e: TensorEffect) -> (Vec<f64>, Option<Vec<f64>>) {
+        let values = if e == TensorEffect::RotorLag {
+            fit.lag.map(|l| vec![l.0]).unwrap_or_default()
+        } else {
+            fit.ls.theta[fit.ls.theta.len() - e.n_params()..].to_vec()
+        };
+        (values, None)
+    }
+}
+
+fn report(fit: &TbFit, effects: &[TensorEffect], noise: f64) -> TensorFitReport {
+    let ls = &fit.ls;
+    let t = ls.tensor();
     let mut effect_params = Vec::new();
     let mut at = 6;
     for e in effects {
         if *e == TensorEffect::RotorLag {
-            let (d, sd_d) = lag.unwrap_or((f64::NAN, f64::NAN));
+            let (d, sd_d) = fit.lag.unwrap_or((f64::NAN, f64::NAN));
             effect_params.push(EffectParams {
                 effect: *e,
                 names: e.param_names().to_vec(),
@@ -472,76 +484,29 @@ fn report(
         effect_params.push(EffectParams {
             effect: *e,
             names: e.param_names().to_vec(),
-            values: ls.x[at..at + n].to_vec(),
-            std: (at..at + n).map(sd).collect(),
+            values: ls.theta[at..at + n].to_vec(),
+            std: (at..at + n).map(|k| ls.sd(k)).collect(),
         });
         at += n;
     }
-    let rms = (ls.rss / ls.n.max(1) as f64).sqrt();
+    // The gyro noise alone leaves `noise |J| sqrt(2)` per block (its two end samples).
     let jn = t.iter().flatten().map(|x| x * x).sum::<f64>().sqrt();
     let floor = noise * jn * std::f64::consts::SQRT_2;
-    let lag1 = lag_one(&ls.residuals);
     TensorFitReport {
         effects: effects.to_vec(),
         tensor_kg_m2: t,
-        tensor_std_kg_m2: ts,
-        principal_moments: ev,
+        tensor_std_kg_m2: ls.tensor_std(),
+        principal_moments: ls.principal_moments(),
         effect_params,
-        residual_rms: rms,
-        residual_over_noise: if floor > 0.0 { rms / floor } else { f64::NAN },
-        residual_lag1: lag1,
-    }
-}
-
-/// Mean over the axes of the lag-one autocorrelation of the blocks' residuals.
-pub(super) fn lag_one(res: &[V3]) -> f64 {
-    let mut acc = 0.0;
-    for k in 0..3 {
-        let x: Vec<f64> = res.iter().map(|e| e[k]).collect();
-        let mean = x.iter().sum::<f64>() / x.len().max(1) as f64;
-        let var: f64 = x.iter().map(|v| (v - mean).powi(2)).sum();
-        let cov: f64 = x.windows(2).map(|w| (w[0] - mean) * (w[1] - mean)).sum();
-        acc += if var > 0.0 { cov / var } else { 0.0 };
-    }
-    acc / 3.0
-}
-
-/// Upper tail of the F distribution with `(d1, d2)` degrees of freedom (Paulson's normal
-/// approximation, as the torque-free close-loop uses).
-pub(super) fn f_sf(f: f64, d1: f64, d2: f64) -> f64 {
-    if f.is_nan() || f <= 0.0 {
-        return 1.0;
-    }
-    super::stats::normal_sf(super::stats::f_to_z(f, d1, d2))
-}
-
-/// The round's best candidate so far: F, effect, fit, tensor, rotor lag and its std.
-type Best = (f64, TensorEffect, Ls, [f64; 6], Option<(f64, f64)>);
-
-/// Why [`analyse_tensor`] gave no result.
-#[derive(Clone, Debug, PartialEq)]
-pub enum TensorLoopError {
-    /// The input cannot be used: no free flight, no rotor channel, no pole count for an eRPM
-    /// channel, too short (the command exits 3).
-    Input(String),
-    /// The free flights cannot determine the tensor and its effects (exit 4).
-    Data(String),
-}
-
-impl core::fmt::Display for TensorLoopError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self {
-            TensorLoopError::Input(m) | TensorLoopError::Data(m) => f.write_str(m),
-        }
+        residual_rms: ls.residual_rms(),
+        residual_over_noise: ls.residual_over(floor),
+        residual_lag1: ls.residual_lag1(),
     }
 }
 
 /// Runs the tensor close-loop on `rec`.
-pub fn analyse_tensor(
-    rec: &Recording,
-    opts: &TensorOptions,
-) -> Result<TensorAnalysis, TensorLoopError> {
-    use TensorLoopError::{Data, Input};
+pub fn analyse_tensor(rec: &Recording, opts: &TensorOptions) -> Result<TensorAnalysis, LoopError> {
+    use LoopError::{Data, Input};
     let id = identify(
         rec,
         &IdentifyOptions {
@@ -631,102 +596,29 @@ pub fn analyse_tensor(
             })
             .collect()
     };
-    let mut blocks = make_blocks(0.0);
-    if blocks.len() < 10 {
-        return Err(Data(format!(
-            "{} blocks of free flight: too few for the tensor and its effects",
-            blocks.len()
-        )));
-    }
-    let noise = f64::from(crate::recording::white_noise(
-        crate::recording::estimate_noise(&rec.gyro),
-        rec.gyro_filters.as_ref(),
-        crate::recording::median_dt(&rec.t),
-    ));
-    let zero = [0.0; 6];
-    let (base, jb) = fit_model(&blocks, &zero, &[])
-        .ok_or_else(|| Data("the tensor is not determined".into()))?;
-    let before = report(&base, &jb, &[], noise, None);
-    // The base fit's residuals, for the plot (the base fit is `cur` until an effect is added).
-    let base_residuals = base.residuals.clone();
-    let mut chosen: Vec<TensorEffect> = Vec::new();
-    let (mut cur, mut jc) = (base, jb);
-    let mut lag: Option<(f64, f64)> = None;
-    let mut rounds = Vec::new();
-    loop {
-        let left: Vec<TensorEffect> = TensorEffect::ALL
-            .into_iter()
-            .filter(|e| !chosen.contains(e))
-            .collect();
-        if left.is_empty() {
-            break;
-        }
-        let level = opts.alpha / left.len() as f64;
-        let p0 = cur.x.len() + usize::from(lag.is_some());
-        let mut cands = Vec::new();
-        let mut best: Option<Best> = None;
-        for e in left {
-            let linear: Vec<TensorEffect> = chosen
-                .iter()
-                .copied()
-                .chain(core::iter::once(e))
-                .filter(|x| *x != TensorEffect::RotorLag)
-                .collect();
-            let (fit, new_lag) = if e == TensorEffect::RotorLag {
-                match search_lag(&make_blocks, &jc, &linear) {
-                    Some((ls, j, d, sd)) => (Some((ls, j)), Some((d, sd))),
-                    None => (None, None),
-                }
-            } else {
-                (fit_model(&blocks, &jc, &linear), lag)
-            };
-            let Some((ls, j)) = fit else {
-                continue;
-            };
-            let p1 = ls.x.len() + usize::from(new_lag.is_some());
-            let q = (p1 - p0) as f64;
-            let dof = ls.n as f64 - p1 as f64;
-            let f = ((cur.rss - ls.rss) / q) / (ls.rss / dof);
-            let pv = f_sf(f, q, dof);
-            let params = if e == TensorEffect::RotorLag {
-                new_lag.map(|l| vec![l.0]).unwrap_or_default()
-            } else {
-                ls.x[ls.x.len() - e.n_params()..].to_vec()
-            };
-            cands.push(TensorCandidate {
-                effect: e,
-                f,
-                p: pv,
-                residual_rms: (ls.rss / ls.n as f64).sqrt(),
-                params,
-                tensor_kg_m2: [[j[0], j[3], j[4]], [j[3], j[1], j[5]], [j[4], j[5], j[2]]],
-            });
-            if pv < level && best.as_ref().is_none_or(|b| f > b.0) {
-                best = Some((f, e, ls, j, new_lag));
-            }
-        }
-        let pick = best.as_ref().map(|b| b.1);
-        rounds.push(TensorRound {
-            candidates: cands,
-            chosen: pick,
-            level,
-        });
-        match best {
-            Some((_, e, ls, j, new_lag)) => {
-                chosen.push(e);
-                if new_lag != lag {
-                    lag = new_lag;
-                    if let Some((d, _)) = lag {
-                        blocks = make_blocks(d);
-                    }
-                }
-                cur = ls;
-                jc = j;
-            }
-            None => break,
-        }
-    }
-    let after = report(&cur, &jc, &chosen, noise, lag);
+    let blocks = make_blocks(0.0);
+    selection::enough(blocks.len(), "blocks of free flight")?;
+    let noise = selection::gyro_noise(rec);
+    let base = TbFit {
+        ls: fit_model(&blocks, &[0.0; 6], &[])
+            .ok_or_else(|| Data("the tensor is not determined".into()))?,
+        lag: None,
+    };
+    let before = report(&base, &[], noise);
+    let throws = Throws {
+        make_blocks: &make_blocks,
+        blocks: &blocks,
+    };
+    let rules = Rules {
+        alpha: opts.alpha,
+        rank: Rank::LargestF,
+        steps: Steps::Forward,
+    };
+    let jb = base.ls.j();
+    let base_residuals = base.ls.residuals.clone();
+    let sel = selection::select(&throws, base, &TensorEffect::ALL, &rules);
+    let after = report(&sel.fit, &sel.chosen, noise);
+    let jc = sel.fit.ls.j();
     let change = {
         let d: f64 = (0..6)
             .map(|k| (jc[k] - jb[k]).powi(2) * if k < 3 { 1.0 } else { 2.0 })
@@ -737,10 +629,11 @@ pub fn analyse_tensor(
         (d / b).sqrt()
     };
     let mut residuals = Vec::new();
+    // The blocks' times do not depend on the rotor lag.
     for ((blk, e0), e1) in blocks
         .iter()
         .zip(base_residuals.iter())
-        .zip(cur.residuals.iter())
+        .zip(sel.fit.ls.residuals.iter())
     {
         let tm = 0.5 * (blk.t[0] + blk.t[blk.t.len() - 1]);
         residuals.push((tm, *e0, *e1));
@@ -755,7 +648,7 @@ pub fn analyse_tensor(
         on_board_tensor_kg_m2: id.pooled.tensor_kg_m2,
         on_board_status: id.pooled.status.clone(),
         before,
-        rounds,
+        rounds: sel.rounds,
         after,
         tensor_change: change,
         residuals,
@@ -763,15 +656,15 @@ pub fn analyse_tensor(
 }
 
 /// The rotor lag that minimises the residual with the linear `effects`: a 0.25 ms grid over
-/// +-10 ms, then a parabola through the best point and its neighbours. Returns the fit, its
-/// tensor, the lag and its standard deviation (`sqrt(2 s^2 / RSS'')`).
+/// +-10 ms, then a parabola through the best point and its neighbours. Returns the fit, the lag
+/// and its standard deviation (`sqrt(2 s^2 / RSS'')`).
 fn search_lag(
     make_blocks: &dyn Fn(f64) -> Vec<Block>,
     j0: &[f64; 6],
     effects: &[TensorEffect],
-) -> Option<(Ls, [f64; 6], f64, f64)> {
+) -> Option<(Fit, f64, f64)> {
     const STEP: f64 = 2.5e-4;
-    let rss = |d: f64| fit_model(&make_blocks(d), j0, effects).map(|(ls, _)| ls.rss);
+    let rss = |d: f64| fit_model(&make_blocks(d), j0, effects).map(|ls| ls.rss);
     let grid: Vec<(f64, f64)> = (-40..=40)
         .filter_map(|k| {
             let d = k as f64 * STEP;
@@ -794,10 +687,10 @@ fn search_lag(
         }
         _ => (d0, f64::NAN),
     };
-    let (ls, j) = fit_model(&make_blocks(d), j0, effects)?;
-    let s2 = ls.rss / (ls.n as f64 - ls.x.len() as f64 - 1.0).max(1.0);
+    let ls = fit_model(&make_blocks(d), j0, effects)?;
+    let s2 = ls.rss / (ls.n as f64 - ls.theta.len() as f64 - 1.0).max(1.0);
     let sd = (2.0 * s2 / curv).sqrt();
-    Some((ls, j, d, sd))
+    Some((ls, d, sd))
 }
 
 /// Two unit vectors perpendicular to `u` and to each other.
@@ -815,7 +708,7 @@ fn perpendiculars(u: V3) -> (V3, V3) {
 
 /// One line for the terminal.
 pub fn summary_line(an: &TensorAnalysis) -> String {
-    let names: Vec<String> = an.after.effects.iter().map(|e| format!("{e:?}")).collect();
+    let names: Vec<String> = an.after.effects.iter().map(|e| e.label()).collect();
     format!(
         "tensor base model, {} blocks of {:.1} ms: residual {:.3e} -> {:.3e} kg m^2/s ({:.1}x -> {:.1}x the gyro noise's share); effects added: {}; tensor moved {:.2} %",
         an.blocks,
@@ -824,11 +717,7 @@ pub fn summary_line(an: &TensorAnalysis) -> String {
         an.after.residual_rms,
         an.before.residual_over_noise,
         an.after.residual_over_noise,
-        if names.is_empty() {
-            "none".to_string()
-        } else {
-            names.join(", ")
-        },
+        selection::names_or_none(&names),
         100.0 * an.tensor_change
     )
 }
@@ -844,49 +733,21 @@ pub fn markdown(an: &TensorAnalysis, title: &str) -> String {
         an.noise_std,
         an.on_board_status
     );
-    s += "| model | residual RMS (kg m^2/s) | / gyro noise's share | lag-1 autocorrelation | principal moments (kg m^2) |\n|---|---|---|---|---|\n";
-    for (name, r) in [("before (tensor)", &an.before), ("after", &an.after)] {
-        s += &format!(
-            "| {name} | {:.3e} | {:.1} | {:.2} | {:.4e}, {:.4e}, {:.4e} |\n",
-            r.residual_rms,
-            r.residual_over_noise,
-            r.residual_lag1,
-            r.principal_moments[0],
-            r.principal_moments[1],
-            r.principal_moments[2]
-        );
-    }
-    s += "\n| round | candidate | F | p | residual RMS | chosen |\n|---|---|---|---|---|---|\n";
-    for (i, r) in an.rounds.iter().enumerate() {
-        for c in &r.candidates {
-            s += &format!(
-                "| {} | {:?} | {:.1} | {:.1e} | {:.3e} | {} |\n",
-                i + 1,
-                c.effect,
-                c.f,
-                c.p,
-                c.residual_rms,
-                if r.chosen == Some(c.effect) {
-                    "yes"
-                } else {
-                    ""
-                }
-            );
-        }
-    }
-    for e in &an.after.effect_params {
-        let v: Vec<String> = e
-            .names
-            .iter()
-            .zip(e.values.iter().zip(e.std.iter()))
-            .map(|(n, (v, sd))| format!("{n} = {v:.3e} +- {sd:.1e}"))
-            .collect();
-        s += &format!("\n{:?}: {}\n", e.effect, v.join(", "));
-    }
-    s += &format!(
-        "\nThe tensor moved by {:.2} % (Frobenius) from before to after.\n",
-        100.0 * an.tensor_change
+    let row = |name, r: &TensorFitReport| {
+        let (rms, lag1, m) = (r.residual_rms, r.residual_lag1, r.principal_moments);
+        (name, rms, r.residual_over_noise, lag1, m)
+    };
+    s += &selection::fits_table(
+        [row("before (tensor)", &an.before), row("after", &an.after)],
+        1,
+        4,
     );
+    s += &selection::rounds_table(&an.rounds);
+    for e in &an.after.effect_params {
+        let v = selection::param_list(&e.names, &e.values, &e.std, 3);
+        s += &format!("\n{}: {v}\n", e.effect.label());
+    }
+    s += &selection::moved_line(an.tensor_change, 2);
     s
 }
 

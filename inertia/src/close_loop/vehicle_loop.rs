@@ -60,12 +60,12 @@
 //!   the white noise's share: the walk's curvature and the truncation's offset of half a step
 //!   against the rate's sign are left.
 //!
-//! **Selection.** Each round adds the candidate with the smallest p-value of its F test when it
-//! is below `alpha / (candidates left)` (Bonferroni, family-wise `alpha` per round), then drops
-//! any chosen effect whose partial F test (given all the others) is no longer significant at
-//! `alpha / (effects chosen)`; it stops when no candidate is significant. Ranking by p-value,
-//! not F, lets a three- or six-parameter effect win over a one-parameter one of the same strength.
-//! The F test takes the rows as independent with equal variance: neighbouring equations share
+//! **Selection** ([`super::selection`]). Each round adds the candidate with the smallest p-value
+//! of its F test when it is below `alpha / (candidates left)` (Bonferroni, family-wise `alpha`
+//! per round), then drops any chosen effect whose partial F test (given all the others) is no
+//! longer significant at `alpha / (effects chosen)`; it stops when no candidate is significant.
+//! Ranking by p-value, not F, lets a three- or six-parameter effect win over a one-parameter one
+//! of the same strength. The F test takes the rows as independent with equal variance: neighbouring equations share
 //! a block (a lag-one correlation of -0.5 in the noise, which makes the test conservative for a
 //! smooth effect) and an effect left out colours the residual the other way (the report gives
 //! the lag-one autocorrelation). With thousands of rows a small effect becomes significant: a
@@ -76,8 +76,11 @@
 use serde::Serialize;
 
 use super::model::cross;
+use super::selection::{
+    self, j6, mat_vec, unit_mat_vec, Candidates, Fit, LoopError, Named, Rank, Rules, Selection,
+    Steps, V3,
+};
 use super::stats;
-use super::tensor::{f_sf, lag_one, mat_vec, unit_mat_vec};
 use crate::identify::{identify, IdentifyOptions, RotorHold};
 use crate::vehicle::Vehicle;
 use crate::Recording;
@@ -90,8 +93,6 @@ pub const MIN_EQUATIONS: usize = 40;
 
 /// Gauss-Newton iterations at most.
 const MAX_ITERATIONS: usize = 30;
-
-type V3 = [f64; 3];
 
 /// The effects (TBA) can take, in a fixed order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -143,6 +144,12 @@ impl VehicleEffect {
             VehicleEffect::GravityGradient => &["gamma"],
             VehicleEffect::MagneticDipole => &["m_x", "m_y", "m_z"],
         }
+    }
+}
+
+impl Named for VehicleEffect {
+    fn label(self) -> String {
+        self.name().to_string()
     }
 }
 
@@ -226,37 +233,12 @@ pub struct SelectedEffect {
     pub p: f64,
 }
 
-/// One candidate tried in a round.
-#[derive(Clone, Debug, Serialize)]
-pub struct VehicleCandidate {
-    /// The effect.
-    pub effect: VehicleEffect,
-    /// F statistic of adding it.
-    pub f: f64,
-    /// Its p-value.
-    pub p: f64,
-    /// RMS residual with it, kg m^2/s.
-    pub residual_rms: f64,
-    /// Its parameters fitted with the model so far.
-    pub params: Vec<f64>,
-    /// Their standard deviations.
-    pub std: Vec<f64>,
-    /// The tensor fitted with it, kg m^2.
-    pub tensor_kg_m2: [[f64; 3]; 3],
-}
+/// One candidate tried in a round (its parameters in the order of
+/// [`VehicleEffect::param_names`], with their standard deviations).
+pub type VehicleCandidate = selection::Candidate<VehicleEffect>;
 
-/// One selection round.
-#[derive(Clone, Debug, Serialize)]
-pub struct VehicleRound {
-    /// Every candidate tried.
-    pub candidates: Vec<VehicleCandidate>,
-    /// The one added, if any was significant.
-    pub chosen: Option<VehicleEffect>,
-    /// The level each candidate was tested at.
-    pub level: f64,
-    /// Effects dropped after the addition (their partial F test no longer significant).
-    pub removed: Vec<VehicleEffect>,
-}
+/// One selection round (with the effects the backward step dropped).
+pub type VehicleRound = selection::Round<VehicleEffect>;
 
 /// A candidate the log cannot test.
 #[derive(Clone, Debug, Serialize)]
@@ -315,23 +297,6 @@ pub struct VehicleAnalysis {
     /// Residual per equation before and after: `(t_mid, before, after)`.
     #[serde(skip)]
     pub residuals: Vec<(f64, V3, V3)>,
-}
-
-/// Why [`analyse_vehicle`] gave no result.
-#[derive(Clone, Debug, PartialEq)]
-pub enum VehicleLoopError {
-    /// The input cannot be used (the command exits 3).
-    Input(String),
-    /// The data cannot determine the tensor and its effects (exit 4).
-    Data(String),
-}
-
-impl core::fmt::Display for VehicleLoopError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self {
-            VehicleLoopError::Input(m) | VehicleLoopError::Data(m) => f.write_str(m),
-        }
-    }
 }
 
 /// The samples the fits take, in `f64`.
@@ -466,10 +431,6 @@ fn unit(k: usize) -> V3 {
     let mut e = [0.0; 3];
     e[k] = 1.0;
     e
-}
-
-fn j6(theta: &[f64]) -> [f64; 6] {
-    [theta[0], theta[1], theta[2], theta[3], theta[4], theta[5]]
 }
 
 /// The gyro bias at sample `i` under `theta`.
@@ -614,27 +575,6 @@ fn linearise(
     (rows, res)
 }
 
-/// A converged fit.
-#[derive(Clone)]
-struct Fit {
-    theta: Vec<f64>,
-    cov: Vec<Vec<f64>>,
-    xtx_inv: Vec<Vec<f64>>,
-    rss: f64,
-    n: usize,
-    residuals: Vec<V3>,
-}
-
-impl Fit {
-    fn sd(&self, k: usize) -> f64 {
-        self.cov[k][k].max(0.0).sqrt()
-    }
-
-    fn j(&self) -> [f64; 6] {
-        j6(&self.theta)
-    }
-}
-
 /// Gauss-Newton from `j0` (the effects' parameters from zero) until every step is below a
 /// millionth of its standard deviation; `None` when the normal equations are singular or the
 /// iteration does not settle.
@@ -720,10 +660,6 @@ fn tensor_std_rel(fit: &Fit) -> f64 {
     var.sqrt() / frobenius6(&fit.j())
 }
 
-fn matrix(j: &[f64; 6]) -> [[f64; 3]; 3] {
-    [[j[0], j[3], j[4]], [j[3], j[1], j[5]], [j[4], j[5], j[2]]]
-}
-
 /// The block lengths tried, 2, 3, 4, 6, 8, 12, ... samples.
 fn block_grid(max: usize) -> Vec<usize> {
     let mut out = Vec::new();
@@ -742,8 +678,8 @@ fn block_grid(max: usize) -> Vec<usize> {
 pub fn analyse_vehicle(
     rec: &Recording,
     opts: &VehicleOptions,
-) -> Result<VehicleAnalysis, VehicleLoopError> {
-    use VehicleLoopError::Input;
+) -> Result<VehicleAnalysis, LoopError> {
+    use LoopError::Input;
     let v = &opts.vehicle;
     if rec.wheels.len() != v.rotors.len() {
         return Err(Input(format!(
@@ -841,11 +777,7 @@ pub fn analyse_vehicle(
         mag,
         t_ref,
     };
-    let noise = f64::from(crate::recording::white_noise(
-        crate::recording::estimate_noise(&rec.gyro),
-        rec.gyro_filters.as_ref(),
-        crate::recording::median_dt(&rec.t),
-    ));
+    let noise = selection::gyro_noise(rec);
     let dt_med = crate::recording::median_dt(&rec.t);
     let used: usize = runs.iter().map(|(a, b)| b - a).sum();
     let candidates: Vec<VehicleEffect> = VehicleEffect::ALL
@@ -855,7 +787,7 @@ pub fn analyse_vehicle(
     // The block length: given, or the one whose fit has the smallest expected error, first
     // for the tensor alone, then (when effects were chosen and the length changes) for the
     // model chosen, the selection run again at that length.
-    let (lay, choice, sel) = match opts.block_s {
+    let (lay, choice, (base, sel)) = match opts.block_s {
         Some(s) => {
             let lay = layout(&rec.t, &runs, ((s / dt_med).round() as usize).max(2));
             let sel = select(&series, &lay, &candidates, opts.alpha)?;
@@ -863,14 +795,14 @@ pub fn analyse_vehicle(
         }
         None => {
             let (lay, mut choice) = choose_block(&series, &runs, used, &[], noise)?;
-            let sel = select(&series, &lay, &candidates, opts.alpha)?;
+            let (base, sel) = select(&series, &lay, &candidates, opts.alpha)?;
             if sel.chosen.is_empty() {
-                (lay, choice, sel)
+                (lay, choice, (base, sel))
             } else {
                 let (lay2, choice2) = choose_block(&series, &runs, used, &sel.chosen, noise)?;
                 choice.extend(choice2);
                 if lay2.per_block == lay.per_block {
-                    (lay, choice, sel)
+                    (lay, choice, (base, sel))
                 } else {
                     let sel2 = select(&series, &lay2, &candidates, opts.alpha)?;
                     (lay2, choice, sel2)
@@ -879,9 +811,8 @@ pub fn analyse_vehicle(
         }
     };
     let Selection {
-        base,
         chosen,
-        cur,
+        fit: cur,
         rounds,
     } = sel;
     let jb = base.j();
@@ -889,12 +820,15 @@ pub fn analyse_vehicle(
     let after = report(&series, &cur, &lay, &chosen, noise);
     let before = report(&series, &base, &lay, &[], noise);
     let model = Model::new(&chosen);
+    let eqs = Equations {
+        series: &series,
+        lay: &lay,
+    };
     let mut effects = Vec::new();
     for (k, e) in chosen.iter().enumerate() {
         let o = model.offset(*e).unwrap_or(6);
-        let (fs, pv) = fit(&series, &lay, &without(&chosen, k), &cur.j())
-            .map(|f0| f_test(&f0, &cur))
-            .unwrap_or((f64::NAN, f64::NAN));
+        let (fs, pv) = selection::drop_test(&eqs, &chosen, &cur, k)
+            .map_or((f64::NAN, f64::NAN), |(f, p, _)| (f, p));
         let (what, size, unit) = effect_size(&series, &lay, &model, &cur.theta, *e);
         effects.push(SelectedEffect {
             effect: *e,
@@ -951,7 +885,7 @@ fn choose_block(
     used: usize,
     effects: &[VehicleEffect],
     noise: f64,
-) -> Result<(Layout, Vec<BlockChoice>), VehicleLoopError> {
+) -> Result<(Layout, Vec<BlockChoice>), LoopError> {
     let mut choice = Vec::new();
     let mut best: Option<(f64, Layout)> = None;
     for l in block_grid(used / 2) {
@@ -978,7 +912,7 @@ fn choose_block(
         }
     }
     let lay = best.map(|b| b.1).ok_or_else(|| {
-        VehicleLoopError::Data(format!(
+        LoopError::Data(format!(
             "{used} samples of free flight: too few for {MIN_EQUATIONS} equations of the tensor \
              and its effects"
         ))
@@ -986,130 +920,53 @@ fn choose_block(
     Ok((lay, choice))
 }
 
-/// A selection's outcome at one block length.
-struct Selection {
-    base: Fit,
-    chosen: Vec<VehicleEffect>,
-    cur: Fit,
-    rounds: Vec<VehicleRound>,
+/// (TBA) over the equations of one block length, for [`selection::select`].
+struct Equations<'a> {
+    series: &'a Series,
+    lay: &'a Layout,
 }
 
-/// Forward selection by p-value with backward elimination (see the module documentation).
+impl Candidates for Equations<'_> {
+    type Effect = VehicleEffect;
+    type Fit = Fit;
+
+    /// Gauss-Newton from the tensor of `from` ([`fit`]).
+    fn fit(&self, effects: &[VehicleEffect], from: &Fit) -> Option<Fit> {
+        fit(self.series, self.lay, effects, &from.j())
+    }
+
+    fn ls(fit: &Fit) -> &Fit {
+        fit
+    }
+
+    fn params(&self, fit: &Fit, e: VehicleEffect) -> (Vec<f64>, Option<Vec<f64>>) {
+        let at = fit.theta.len() - e.n_params();
+        let std = (at..fit.theta.len()).map(|k| fit.sd(k)).collect();
+        (fit.theta[at..].to_vec(), Some(std))
+    }
+}
+
+/// The tensor alone and the selection from it at one block length: forward by p-value with
+/// backward elimination (see the module documentation).
 fn select(
     series: &Series,
     lay: &Layout,
     candidates: &[VehicleEffect],
     alpha: f64,
-) -> Result<Selection, VehicleLoopError> {
-    if lay.pairs.len() < 10 {
-        return Err(VehicleLoopError::Data(format!(
-            "{} equations: too few for the tensor and its effects",
-            lay.pairs.len()
-        )));
-    }
+) -> Result<(Fit, Selection<VehicleEffect, Fit>), LoopError> {
+    selection::enough(lay.pairs.len(), "equations")?;
     let base = fit(series, lay, &[], &[0.0; 6])
-        .ok_or_else(|| VehicleLoopError::Data("the tensor is not determined".into()))?;
-    let mut chosen: Vec<VehicleEffect> = Vec::new();
-    let mut cur = base.clone();
-    let mut rounds = Vec::new();
-    loop {
-        let left: Vec<VehicleEffect> = candidates
-            .iter()
-            .copied()
-            .filter(|e| !chosen.contains(e))
-            .collect();
-        if left.is_empty() {
-            break;
-        }
-        let level = alpha / left.len() as f64;
-        let mut cands = Vec::new();
-        let mut best: Option<(f64, VehicleEffect, Fit)> = None;
-        for e in left {
-            let with: Vec<VehicleEffect> = chosen.iter().copied().chain([e]).collect();
-            let Some(f1) = fit(series, lay, &with, &cur.j()) else {
-                continue;
-            };
-            let (fs, pv) = f_test(&cur, &f1);
-            let at = f1.theta.len() - e.n_params();
-            cands.push(VehicleCandidate {
-                effect: e,
-                f: fs,
-                p: pv,
-                residual_rms: (f1.rss / f1.n as f64).sqrt(),
-                params: f1.theta[at..].to_vec(),
-                std: (at..f1.theta.len()).map(|k| f1.sd(k)).collect(),
-                tensor_kg_m2: matrix(&f1.j()),
-            });
-            if pv < level && best.as_ref().is_none_or(|b| pv < b.0) {
-                best = Some((pv, e, f1));
-            }
-        }
-        let Some((_, e, f1)) = best else {
-            rounds.push(VehicleRound {
-                candidates: cands,
-                chosen: None,
-                level,
-                removed: Vec::new(),
-            });
-            break;
-        };
-        chosen.push(e);
-        cur = f1;
-        // Backward: drop the least significant chosen effect while one is not significant.
-        let mut removed = Vec::new();
-        while chosen.len() > 1 {
-            let lvl = alpha / chosen.len() as f64;
-            let mut worst: Option<(f64, usize, Fit)> = None;
-            for k in 0..chosen.len() {
-                let Some(f0) = fit(series, lay, &without(&chosen, k), &cur.j()) else {
-                    continue;
-                };
-                let (_, pv) = f_test(&f0, &cur);
-                if pv >= lvl && worst.as_ref().is_none_or(|w| pv > w.0) {
-                    worst = Some((pv, k, f0));
-                }
-            }
-            let Some((_, k, f0)) = worst else {
-                break;
-            };
-            removed.push(chosen.remove(k));
-            cur = f0;
-        }
-        rounds.push(VehicleRound {
-            candidates: cands,
-            chosen: Some(e),
-            level,
-            removed,
-        });
+        .ok_or_else(|| LoopError::Data("the tensor is not determined".into()))?;
+    let rules = Rules {
+        alpha,
+        rank: Rank::SmallestP,
         // An effect dropped may come back; the rounds are bounded all the same.
-        if rounds.len() >= 4 * VehicleEffect::ALL.len() {
-            break;
-        }
-    }
-    Ok(Selection {
-        base,
-        chosen,
-        cur,
-        rounds,
-    })
-}
-
-/// `effects` without its `k`-th.
-fn without(effects: &[VehicleEffect], k: usize) -> Vec<VehicleEffect> {
-    effects
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| *i != k)
-        .map(|(_, x)| *x)
-        .collect()
-}
-
-/// The F test of the larger fit `f1` against the nested `f0`: F and its p-value.
-fn f_test(f0: &Fit, f1: &Fit) -> (f64, f64) {
-    let q = (f1.theta.len() - f0.theta.len()) as f64;
-    let dof = f1.n as f64 - f1.theta.len() as f64;
-    let f = ((f0.rss - f1.rss) / q) / (f1.rss / dof);
-    (f, f_sf(f, q, dof))
+        steps: Steps::ForwardBackward {
+            max_rounds: 4 * VehicleEffect::ALL.len(),
+        },
+    };
+    let sel = selection::select(&Equations { series, lay }, base.clone(), candidates, &rules);
+    Ok((base, sel))
 }
 
 /// What an effect's size is, its value and unit, over the samples of the blocks.
@@ -1222,21 +1079,15 @@ fn report(
     effects: &[VehicleEffect],
     noise: f64,
 ) -> VehicleFitReport {
-    let j = fit.j();
-    let t = matrix(&j);
-    let s: Vec<f64> = (0..6).map(|k| fit.sd(k)).collect();
-    let ts = [[s[0], s[3], s[4]], [s[3], s[1], s[5]], [s[4], s[5], s[2]]];
-    let (ev, _) = crate::calibrate::eigen(&t);
-    let rms = (fit.rss / fit.n.max(1) as f64).sqrt();
     let floor = noise_floor(series, lay, &Model::new(effects), &fit.theta, noise);
     VehicleFitReport {
         effects: effects.to_vec(),
-        tensor_kg_m2: t,
-        tensor_std_kg_m2: ts,
-        principal_moments: ev,
-        residual_rms: rms,
-        residual_over_noise: if floor > 0.0 { rms / floor } else { f64::NAN },
-        residual_lag1: lag_one(&fit.residuals),
+        tensor_kg_m2: fit.tensor(),
+        tensor_std_kg_m2: fit.tensor_std(),
+        principal_moments: fit.principal_moments(),
+        residual_rms: fit.residual_rms(),
+        residual_over_noise: fit.residual_over(floor),
+        residual_lag1: fit.residual_lag1(),
         eiv_bias_rel: eiv_bias_rel(fit, lay, noise),
     }
 }
@@ -1264,11 +1115,7 @@ pub fn summary_line(an: &VehicleAnalysis) -> String {
         an.after.residual_rms,
         an.before.residual_over_noise,
         an.after.residual_over_noise,
-        if names.is_empty() {
-            "none".to_string()
-        } else {
-            names.join(", ")
-        },
+        selection::names_or_none(&names),
         100.0 * an.tensor_change
     )
 }
@@ -1310,50 +1157,21 @@ pub fn markdown(an: &VehicleAnalysis, title: &str) -> String {
     for u in &an.unavailable {
         s += &format!("Not a candidate: {} ({}).\n\n", u.effect.name(), u.reason);
     }
-    s += "| model | residual RMS (kg m^2/s) | / gyro noise's share | lag-1 autocorrelation | principal moments (kg m^2) |\n|---|---|---|---|---|\n";
-    for (name, r) in [("before (tensor)", &an.before), ("after", &an.after)] {
-        s += &format!(
-            "| {name} | {:.3e} | {:.2} | {:.2} | {:.5e}, {:.5e}, {:.5e} |\n",
-            r.residual_rms,
-            r.residual_over_noise,
-            r.residual_lag1,
-            r.principal_moments[0],
-            r.principal_moments[1],
-            r.principal_moments[2]
-        );
-    }
-    s += "\n| round | candidate | F | p | residual RMS | chosen |\n|---|---|---|---|---|---|\n";
-    for (i, r) in an.rounds.iter().enumerate() {
-        for c in &r.candidates {
-            s += &format!(
-                "| {} | {} | {:.1} | {:.1e} | {:.3e} | {} |\n",
-                i + 1,
-                c.effect.name(),
-                c.f,
-                c.p,
-                c.residual_rms,
-                if r.chosen == Some(c.effect) {
-                    "yes"
-                } else {
-                    ""
-                }
-            );
-        }
-        for e in &r.removed {
-            s += &format!("| {} | {} | | | | dropped |\n", i + 1, e.name());
-        }
-    }
+    let row = |name, r: &VehicleFitReport| {
+        let (rms, lag1, m) = (r.residual_rms, r.residual_lag1, r.principal_moments);
+        (name, rms, r.residual_over_noise, lag1, m)
+    };
+    s += &selection::fits_table(
+        [row("before (tensor)", &an.before), row("after", &an.after)],
+        2,
+        5,
+    );
+    s += &selection::rounds_table(&an.rounds);
     for e in &an.effects {
-        let v: Vec<String> = e
-            .names
-            .iter()
-            .zip(e.values.iter().zip(e.std.iter()))
-            .map(|(n, (v, sd))| format!("{n} = {v:.4e} +- {sd:.1e}"))
-            .collect();
         s += &format!(
             "\n{}: {}; {} {:.3e} {} (partial F {:.1}, p {:.1e})\n",
             e.effect.name(),
-            v.join(", "),
+            selection::param_list(&e.names, &e.values, &e.std, 4),
             e.size_what,
             e.size,
             e.size_unit,
@@ -1361,10 +1179,7 @@ pub fn markdown(an: &VehicleAnalysis, title: &str) -> String {
             e.p
         );
     }
-    s += &format!(
-        "\nThe tensor moved by {:.3} % (Frobenius) from before to after.\n",
-        100.0 * an.tensor_change
-    );
+    s += &selection::moved_line(an.tensor_change, 3);
     s
 }
 
