@@ -332,6 +332,52 @@ fn a_vehicle_file_of_one_rotor_calibrates_as_the_rotor_flags_do() {
     );
 }
 
+/// The field a vehicle file names is the rotor calibrated, not the log's own `erpm[0]`: naming
+/// `motor[3]` (a motor command, read as rad/s) gives another rotor inertia than the flywheel's.
+#[test]
+fn calibrate_reads_the_field_the_vehicle_file_names() {
+    let (Some(board), Some(proof)) = (logs("device_only"), logs("proof_body")) else {
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("calibrate_field_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |column: &str, unit: &str| {
+        let vehicle = dir.join(format!("{}.toml", column.replace(['[', ']'], "_")));
+        std::fs::write(
+            &vehicle,
+            format!(
+                "[[rotor]]\nname = \"r\"\ncolumn = \"{column}\"\ninertia_kg_m2 = 1.689e-6\n\
+                 axis = [0.0, 0.0, -1.0]\n{unit}\n"
+            ),
+        )
+        .unwrap();
+        inertia::calibrate::run(&inertia::calibrate::CalibrateArgs {
+            board: board.clone(),
+            assembly: proof.clone(),
+            proof_inertia: vec![1.301e-4, 1.676e-4, 2.451e-4],
+            board_mass: 0.10067,
+            proof_mass: 0.346,
+            object: Vec::new(),
+            object_mass: None,
+            rotor_axis: None,
+            rotor_poles: None,
+            vehicle: Some(vehicle),
+            json: dir.join("unused.json"),
+            plots: None,
+        })
+    };
+    let flywheel = run("erpm[0]", "poles = 14").unwrap().rotor_inertia_kg_m2;
+    let other = run("motor[3]", "speed_unit = \"rad/s\"").map(|r| r.rotor_inertia_kg_m2);
+    println!("j: erpm[0] {flywheel:e}, motor[3] {other:?}");
+    assert!((flywheel / 1.689e-6 - 1.0).abs() < 0.05, "{flywheel:e}");
+    assert!(
+        other
+            .as_ref()
+            .map_or(true, |j| (j / flywheel - 1.0).abs() > 0.05),
+        "motor[3] gave the flywheel's rotor inertia: {other:?}"
+    );
+}
+
 /// A vehicle file naming the blackbox field `eRPM[0]` reads the flywheel's speed from it: the
 /// same tensor as `--rotor-inertia --rotor-axis --rotor-poles`; a field the log lacks is named.
 #[test]
