@@ -290,6 +290,30 @@ fn several_object_throws_are_reported_each_and_their_spread_checked() {
     }
 }
 
+/// The calibration set's arguments (the data README's masses and proof body), the rotor from
+/// `vehicle` or, without one, from the flags `--rotor-axis -z --rotor-poles 14`.
+fn calibration(
+    board: &[PathBuf],
+    proof: &[PathBuf],
+    vehicle: Option<PathBuf>,
+    dir: &std::path::Path,
+) -> inertia::calibrate::CalibrateArgs {
+    inertia::calibrate::CalibrateArgs {
+        board: board.to_vec(),
+        assembly: proof.to_vec(),
+        proof_inertia: vec![1.301e-4, 1.676e-4, 2.451e-4],
+        board_mass: 0.10067,
+        proof_mass: 0.346,
+        object: Vec::new(),
+        object_mass: None,
+        rotor_axis: vehicle.is_none().then_some([0.0, 0.0, -1.0]),
+        rotor_poles: vehicle.is_none().then_some(14),
+        vehicle,
+        json: dir.join("unused.json"),
+        plots: None,
+    }
+}
+
 /// A vehicle file of the one flywheel (axis and poles; its inertia is what is calibrated)
 /// gives the same calibration as `--rotor-axis -z --rotor-poles 14`.
 #[test]
@@ -306,20 +330,7 @@ fn a_vehicle_file_of_one_rotor_calibrates_as_the_rotor_flags_do() {
          axis = [0.0, 0.0, -1.0]\npoles = 14\n",
     )
     .unwrap();
-    let args = |vehicle: Option<PathBuf>| inertia::calibrate::CalibrateArgs {
-        board: board.clone(),
-        assembly: proof.clone(),
-        proof_inertia: vec![1.301e-4, 1.676e-4, 2.451e-4],
-        board_mass: 0.10067,
-        proof_mass: 0.346,
-        object: Vec::new(),
-        object_mass: None,
-        rotor_axis: vehicle.is_none().then_some([0.0, 0.0, -1.0]),
-        rotor_poles: vehicle.is_none().then_some(14),
-        vehicle,
-        json: dir.join("unused.json"),
-        plots: None,
-    };
+    let args = |vehicle: Option<PathBuf>| calibration(&board, &proof, vehicle, &dir);
     let flags = inertia::calibrate::run(&args(None)).unwrap();
     let file = inertia::calibrate::run(&args(Some(vehicle))).unwrap();
     println!(
@@ -351,20 +362,7 @@ fn calibrate_reads_the_field_the_vehicle_file_names() {
             ),
         )
         .unwrap();
-        inertia::calibrate::run(&inertia::calibrate::CalibrateArgs {
-            board: board.clone(),
-            assembly: proof.clone(),
-            proof_inertia: vec![1.301e-4, 1.676e-4, 2.451e-4],
-            board_mass: 0.10067,
-            proof_mass: 0.346,
-            object: Vec::new(),
-            object_mass: None,
-            rotor_axis: None,
-            rotor_poles: None,
-            vehicle: Some(vehicle),
-            json: dir.join("unused.json"),
-            plots: None,
-        })
+        inertia::calibrate::run(&calibration(&board, &proof, Some(vehicle), &dir))
     };
     let flywheel = run("erpm[0]", "poles = 14").unwrap().rotor_inertia_kg_m2;
     let other = run("motor[3]", "speed_unit = \"rad/s\"").map(|r| r.rotor_inertia_kg_m2);
