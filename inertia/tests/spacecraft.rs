@@ -103,7 +103,7 @@ fn gravity_gradient_is_folded_in_where_the_orbit_has_it_and_not_where_it_does_no
 }
 
 #[test]
-fn a_residual_dipole_or_a_truncating_walking_gyro_is_never_converged() {
+fn a_residual_dipole_or_a_truncating_walking_gyro_is_never_converged_and_says_how_far() {
     for name in ["leo-dipole-1hz", "mems-walk-10hz"] {
         let rep = identify(name);
         let (fro, z) = errors(&rep, &truth(name));
@@ -112,6 +112,10 @@ fn a_residual_dipole_or_a_truncating_walking_gyro_is_never_converged() {
             rep.pooled.tensor_status, rep.pooled.residual_ratio
         );
         assert_ne!(rep.pooled.tensor_status, "Converged", "{name}");
+        // Their residuals are near the noise's level but coloured ((F10') of the tensor fit):
+        // the standard deviations grow with the residual seen, so the error stays within them
+        // as in the other logs here.
+        assert!(z < 4.0, "{name}: max |error| / std {z}");
     }
 }
 
