@@ -1010,6 +1010,8 @@ pub(crate) struct StretchResult<const M: usize> {
     /// Lag-1 autocorrelation of the block residuals, measured where the fit does not fit to
     /// the noise (0 otherwise).
     pub(crate) lag1: f32,
+    /// The residual, near the noise's level, is coloured (`tensor_fit`'s (F10')).
+    pub(crate) coloured: bool,
     /// The cost with a constant torque fitted, when its score test rejected the torque-free
     /// model (`None`: not rejected, or not tested).
     pub(crate) torque: Option<f32>,
@@ -1045,6 +1047,8 @@ pub(crate) struct FitState<const N: usize, const K: usize, const M: usize> {
     pub(crate) torque_cost: f32,
     /// A closed stretch's score test found the gyro's scale factors off.
     pub(crate) scale: bool,
+    /// A closed stretch's residual was coloured near the noise's level (`tensor_fit`'s (F10')).
+    pub(crate) coloured: bool,
     pub(crate) last: StretchOutcome,
     /// The stretches pooled with the bias model wherever it was fitted ([`StretchResult::alt`]
     /// or taken), for the pooled comparison of the two models.
@@ -1062,6 +1066,7 @@ impl<const N: usize, const K: usize, const M: usize> FitState<N, K, M> {
         torque: false,
         torque_cost: 0.0,
         scale: false,
+        coloured: false,
         last: StretchOutcome::Empty,
         alt_pooled: Pooled::EMPTY,
         alt_complete: true,
@@ -1121,11 +1126,13 @@ impl<const N: usize, const K: usize, const M: usize> FitState<N, K, M> {
         }
     }
 
-    /// Keeps a pooled stretch's torque test: whether it rejected, and its cost with the torque.
+    /// Keeps a pooled stretch's tests: whether its torque test rejected, and its cost with the
+    /// torque; its scale test; whether its residual was coloured.
     fn note_torque<const M2: usize>(&mut self, r: &StretchResult<M2>) {
         self.torque |= r.torque.is_some();
         self.torque_cost += r.torque.unwrap_or(r.cost);
         self.scale |= r.scale;
+        self.coloured |= r.coloured;
     }
 
     /// [`FitState::close`] pooling into `pooled` instead of the state's own (a fit of other

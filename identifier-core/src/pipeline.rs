@@ -447,9 +447,10 @@ impl<const N: usize> Pipeline<N> {
                 let j = [t[0][0], t[1][1], t[2][2], t[0][1], t[0][2], t[1][2]];
                 let ratio = f.noise / noise;
                 if self.rotor_seen {
-                    self.estimator.with_tensor(own, j, f.cov, ratio)
+                    self.estimator.with_tensor(own, j, f.cov, ratio, f.coloured)
                 } else {
-                    self.estimator.with_normalized(own, j, f.cov, ratio)
+                    self.estimator
+                        .with_normalized(own, j, f.cov, ratio, f.coloured)
                 }
             }
             _ => own,

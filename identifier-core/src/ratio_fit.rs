@@ -1092,6 +1092,7 @@ impl<const N: usize> RatioFit<N> {
                 params,
                 bias: biased.then_some([fit.theta[5], fit.theta[6], fit.theta[7]]),
                 lag1: 0.0,
+                coloured: false,
                 torque,
                 scale: false,
                 alt: None,

@@ -986,8 +986,9 @@ impl TensorEstimator {
     /// `base` (this estimator's own estimate on the same samples) with the tensor replaced by
     /// `j` (entries xx, yy, zz, xy, xz, yz in kg m^2) of covariance `cov`, from another fit of
     /// the same samples (the output-error [`crate::TensorFit`]) whose residual is
-    /// `residual_ratio` times the gyro noise: the full model, described and judged as the
-    /// estimator's own. `NoExcitation` from the equation error's own measure (which is that
+    /// `residual_ratio` times the gyro noise (`coloured`: that residual is coloured, (F10') of
+    /// the fit, so it does not fit to the noise whatever its level): the full model, described
+    /// and judged as the estimator's own. `NoExcitation` from the equation error's own measure (which is that
     /// of the tensor up to scale) gives way to the fit's `Converged` or `Converging`: a body
     /// whose total momentum is zero (a satellite at rest, turned by its wheels alone, `J w =
     /// -h`) leaves the homogeneous equations nothing, while the rotor's momentum still
@@ -998,8 +999,9 @@ impl TensorEstimator {
         j: [f32; 6],
         cov: Sym<6>,
         residual_ratio: f32,
+        coloured: bool,
     ) -> TensorEstimate {
-        let out = self.with_fit(base, j, cov, residual_ratio, Some((j, cov)));
+        let out = self.with_fit(base, j, cov, residual_ratio, coloured, Some((j, cov)));
         let informative = matches!(out.status, Status::Converged | Status::Converging);
         if base.status == Status::NoExcitation && !informative {
             return base;
@@ -1010,8 +1012,8 @@ impl TensorEstimator {
     /// `base` with the tensor up to scale replaced by `nj` (entries xx, yy, zz, xy, xz, yz of
     /// `J / trace J`) of covariance `cov_n`, from the output-error fit of the same samples
     /// without rotor momentum ([`crate::TensorFit::close_normalized`]) whose residual is
-    /// `residual_ratio` times the gyro noise: the full model, described and judged as the
-    /// estimator's own. `base` is returned unchanged when there are too few samples or the
+    /// `residual_ratio` times the gyro noise (`coloured` as for [`TensorEstimator::with_tensor`]):
+    /// the full model, described and judged as the estimator's own. `base` is returned unchanged when there are too few samples or the
     /// units look wrong. `NoExcitation` from the equation error's own measure is kept unless
     /// the fit is `Converged`: a body spinning near a principal axis gives the equation error
     /// too little to go on while the trajectory still determines `J / trace J` to its
@@ -1022,8 +1024,9 @@ impl TensorEstimator {
         nj: [f32; 6],
         cov_n: Sym<6>,
         residual_ratio: f32,
+        coloured: bool,
     ) -> TensorEstimate {
-        let out = self.with_fit(base, nj, cov_n, residual_ratio, None);
+        let out = self.with_fit(base, nj, cov_n, residual_ratio, coloured, None);
         // Lifted from `NoExcitation` only as far as `Converged`: a still gyro's noise still
         // gives the fit a finite covariance, and "converging" would say more than it knows.
         if base.status == Status::NoExcitation && out.status != Status::Converged {
@@ -1041,6 +1044,7 @@ impl TensorEstimator {
         nj: [f32; 6],
         cov_n: Sym<6>,
         residual_ratio: f32,
+        coloured: bool,
         absolute: Option<([f32; 6], Sym<6>)>,
     ) -> TensorEstimate {
         if matches!(base.status, Status::TooFewSamples | Status::UnitsLookWrong) {
@@ -1060,8 +1064,10 @@ impl TensorEstimator {
         // `Converged`: `ModelMismatch`, the estimate usable with its stated uncertainty.
         // Where the momentum is read in steps ((F7), (F8) of the fit), the residual also holds
         // the reading's expected error, and `mismatch_ratio` alone judges it.
+        // A residual at the noise's level that is coloured ((F10') of the fit) does not fit to
+        // the noise either: a walking or truncating gyro, a small unmodelled torque.
         let exact_momentum = !(self.settings.momentum_resolution > 0.0);
-        let fits = residual_ratio <= OUTPUT_ERROR_FIT_RATIO || !exact_momentum;
+        let fits = (residual_ratio <= OUTPUT_ERROR_FIT_RATIO && !coloured) || !exact_momentum;
         if !fits && matches!(out.status, Status::Converged | Status::Converging) {
             out.status = Status::ModelMismatch;
         }

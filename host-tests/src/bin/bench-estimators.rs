@@ -1027,7 +1027,7 @@ fn fly_estimate(
             Some(f) => {
                 let t = &f.tensor;
                 let j = [t[0][0], t[1][1], t[2][2], t[0][1], t[0][2], t[1][2]];
-                e.with_tensor(est, j, f.cov, f.noise / sigma as f32)
+                e.with_tensor(est, j, f.cov, f.noise / sigma as f32, f.coloured)
             }
             None => identifier_core::TensorEstimate {
                 tensor: None,

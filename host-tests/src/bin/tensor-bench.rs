@@ -119,7 +119,7 @@ fn main() {
                 Some(f) => {
                     let t = &f.tensor;
                     let j = [t[0][0], t[1][1], t[2][2], t[0][1], t[0][2], t[1][2]];
-                    e.with_tensor(base, j, f.cov, f.noise / sigma as f32)
+                    e.with_tensor(base, j, f.cov, f.noise / sigma as f32, f.coloured)
                 }
                 None => TensorEstimate {
                     tensor: None,

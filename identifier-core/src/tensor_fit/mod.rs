@@ -151,6 +151,9 @@
 //! rho > 4 / sqrt(3 n)      (n blocks, three axes)                                   (F10')
 //! ```
 //!
+//! where the residual is at least the noise's level (a residual below it, such as a noise-free
+//! log's rounding, fits to the noise whatever its colour).
+//!
 //! A gyro whose bias walks or that truncates its readings, or a small unmodelled torque, leaves
 //! a residual near the noise's level but coloured, and the white covariance then claims
 //! information the flight does not hold (the spacecraft benchmark's MEMS gyro and residual
@@ -250,6 +253,10 @@ pub struct TensorFitEstimate {
     /// The fits' weighted cost `sum_b n_b |ybar_b - w_b|^2` summed over the pooled stretches,
     /// (rad/s)^2.
     pub cost: f32,
+    /// True when a pooled stretch's residual, near the noise's level, was coloured ((F10'):
+    /// its lag-1 autocorrelation beyond what a white residual gives): the fit does not fit to
+    /// the noise, whatever the residual's level says.
+    pub coloured: bool,
 }
 
 /// Output-error fit of (F1) over free flights, `N` blocks per flight (see the module docs).
@@ -445,11 +452,14 @@ fn fit_model<
             }
             if let Some(c1) = scaled_inverse(&f1) {
                 let g = |i: usize| t1.get(i).copied().unwrap_or(0.0);
-                let (inflation, lag1) = if cost1 > 4.0 * noise_floor * noise_floor * dof1
-                    || coloured(
+                let above = cost1 > 4.0 * noise_floor * noise_floor * dof1;
+                let col = !above
+                    && cost1 > noise_floor * noise_floor * dof1
+                    && coloured(
                         residual_lag1(blocks, &rule, &t1, trace, cells),
                         blocks.len(),
-                    ) {
+                    );
+                let (inflation, lag1) = if above || col {
                     score_inflation(blocks, &rule, &t1, trace, cells, &c1, cost1, dof1)
                 } else {
                     ([1.0; M], 0.0)
@@ -475,6 +485,7 @@ fn fit_model<
                     params: PB,
                     bias: Some([g(M + 3), g(M + 4), g(M + 5)]),
                     lag1,
+                    coloured: col,
                     torque,
                     scale,
                     alt: None,
@@ -485,11 +496,14 @@ fn fit_model<
     if *cells != Cells::NONE && !cells.plausible(&th) {
         return None;
     }
-    let (inflation, lag1) = if cost0 > fits
-        || coloured(
+    let above = cost0 > fits;
+    let col = !above
+        && cost0 > noise_floor * noise_floor * dof0
+        && coloured(
             residual_lag1(blocks, &rule, &th, trace, cells),
             blocks.len(),
-        ) {
+        );
+    let (inflation, lag1) = if above || col {
         score_inflation(blocks, &rule, &th, trace, cells, &cov0, cost0, dof0)
     } else {
         ([1.0; M], 0.0)
@@ -506,6 +520,7 @@ fn fit_model<
         params: P,
         bias: None,
         lag1,
+        coloured: col,
         torque,
         scale,
         alt,
@@ -1207,6 +1222,7 @@ impl<const N: usize> TensorFit<N> {
             torque: self.state.torque,
             scale_rejected: self.state.scale,
             cost: self.state.pooled.cost(),
+            coloured: self.state.coloured,
         })
     }
 
@@ -1248,6 +1264,7 @@ impl<const N: usize> TensorFit<N> {
             torque: self.state.torque,
             scale_rejected: self.state.scale,
             cost: self.normalized.cost(),
+            coloured: self.state.coloured,
         })
     }
 

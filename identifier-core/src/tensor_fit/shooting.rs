@@ -271,6 +271,7 @@ pub(super) fn fit_segments(
         params,
         bias: None,
         lag1: 0.0,
+        coloured: false,
         torque: None,
         scale: false,
         alt: None,
