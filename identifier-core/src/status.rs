@@ -204,7 +204,8 @@ pub enum Status {
     /// The model does not explain the data: the residual is far above the gyro noise (wrong
     /// time step, contact, thrust, an effect the model lacks). Tensor estimator: the residual
     /// beyond [`crate::TensorSettings::mismatch_ratio`] times the noise, or an output-error
-    /// fit's beyond `OUTPUT_ERROR_FIT_RATIO` times it with an exact rotor momentum. Pipeline:
+    /// fit's beyond `OUTPUT_ERROR_FIT_RATIO` times it with an exact rotor momentum, or at the
+    /// noise's level but coloured ((F10') of the fit: a walking or truncating gyro). Pipeline:
     /// an unmodelled torque, a body that is not rigid or a gyro bias the tensor's model lacks,
     /// or ratios from a model that does not fit the flight. Never given by
     /// [`Status::assess`].
