@@ -383,7 +383,6 @@ fn fit_model<
     let total = blocks.len();
     let rule = StepRule::new(&tensor_of(&six(&th, trace, M))).with_gyro_spread(res.gyro_spread);
     let dof0 = (3 * total) as f32 - P as f32;
-    let fits = 4.0 * noise_floor * noise_floor * dof0;
     let (th, cost0, f0) = whole_or_staged(
         |p, limit| normal(blocks, &rule, limit, p, trace, cells),
         th,
@@ -452,18 +451,16 @@ fn fit_model<
             }
             if let Some(c1) = scaled_inverse(&f1) {
                 let g = |i: usize| t1.get(i).copied().unwrap_or(0.0);
-                let above = cost1 > 4.0 * noise_floor * noise_floor * dof1;
-                let col = !above
-                    && cost1 > noise_floor * noise_floor * dof1
-                    && coloured(
-                        residual_lag1(blocks, &rule, &t1, trace, cells),
-                        blocks.len(),
-                    );
-                let (inflation, lag1) = if above || col {
-                    score_inflation(blocks, &rule, &t1, trace, cells, &c1, cost1, dof1)
-                } else {
-                    ([1.0; M], 0.0)
-                };
+                let (inflation, lag1, col) = residual_inflation(
+                    blocks,
+                    &rule,
+                    &t1,
+                    trace,
+                    cells,
+                    &c1,
+                    (cost1, dof1),
+                    noise_floor,
+                );
                 // The torque's parameters go between the initial rate and the bias.
                 let th_t: [f32; PTB] = core::array::from_fn(|i| {
                     if i < M + 3 {
@@ -496,18 +493,16 @@ fn fit_model<
     if *cells != Cells::NONE && !cells.plausible(&th) {
         return None;
     }
-    let above = cost0 > fits;
-    let col = !above
-        && cost0 > noise_floor * noise_floor * dof0
-        && coloured(
-            residual_lag1(blocks, &rule, &th, trace, cells),
-            blocks.len(),
-        );
-    let (inflation, lag1) = if above || col {
-        score_inflation(blocks, &rule, &th, trace, cells, &cov0, cost0, dof0)
-    } else {
-        ([1.0; M], 0.0)
-    };
+    let (inflation, lag1, col) = residual_inflation(
+        blocks,
+        &rule,
+        &th,
+        trace,
+        cells,
+        &cov0,
+        (cost0, dof0),
+        noise_floor,
+    );
     let th_t: [f32; PT] = leading(&th);
     let (torque, scale) =
         tests_found::<PT, PTS>(blocks, &rule, &th_t, trace, cost0, dof0, noise_floor);
@@ -667,6 +662,38 @@ fn inflated<const M: usize>(c: &Sym<M>, k: &[f32; M]) -> Sym<M> {
     out
 }
 
+/// The fit's inflation where its residual calls for it, with the residual's lag-1
+/// autocorrelation and whether it is coloured near the noise's level: (F10) where the residual
+/// (`cost` over `dof`) is above twice `noise_floor`, or at least at its level and coloured
+/// ((F10'), [`coloured`]); else none (`[1; M]`, 0, false). The lag-1 is computed once, for the
+/// colour test and the batches alike.
+#[allow(clippy::too_many_arguments)]
+fn residual_inflation<const P: usize, const M: usize>(
+    blocks: &[Block<6>],
+    rule: &StepRule,
+    theta: &[f32; P],
+    trace: f32,
+    cells: &Cells,
+    finv: &Sym<P>,
+    (cost, dof): (f32, f32),
+    noise_floor: f32,
+) -> ([f32; M], f32, bool) {
+    // Below the noise's level the residual fits to the noise whatever its colour (a
+    // noise-free log's rounding); written so that a NaN cost inflates nothing.
+    if !(cost > noise_floor * noise_floor * dof) {
+        return ([1.0; M], 0.0, false);
+    }
+    let rho = residual_lag1(blocks, rule, theta, trace, cells);
+    let above = cost > 4.0 * noise_floor * noise_floor * dof;
+    let col = !above && coloured(rho, blocks.len());
+    if above || col {
+        let k = score_inflation(blocks, rule, theta, trace, cells, finv, cost, dof, rho);
+        (k, rho, col)
+    } else {
+        ([1.0; M], 0.0, false)
+    }
+}
+
 /// Fewest batches [`score_inflation`] takes.
 const MIN_BATCHES: usize = 8;
 
@@ -686,7 +713,8 @@ const MIN_BATCHES: usize = 8;
 /// sensitivities do (the initial rates see the start of the flight, the entries of `J` its
 /// whole length). For white noise `E V = s^2 F` and `k_i` is 1 up to the batches' scatter,
 /// which the floor keeps from lowering the white covariance. `theta` and `finv` (`F^-1` at
-/// unit noise) are the fit's optimum; returns the leading `M`.
+/// unit noise) are the fit's optimum, `rho` its residual's lag-1 autocorrelation
+/// ([`residual_lag1`]); returns the leading `M`.
 #[allow(clippy::too_many_arguments)]
 fn score_inflation<const P: usize, const M: usize>(
     blocks: &[Block<6>],
@@ -697,8 +725,8 @@ fn score_inflation<const P: usize, const M: usize>(
     finv: &Sym<P>,
     cost: f32,
     dof: f32,
-) -> ([f32; M], f32) {
-    let rho = residual_lag1(blocks, rule, theta, trace, cells);
+    rho: f32,
+) -> [f32; M] {
     let n = blocks.len();
     let mut sums = BatchScores {
         finv,
@@ -714,7 +742,7 @@ fn score_inflation<const P: usize, const M: usize>(
     let k = sums.batches as f32;
     let s2 = if dof > 0.0 { cost / dof } else { 0.0 };
     let ar1 = correlation_length(rho);
-    let inflation = core::array::from_fn(|i| {
+    core::array::from_fn(|i| {
         let white = s2 * finv.get(i).and_then(|r| r.get(i)).copied().unwrap_or(0.0);
         let seen = if ok && k > 1.0 {
             sums.acc.get(i).copied().unwrap_or(0.0) * k / (k - 1.0)
@@ -722,8 +750,7 @@ fn score_inflation<const P: usize, const M: usize>(
             0.0
         };
         inflation_of(seen, white, ar1)
-    });
-    (inflation, rho)
+    })
 }
 
 /// The absolute fit (six entries in kg m^2) from `init`: of all the blocks, and, when that
