@@ -17,9 +17,7 @@ use common::{
 const MASS: &str = "0.032";
 
 fn out_dir() -> PathBuf {
-    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("export");
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::out_dir("export")
 }
 
 /// Writes the throw as a Betaflight blackbox log `NAME.bbl`: its gyro filters declared in the

@@ -2,7 +2,6 @@
 //! excluded) and simulated `t,wx,wy,wz` logs, including the user mistakes that must never
 //! come out `Converged` (deg/s, time in ms, a still gyro, a clipped toss).
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use log_writers::blackbox as blackbox_writer;
 use log_writers::ulog::{add_logged, header, msg};
@@ -12,30 +11,12 @@ use common::{
     betaflight_header, betaflight_log_of, betaflight_throw, gaussian, without_gyro_filters,
 };
 
-fn exe() -> &'static str {
-    env!("CARGO_BIN_EXE_inertia")
-}
-
 fn out_dir() -> PathBuf {
-    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("identify");
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::out_dir("identify")
 }
 
 fn run(args: &[&str], json: &Path) -> (i32, serde_json::Value, String) {
-    let o = Command::new(exe())
-        .arg("identify")
-        .args(args)
-        .arg("--json")
-        .arg(json)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr).to_string();
-    let v = std::fs::read_to_string(json)
-        .ok()
-        .and_then(|s| serde_json::from_str(&s).ok())
-        .unwrap_or(serde_json::Value::Null);
-    (o.status.code().unwrap_or(-1), v, err)
+    common::identify_cli(args, json)
 }
 
 /// Torque-free principal body, RK4, `t,wx,wy,wz` rows with white noise.

@@ -2,7 +2,6 @@
 //! identified on its own and pooled by their covariances ((P1)-(P3) of `inertia::pool`).
 //! Simulated Betaflight logs of a body with a flywheel spinning up, three seeds.
 use std::path::PathBuf;
-use std::process::Command;
 
 use log_writers::blackbox as blackbox_writer;
 
@@ -10,9 +9,7 @@ mod common;
 use common::{betaflight_header, betaflight_throw, MOMENTS, ROTOR, ROTOR_INERTIA};
 
 fn out_dir() -> PathBuf {
-    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("pool");
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::out_dir("pool")
 }
 
 fn log(seed: u64, w0: [f64; 3]) -> PathBuf {
@@ -28,25 +25,15 @@ fn log(seed: u64, w0: [f64; 3]) -> PathBuf {
 }
 
 fn identify(inputs: &[PathBuf], rotor: bool, json: &str) -> (i32, serde_json::Value, String) {
-    let json = out_dir().join(json);
-    let mut c = Command::new(env!("CARGO_BIN_EXE_inertia"));
-    c.arg("identify");
+    let mut args: Vec<std::ffi::OsString> = Vec::new();
     for i in inputs {
-        c.arg("--input").arg(i);
+        args.push("--input".into());
+        args.push(i.into());
     }
     if rotor {
-        c.args(ROTOR);
+        args.extend(ROTOR.iter().map(Into::into));
     }
-    let o = c.arg("--json").arg(&json).output().unwrap();
-    let v = std::fs::read_to_string(&json)
-        .ok()
-        .and_then(|s| serde_json::from_str(&s).ok())
-        .unwrap_or(serde_json::Value::Null);
-    (
-        o.status.code().unwrap_or(-1),
-        v,
-        String::from_utf8_lossy(&o.stderr).into(),
-    )
+    common::identify_cli(&args, &out_dir().join(json))
 }
 
 fn diag(v: &serde_json::Value, key: &str) -> [f64; 3] {

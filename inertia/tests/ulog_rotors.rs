@@ -14,12 +14,12 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use inertia::{read, ReadOptions};
+
+mod common;
 use log_writers::ulog::{add_logged, add_logged_instance, header, msg};
 
 fn out_dir() -> PathBuf {
-    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("ulog_rotors");
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::out_dir("ulog_rotors")
 }
 
 fn spacecraft(name: &str) -> PathBuf {
@@ -28,22 +28,8 @@ fn spacecraft(name: &str) -> PathBuf {
         .join(name)
 }
 
-/// `inertia identify ARGS --json OUT`: exit code, the JSON (null when none), stderr.
 fn identify(args: &[&str], json: &Path) -> (i32, serde_json::Value, String) {
-    let _ = std::fs::remove_file(json);
-    let o = Command::new(env!("CARGO_BIN_EXE_inertia"))
-        .arg("identify")
-        .args(args)
-        .arg("--json")
-        .arg(json)
-        .output()
-        .unwrap();
-    let v = std::fs::read_to_string(json)
-        .ok()
-        .and_then(|s| serde_json::from_str(&s).ok())
-        .unwrap_or(serde_json::Value::Null);
-    let err = String::from_utf8_lossy(&o.stderr).to_string();
-    (o.status.code().unwrap_or(-1), v, err)
+    common::identify_cli(args, json)
 }
 
 /// One data message of `msg_id`: its timestamp (us) then `rest`.

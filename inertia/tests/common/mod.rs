@@ -3,7 +3,39 @@
 // Each test crate that includes this module uses a subset of it.
 #![allow(dead_code)]
 
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
 use log_writers::blackbox as blackbox_writer;
+
+/// The test crate's own directory `name` under Cargo's temporary directory, made if missing.
+pub fn out_dir(name: &str) -> PathBuf {
+    let d = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// `inertia identify ARGS --json OUT`: the exit code, the JSON (null when none was written:
+/// a JSON left by an earlier run is removed first) and stderr.
+pub fn identify_cli<S: AsRef<std::ffi::OsStr>>(
+    args: &[S],
+    json: &Path,
+) -> (i32, serde_json::Value, String) {
+    let _ = std::fs::remove_file(json);
+    let o = Command::new(env!("CARGO_BIN_EXE_inertia"))
+        .arg("identify")
+        .args(args)
+        .arg("--json")
+        .arg(json)
+        .output()
+        .unwrap();
+    let v = std::fs::read_to_string(json)
+        .ok()
+        .and_then(|s| serde_json::from_str(&s).ok())
+        .unwrap_or(serde_json::Value::Null);
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    (o.status.code().unwrap_or(-1), v, err)
+}
 
 /// Unit normal deviates from `seed`: xorshift64, the sum of twelve uniforms less 6.
 pub fn gaussian(seed: u64) -> impl FnMut() -> f64 {
