@@ -39,11 +39,51 @@
 //! [`StepStats::inline_fits`] counts fits the live pipeline ran itself anyway (none by
 //! construction; the checks assert it).
 
+use embedded_hal::delay::DelayNs;
 use heapless::spsc::{Consumer, Producer};
 use icm42688::RegisterInterface;
 use identifier_core::FlightPipeline;
 
 use super::{BoardInputs, Report, SampleClock, SampleLoop, SampleRecord, TensorReport};
+
+/// What the sample interrupt's read did ([`read_into_ring`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RingRead {
+    /// No record: none was due or the sample was refused ([`SampleLoop::read_record`]'s `Err`).
+    Nothing,
+    /// The record is in the ring, which now holds this many.
+    Queued(usize),
+    /// The ring was full: the record is lost (the sample path counts it).
+    Dropped,
+}
+
+/// The sample interrupt's read, one function for the board and the QEMU image: one record
+/// through `lp` ([`SampleLoop::read_record`]) into `ring`, and the report of a failing sensor
+/// ([`SampleLoop::take_failed_report`]) into `reports` (dropped when that queue is full, as
+/// it is not the sample path's to wait).
+pub fn read_into_ring<IF, C, R>(
+    lp: &mut SampleLoop<IF, C, R>,
+    delay: &mut impl DelayNs,
+    ring: &mut Producer<'_, SampleRecord>,
+    reports: &mut Producer<'_, Report>,
+) -> RingRead
+where
+    IF: RegisterInterface,
+    C: SampleClock<IF>,
+    R: BoardInputs,
+{
+    let read = match lp.read_record(delay) {
+        Ok(rec) => match ring.enqueue(rec) {
+            Ok(()) => RingRead::Queued(ring.len()),
+            Err(_) => RingRead::Dropped,
+        },
+        Err(_) => RingRead::Nothing,
+    };
+    if let Some(r) = lp.take_failed_report() {
+        let _ = reports.enqueue(r);
+    }
+    read
+}
 
 /// What a [`FitJob`] does with its copy of the pipeline.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -23,7 +23,7 @@ pub mod sample_loop;
 pub mod settings;
 
 pub use clock::{NoDelay, SampleClock};
-pub use fits::{FitJob, FitKind, FitScheduler, StepStats, Stepper};
+pub use fits::{read_into_ring, FitJob, FitKind, FitScheduler, RingRead, StepStats, Stepper};
 pub use health::{SensorStatus, HEALTH_EVERY, REINIT_AFTER, STALLED_AFTER};
 #[cfg(feature = "defmt")]
 pub use log::{log_report, log_tensor};

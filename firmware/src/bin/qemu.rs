@@ -23,7 +23,7 @@ use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use cortex_m_rt::{entry, exception};
 use critical_section::Mutex;
 use defmt_semihosting as _;
-use firmware::app::{FitJob, FitKind, FitScheduler, Stepper};
+use firmware::app::{read_into_ring, FitJob, FitKind, FitScheduler, RingRead, Stepper};
 use firmware::log_format::{decode_sample, Header, HEADER_LEN, SAMPLE_LEN};
 use firmware::replay_format::{self, ReplayHeader};
 use firmware::uplink::{send_report, ByteSink};
@@ -258,22 +258,19 @@ static LOG_BACK: Mutex<RefCell<Option<LogCtx>>> = Mutex::new(RefCell::new(None))
 fn log_tick(c: &mut LogCtx) -> bool {
     let exhausted = c.lp.gyro().interface().bus().exhausted();
     if !exhausted {
-        if let Ok(rec) = c.lp.read_record(&mut NoDelay) {
-            DELIVERED.fetch_add(1, Ordering::Relaxed);
-            match c.ring_in.enqueue(rec) {
-                Ok(()) => {
-                    let n = c.ring_in.len() as u32;
-                    if n > PEAK.load(Ordering::Relaxed) {
-                        PEAK.store(n, Ordering::Relaxed);
-                    }
-                }
-                Err(_) => {
-                    DROPPED.fetch_add(1, Ordering::Relaxed);
+        match read_into_ring(c.lp, &mut NoDelay, &mut c.ring_in, &mut c.reports) {
+            RingRead::Queued(n) => {
+                DELIVERED.fetch_add(1, Ordering::Relaxed);
+                let n = n as u32;
+                if n > PEAK.load(Ordering::Relaxed) {
+                    PEAK.store(n, Ordering::Relaxed);
                 }
             }
-        }
-        if let Some(r) = c.lp.take_failed_report() {
-            let _ = c.reports.enqueue(r);
+            RingRead::Dropped => {
+                DELIVERED.fetch_add(1, Ordering::Relaxed);
+                DROPPED.fetch_add(1, Ordering::Relaxed);
+            }
+            RingRead::Nothing => {}
         }
     }
     let now = DELIVERED.load(Ordering::Relaxed);

@@ -35,7 +35,7 @@ use cortex_m_rt::entry;
 use critical_section::Mutex;
 use defmt_rtt as _;
 use embedded_hal_bus::spi::ExclusiveDevice;
-use firmware::app::{FitJob, Stepper};
+use firmware::app::{read_into_ring, FitJob, RingRead, Stepper};
 use firmware::persist::{EstimateStore, SavePolicy, STM32F405_RANGE};
 use firmware::uplink::{persisted, send_report, ByteSink};
 use firmware::{stack, NoBoardInputs, Report, SampleClock, SampleLoop, SampleRecord};
@@ -188,14 +188,15 @@ fn TIM2() {
             w.feed();
         }
     });
-    if let Ok(rec) = c.lp.read_record(&mut c.delay) {
-        READ.fetch_add(1, Ordering::Relaxed);
-        if c.ring_in.enqueue(rec).is_err() {
+    match read_into_ring(c.lp, &mut c.delay, &mut c.ring_in, &mut c.reports) {
+        RingRead::Queued(_) => {
+            READ.fetch_add(1, Ordering::Relaxed);
+        }
+        RingRead::Dropped => {
+            READ.fetch_add(1, Ordering::Relaxed);
             DROPPED.fetch_add(1, Ordering::Relaxed);
         }
-    }
-    if let Some(r) = c.lp.take_failed_report() {
-        let _ = c.reports.enqueue(r);
+        RingRead::Nothing => {}
     }
     let now = READ.load(Ordering::Relaxed);
     c.stepper.run(
