@@ -235,6 +235,32 @@ pub struct Report {
     /// (`--gyro-scale-tolerance`, [`scale_systematic`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gyro_scale: Option<ScaleSystematic>,
+    /// The gyro's readings on a grid and the two fits `identify` compared ((Q1) of
+    /// [`crate::grid`]). Absent when the readings are not on a grid or the first fit's residual
+    /// is not within [`GRID_RESIDUAL_COUNTS`] counts.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gyro_grid: Option<GyroGrid>,
+}
+
+/// The fit's residual, in counts of the gyro's grid, below which `identify` also fits the
+/// readings moved to their cells' centres ((Q1) of [`crate::grid`]): above it the rounding's
+/// half count is lost in the residual.
+pub const GRID_RESIDUAL_COUNTS: f32 = 4.0;
+
+/// What `identify` found of a gyro reading whole counts.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct GyroGrid {
+    /// Each axis's LSB, rad/s.
+    pub lsb_rad_s: [f32; 3],
+    /// The pooled fit's residual (its ratio times the noise) with the readings as logged,
+    /// rad/s.
+    pub residual_as_read_rad_s: f32,
+    /// The same with the readings moved to their cells' centres as under truncation toward
+    /// zero ((Q1)), rad/s.
+    pub residual_centred_rad_s: f32,
+    /// The readings were taken as truncated toward zero, moved to their cells' centres: the
+    /// report is that fit's.
+    pub centred: bool,
 }
 
 /// The rates of every `step`-th sample (`step = max(n / 20000, 1)`), the whole log's time
@@ -410,7 +436,69 @@ fn rotor_units_warning(src: &dyn Source, v: &Vehicle) -> Result<Option<String>, 
 /// An orbiting vehicle's log (attitude and position columns, a known rotor momentum) is
 /// identified with the gravity-gradient torque folded into the momentum ([`gravity`]),
 /// refitted at the tensor found until it settles.
+///
+/// When the gyro reads whole counts ([`crate::grid::detect`]) and the fit's residual is within
+/// [`GRID_RESIDUAL_COUNTS`] counts, the log is identified once more with its readings moved to
+/// their cells' centres as under truncation toward zero ((Q1) of [`crate::grid`]); the fit
+/// with the smaller residual is reported (the two have the same parameters), with
+/// [`Report::gyro_grid`] saying which.
 pub fn identify_source(
+    src: &dyn Source,
+    opts: &IdentifyOptions,
+    progress: &mut dyn Progress,
+) -> Result<Report, IdentifyError> {
+    let as_read = identify_model(src, opts, progress)?;
+    let residual = |r: &Report| r.pooled.residual_ratio * r.noise_std;
+    let Some(lsb) = crate::grid::detect(src)? else {
+        return Ok(as_read);
+    };
+    let largest = lsb.iter().copied().fold(0.0f32, f32::max);
+    let within = residual(&as_read) < GRID_RESIDUAL_COUNTS * largest;
+    if !within {
+        return Ok(as_read);
+    }
+    let centred_src = crate::grid::CentredSource::new(src, lsb);
+    let centred = identify_model(&centred_src, opts, progress)?;
+    let grid = |c: bool| GyroGrid {
+        lsb_rad_s: lsb,
+        residual_as_read_rad_s: residual(&as_read),
+        residual_centred_rad_s: residual(&centred),
+        centred: c,
+    };
+    Ok(if residual(&centred) < residual(&as_read) {
+        let mut r = centred.clone();
+        r.warnings.push(format!(
+            "the gyro reads whole counts ({:.3e}, {:.3e}, {:.3e} rad/s) and the fit's residual \
+             is smaller with them taken as truncated toward zero ({:.3e} against {:.3e} rad/s \
+             as read): the readings were moved to their counts' centres",
+            lsb[0],
+            lsb[1],
+            lsb[2],
+            residual(&centred),
+            residual(&as_read)
+        ));
+        r.gyro_grid = Some(grid(true));
+        // The centred readings keep an error within each count that the fits' white noise
+        // does not hold (`scripts/bench-spacecraft.sh --fixture mems-walk-10hz` prints the
+        // std's calibration per status): such a fit is at most `ModelMismatch`.
+        for e in r.throws.iter_mut().chain(std::iter::once(&mut r.pooled)) {
+            for s in [&mut e.status, &mut e.tensor_status] {
+                if s.as_str() == "Converged" {
+                    *s = "ModelMismatch".to_string();
+                }
+            }
+        }
+        r
+    } else {
+        let mut r = as_read.clone();
+        r.gyro_grid = Some(grid(false));
+        r
+    })
+}
+
+/// The identification of the log as `src` reads it: torque-free, and on an orbiting vehicle's
+/// log with the gravity gradient folded in.
+fn identify_model(
     src: &dyn Source,
     opts: &IdentifyOptions,
     progress: &mut dyn Progress,
@@ -688,6 +776,7 @@ fn identify_pass(
         free_flight_detection: detection,
         rotor_momentum_quantum: (quantum > 0.0).then_some(quantum),
         gravity_gradient: false,
+        gyro_grid: None,
         throws: throws.into_iter().map(|(_, j)| j).collect(),
         pooled: pooled_json,
         warnings,

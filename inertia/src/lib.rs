@@ -5,6 +5,7 @@
 pub mod calibrate;
 pub mod close_loop;
 pub mod export;
+pub mod grid;
 pub mod identify;
 pub mod plots;
 pub mod pool;

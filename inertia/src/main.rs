@@ -872,7 +872,31 @@ fn run_export_replay(args: ExportReplayArgs) -> Result<ExitCode, String> {
         rotor_columns: RotorArgs::columns(vehicle.as_ref()),
         rotor_names: RotorArgs::names(vehicle.as_ref()),
     };
-    let rec = read(&args.input, &opts).map_err(|e| e.to_string())?;
+    let mut rec = read(&args.input, &opts).map_err(|e| e.to_string())?;
+    // The readings `identify` fits: moved to their counts' centres where it takes them as
+    // truncated toward zero (`Report::gyro_grid`, (Q1) of `inertia::grid`).
+    if inertia::grid::detect(&inertia::source::RecordingSource::new(&rec))
+        .map_err(|e| e.to_string())?
+        .is_some()
+    {
+        let iopts = IdentifyOptions {
+            rotor,
+            vehicle: vehicle.clone(),
+            segments: None,
+            noise_std: args.noise_std,
+            rotor_hold: args.rotor.hold(),
+            trace: false,
+        };
+        if let Ok(report) = inertia::identify::identify(&rec, &iopts) {
+            if let Some(g) = report.gyro_grid.filter(|g| g.centred) {
+                for w in &mut rec.gyro {
+                    for (x, q) in w.iter_mut().zip(g.lsb_rad_s) {
+                        *x = inertia::grid::centre(*x, q);
+                    }
+                }
+            }
+        }
+    }
     let rotors = match &vehicle {
         Some(v) => replay::Rotors::Vehicle(v),
         None => replay::Rotors::Flag(rotor),

@@ -31,6 +31,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("readers", 1),
     ("recording", 2),
     ("source", 2),
+    ("grid", 2),
     ("survey", 2),
     ("select", 2),
     ("unhold", 2),

@@ -133,3 +133,75 @@ fn a_vehicle_column_the_log_lacks_is_named() {
         .to_string();
     assert!(e.contains("rw9_rad_s"), "{e}");
 }
+
+/// A gyro reading whole counts: the MEMS fixture's true rates plus white noise of 0.75 count
+/// and a constant bias, rounded to the nearest count or truncated toward zero. `identify`
+/// finds the LSB, keeps the rounded readings as they are and moves the truncated ones to their
+/// counts' centres ((Q1) of `inertia::grid`), by the smaller residual; either way the tensor
+/// is within 4 std. The fixture itself (Basilisk's `imuSensor`, truncating) is centred too.
+#[test]
+fn a_gyro_truncating_toward_zero_is_told_from_one_rounding_and_centred() {
+    let name = "mems-walk-10hz";
+    let vehicle = Vehicle::load(&data(&format!("{name}.toml"))).unwrap();
+    let read = ReadOptions {
+        rotor_columns: vehicle.columns(),
+        ..ReadOptions::default()
+    };
+    let clean = inertia::read(&data(&format!("{name}.clean.csv")), &read).unwrap();
+    let t = truth(name);
+    let text = std::fs::read_to_string(data(&format!("{name}.truth.toml"))).unwrap();
+    let v: toml::Value = toml::from_str(&text).unwrap();
+    let q = v["gyro_lsb_rad_s"].as_float().unwrap();
+    let opts = IdentifyOptions {
+        vehicle: Some(vehicle),
+        ..IdentifyOptions::default()
+    };
+    let mut s = 0x9e37_79b9_7f4a_7c15u64;
+    let mut uniform = move || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((s >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    };
+    let noisy: Vec<[f64; 3]> = clean
+        .gyro
+        .iter()
+        .map(|w| {
+            core::array::from_fn(|a| {
+                let n = (-2.0 * uniform().ln()).sqrt() * (std::f64::consts::TAU * uniform()).cos();
+                f64::from(w[a]) + 0.75 * q * n + [4e-4, -3e-4, 2e-4][a]
+            })
+        })
+        .collect();
+    for truncate in [false, true] {
+        let mut rec = clean.clone();
+        for (g, x) in rec.gyro.iter_mut().zip(&noisy) {
+            *g = x.map(|x| {
+                let k = if truncate {
+                    (x / q).trunc()
+                } else {
+                    (x / q).round()
+                };
+                (k * q) as f32
+            });
+        }
+        let rep = inertia::identify::identify(&rec, &opts).unwrap();
+        let g = rep.gyro_grid.as_ref().expect("a grid found");
+        assert!(
+            g.lsb_rad_s
+                .iter()
+                .all(|&l| (f64::from(l) / q - 1.0).abs() < 1e-5),
+            "{:?}",
+            g.lsb_rad_s
+        );
+        assert_eq!(g.centred, truncate, "{g:?}");
+        let (frob, zmax) = errors(&rep, &t);
+        eprintln!(
+            "truncated {truncate}: {g:?}, {} Frobenius {frob:.4} %, max z {zmax:.2}",
+            rep.pooled.status
+        );
+        assert!(zmax < 4.0, "truncated {truncate}: max |error| / std {zmax}");
+    }
+    let fixture = identify(name);
+    assert!(fixture.gyro_grid.is_some_and(|g| g.centred));
+}

@@ -729,7 +729,25 @@ impl Fold {
 /// passes with the gravity gradient folded in at the previous pass's tensor until it moves by
 /// less than a tenth of its std (at most `gravity::MAX_PASSES`), kept when their residual is
 /// smaller (`inertia::identify::identify_source`).
+///
+/// Where `identify` took the gyro's readings as truncated toward zero (`Report::gyro_grid`),
+/// the pipeline is fed them moved to their counts' centres, as `identify` fed its own ((Q1) of
+/// `inertia::grid`).
 fn replica(rec: &Recording, vehicle: &Vehicle, report: &Report) -> Result<Windows> {
+    let centred;
+    let rec = match &report.gyro_grid {
+        Some(g) if g.centred => {
+            let mut c = rec.clone();
+            for w in &mut c.gyro {
+                for (x, q) in w.iter_mut().zip(g.lsb_rad_s) {
+                    *x = inertia::grid::centre(*x, q);
+                }
+            }
+            centred = c;
+            &centred
+        }
+        _ => rec,
+    };
     let free = product_windows(rec, vehicle, report, None)?;
     if rec.attitude.is_none() || rec.position.is_none() {
         return Ok(free);
@@ -1227,6 +1245,26 @@ fn report_without_bound(fx: &Fixture, seeds: &[Seed]) {
             g3(rms(&prod.std[c])),
             g3(rms(&prod.err[c]) / rms(&prod.std[c])),
             g3(rms(&prod.over_std[c])),
+        );
+    }
+    println!();
+    // The std's calibration per status: a `Converged` estimate must be within its std.
+    let mut statuses: Vec<&str> = seeds.iter().map(|s| s.status.as_str()).collect();
+    statuses.sort_unstable();
+    statuses.dedup();
+    for st in statuses {
+        let mut by = EntryStats::new();
+        for s in seeds.iter().filter(|s| s.status == st) {
+            if let Some(p) = &s.product {
+                by.add(&fx.truth, p, None);
+            }
+        }
+        let v: Vec<f64> = (0..6).map(|k| rms(&by.over_std[k])).collect();
+        println!(
+            "- status {st}: {} seeds, RMS(error / stated std) per entry {}-{}",
+            by.over_std[0].len(),
+            g3(v.iter().copied().fold(f64::INFINITY, f64::min)),
+            g3(max(&v))
         );
     }
     println!();

@@ -227,6 +227,7 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
         free_flight_detection: detection,
         rotor_momentum_quantum: (quantum > 0.0).then_some(quantum),
         gravity_gradient: false,
+        gyro_grid: None,
         throws,
         pooled,
         warnings,
