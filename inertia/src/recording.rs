@@ -32,8 +32,9 @@ pub fn median_dt(t: &[f64]) -> f64 {
 
 /// Gyro white noise estimated from the data: the median absolute third difference per axis
 /// (third differences cancel any quadratic motion; for white noise their variance is
-/// `20 sigma^2`), turned into a standard deviation, smallest over the axes. Floored at
-/// `1e-4 rad/s`.
+/// `20 sigma^2`), read within its level when the gyro's counts put the differences on a grid
+/// ([`level_median`], (N1)), turned into a standard deviation, smallest over the axes. Floored
+/// at `1e-4 rad/s`.
 pub fn estimate_noise(gyro: &[[f32; 3]]) -> f32 {
     noise_from_medians((0..3).map(|ax| {
         let mut d: Vec<f32> = gyro
@@ -42,8 +43,104 @@ pub fn estimate_noise(gyro: &[[f32; 3]]) -> f32 {
             .filter(|x| x.is_finite())
             .collect();
         d.sort_by(|a, b| a.total_cmp(b));
-        d.get(d.len() / 2).copied()
+        let largest = gyro
+            .iter()
+            .map(|w| w[ax].abs())
+            .filter(|x| x.is_finite())
+            .fold(0.0f32, f32::max);
+        match crate::select::runs_of_sorted(&d) {
+            Some(runs) => level_median(&runs, largest),
+            None => d.get(d.len() / 2).copied(),
+        }
     }))
+}
+
+/// Smallest share of all the differences on the median's level for the level to be read as a
+/// level of the gyro's grid (a continuous reading has one or two per value).
+const GRID_SHARE: f64 = 0.01;
+
+/// Largest spread within one level of the grid, relative to the plain median: a log's decimal
+/// printing or a scale applied to the counts moves them by less.
+const LEVEL_SHARE: f64 = 0.01;
+
+/// The median of the absolute third differences of one gyro axis, given as distinct values
+/// with their counts (ascending), read within its level when the readings sit on a grid.
+///
+/// A quantised gyro's third differences are whole counts, so their plain median is a whole
+/// count too, whatever the noise between levels. The differences of readings up to `largest`
+/// in magnitude, taken in `f32`, scatter about their count by at most `16 largest eps_f32`
+/// (eight readings' worth of rounding, twice), and a log's decimal printing or a scale on the
+/// counts by a small share of a count, so values closer than `tol`, the larger of that bound
+/// and [`LEVEL_SHARE`] of the plain median, are gathered into one level. With level `k` holding the median (`F_k <= N/2 < F_k +
+/// c_k`, `F_k` the count below it, `c_k` its count, `m_k` its mean value), holding at least
+/// [`GRID_SHARE`] of the `N` values, spanning at most `2 tol` and at least `8 tol` from its
+/// nearest neighbour, the median is interpolated across the level's cell, as for grouped
+/// data:
+///
+/// ```text
+/// w = min(m_k - m_(k-1), m_(k+1) - m_k),   lo = max(m_k - w/2, 0),   hi = m_k + w/2
+/// median = lo + (N/2 - F_k) / c_k (hi - lo)                                         (N1)
+/// ```
+///
+/// On a moving body the rounding is then measured with the noise (`sigma^2 + LSB^2/12` when
+/// the noise spans half a count or more), which is what a fit sees in each reading. Otherwise
+/// it is the plain median, the element of rank `N/2`. `None` for no value.
+pub(crate) fn level_median(runs: &[(f32, u64)], largest: f32) -> Option<f32> {
+    let n: u64 = runs.iter().map(|&(_, c)| c).sum();
+    if n == 0 {
+        return None;
+    }
+    // Plain median: the element of rank n / 2.
+    let rank = n / 2;
+    let mut below = 0u64;
+    let mut plain = None;
+    for &(v, c) in runs {
+        if rank < below + c {
+            plain = Some(v);
+            break;
+        }
+        below += c;
+    }
+    let tol = (16.0 * f64::from(largest) * f64::from(f32::EPSILON))
+        .max(LEVEL_SHARE * f64::from(plain.unwrap_or(0.0)));
+    // Levels: (mean value, count, count below, lowest value, highest value).
+    let mut levels: Vec<(f64, u64, u64, f64, f64)> = Vec::new();
+    let mut sum = 0.0f64;
+    let mut seen = 0u64;
+    for &(v, c) in runs {
+        let v = f64::from(v);
+        match levels.last_mut() {
+            Some((m, lc, _, _, hi)) if v - *hi <= tol => {
+                sum += v * c as f64;
+                *lc += c;
+                *m = sum / *lc as f64;
+                *hi = v;
+            }
+            _ => {
+                sum = v * c as f64;
+                levels.push((v, c, seen, v, v));
+            }
+        }
+        seen += c;
+    }
+    let k = levels.iter().position(|l| rank < l.2 + l.1)?;
+    let (m, c, f, lo_v, hi_v) = levels[k];
+    let gap_below = k.checked_sub(1).map(|i| m - levels[i].0);
+    let gap_above = levels.get(k + 1).map(|l| l.0 - m);
+    let w = match (gap_below, gap_above) {
+        (Some(a), Some(b)) => a.min(b),
+        (Some(a), None) => a,
+        (None, Some(b)) => b,
+        (None, None) => return plain,
+    };
+    let grid = (c as f64) >= GRID_SHARE * n as f64 && hi_v - lo_v <= 2.0 * tol && w >= 8.0 * tol;
+    if !grid {
+        return plain;
+    }
+    let lo = (m - 0.5 * w).max(0.0);
+    let hi = m + 0.5 * w;
+    let frac = ((n as f64 / 2.0 - f as f64) / c as f64).clamp(0.0, 1.0);
+    Some((lo + frac * (hi - lo)) as f32)
 }
 
 /// The white noise the fits assume, from the noise `measured` by [`estimate_noise`] on a log

@@ -100,6 +100,9 @@ pub struct Median<T: Ordered> {
     seen: u64,
     /// The answer once known; `Some(None)` when there was no value at all.
     result: Option<Option<T>>,
+    /// Every distinct value with its count, ascending, when the answer came from the exact
+    /// counts (at most [`DISTINCT_CAP`] distinct values).
+    runs: Option<Vec<(T, u64)>>,
 }
 
 impl<T: Ordered> Default for Median<T> {
@@ -119,12 +122,20 @@ impl<T: Ordered> Median<T> {
             distinct: Some(Distinct::default()),
             seen: 0,
             result: None,
+            runs: None,
         }
     }
 
     /// The answer, once the readings have fixed it: `Some(None)` for an empty stream.
     pub fn result(&self) -> Option<Option<T>> {
         self.result
+    }
+
+    /// Every distinct value with its count, ascending, once the answer is known and there were
+    /// at most [`DISTINCT_CAP`] distinct values (`None` otherwise): what
+    /// [`runs_of_sorted`] gives for the same values.
+    pub fn runs(&self) -> Option<&[(T, u64)]> {
+        self.runs.as_deref()
     }
 
     /// True while another reading of the same values is needed.
@@ -172,9 +183,10 @@ impl<T: Ordered> Median<T> {
             let mut keys: Vec<(u64, u64)> = d.into_iter().collect();
             keys.sort_unstable_by_key(|&(k, _)| k);
             let mut below = 0u64;
-            for (k, c) in keys {
+            for &(k, c) in &keys {
                 if self.rank < below + c {
                     self.result = Some(Some(T::from_key(k)));
+                    self.runs = Some(keys.iter().map(|&(k, c)| (T::from_key(k), c)).collect());
                     return;
                 }
                 below += c;
@@ -200,6 +212,25 @@ impl<T: Ordered> Median<T> {
         self.distinct = Some(Distinct::default());
         self.seen = 0;
     }
+}
+
+/// Every distinct value of `sorted` (ascending in `total_cmp` order) with its count, when there
+/// are at most [`DISTINCT_CAP`] of them (`None` otherwise): what [`Median::runs`] gives for the
+/// same values read as a stream.
+pub fn runs_of_sorted<T: Ordered>(sorted: &[T]) -> Option<Vec<(T, u64)>> {
+    let mut runs: Vec<(T, u64)> = Vec::new();
+    for &v in sorted {
+        match runs.last_mut() {
+            Some((last, c)) if last.key() == v.key() => *c += 1,
+            _ => {
+                if runs.len() == DISTINCT_CAP {
+                    return None;
+                }
+                runs.push((v, 1));
+            }
+        }
+    }
+    Some(runs)
 }
 
 #[cfg(test)]
