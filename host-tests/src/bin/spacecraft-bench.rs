@@ -56,15 +56,8 @@
 //! stated std)), the statuses and derivative least squares, and says why there is no ratio to a
 //! bound.
 //!
-//! Figures (100 seeds, `scripts/bench-spacecraft.sh 100`, about 35 s after the build on two
-//! cores): `sat6u-pyramid-10hz` 1.00-1.16 of the bound per entry, RMS(error / stated std)
-//! 1.00-1.16, 2.35e-3 % mean Frobenius error (derivative least squares 7.57 %);
-//! `peer-cubesat-1hz` 0.91-1.00 of the bound, RMS(error / stated std) 0.93-1.00, 1.64 %
-//! (derivative least squares 72.6 %); `leo-gg-1hz` `Converged` 100/100 with the gravity
-//! gradient folded in, 6.81e-3 % mean Frobenius error, axes within 6e-3 deg on average,
-//! RMS(error / stated std) 0.95-1.18 (derivative least squares 28.2 %, with (G1) 28.2 %);
-//! `mems-walk-10hz` `ModelMismatch` 99/100, 0.061 % mean Frobenius error, RMS(error / stated
-//! std) 1.70-12.9 (derivative least squares 12.9 %). BENCHMARKS.md has them all.
+//! The figures are printed by `scripts/bench-spacecraft.sh [SEEDS]` (100 seeds by default) and
+//! kept in BENCHMARKS.md ("Spacecraft logs with reaction wheels (Basilisk)").
 //!
 //! Usage: `spacecraft-bench [--seeds N] [--fixture NAME]... [--data DIR]` (100 seeds, every
 //! fixture, the repository's data directory by default). `scripts/bench-spacecraft.sh [SEEDS]
