@@ -575,6 +575,9 @@ impl Fixture {
 
     /// The bound of the windows `spans`: the six entries' covariance and standard deviations,
     /// and the largest RMS distance of the integrated truth from the clean rates over them.
+    /// `None` when their information is not positive definite (a reduction by the initial rate
+    /// that lost its digits to rounding, on a trajectory whose sensitivities grow over its span,
+    /// is not a bound).
     fn bound(&self, spans: &[(usize, usize)]) -> Option<Bound> {
         let mut info = M6::zeros();
         let mut worst: f64 = 0.0;
@@ -582,6 +585,9 @@ impl Fixture {
             let (f, d) = self.window_information(a, b);
             info += f;
             worst = worst.max(d);
+        }
+        if !positive_definite(&info) {
+            return None;
         }
         let cov = scaled_inverse(&info)? * (self.sigma * self.sigma);
         Some(Bound {
@@ -653,6 +659,15 @@ fn frobenius_at(covs: &[M6], truth: &Matrix3<f64>, draws: usize) -> Option<(f64,
     }
     let n = draws as f64;
     Some((sum / n, (sum2 / n).sqrt()))
+}
+
+/// Whether `f` is positive definite (Cholesky after a diagonal scaling).
+fn positive_definite(f: &M6) -> bool {
+    let d: [f64; 6] = std::array::from_fn(|i| f[(i, i)]);
+    d.iter().all(|&v| v > 0.0)
+        && M6::from_fn(|r, c| f[(r, c)] / (d[r] * d[c]).sqrt())
+            .cholesky()
+            .is_some()
 }
 
 /// `F^-1` after a diagonal scaling (the entries' information spans orders of magnitude).
@@ -1413,7 +1428,8 @@ fn report_fixture(fx: &Fixture, seeds: &[Seed], plan: &Plan, elapsed: f64) {
          a window whose fit failed is out of its pooled tensor; {} seeds had no window fitted and \
          take the bound of all their windows), per seed, sensitivities integrated in f64 along \
          the true trajectory (its worst window's RMS distance from the clean rates: {} of the \
-         gyro noise). The one-trajectory bound (the whole log from one initial rate) is shown \
+         gyro noise). The one-trajectory bound (the whole log from one initial rate; `-` where \
+         its information reduced by the initial rate is not positive definite in f64) is shown \
          for what the windows cost.",
         n - fitted_only,
         g3(max(&fid) / fx.sigma)
