@@ -5,10 +5,13 @@
 # on mems-walk-10hz the fixture's kind of MEMS gyro: bias random walk, constant bias, white
 # noise, truncated to its LSB): the tensor's errors, the calibration of its stated std, the
 # statuses, derivative least squares (the peer's method family) on the same noisy logs, and
-# where the bench has it (sat6u, peer) the Cramer-Rao bound of the model the product fits (its
-# windows (W1), one initial rate each); on leo-gg (gravity-gradient fold) and mems-walk (bias,
-# walk, truncation) no ratio to a bound is printed (host-tests/src/bin/spacecraft-bench.rs). A
-# benchmark: it prints figures, it asserts nothing.
+# on sat6u, peer and leo-gg the Cramer-Rao bound of the model the product fits (its windows
+# (W1), one initial rate each) with the ratio of each entry's RMS error to it. The bound's
+# dynamics are J w' = (J w + h) x w - h' + tau(J): tau = 0 on sat6u and peer; on leo-gg the
+# gravity-gradient torque tau_B = 3 mu / |r|^5 (r_B x J r_B), r_B = R(q)^T r, from the clean
+# log's attitude and position, its dependence on J in the sensitivities. On mems-walk (bias,
+# walk, truncation) no ratio to a bound is printed (host-tests/src/bin/spacecraft-bench.rs).
+# Figures: BENCHMARKS.md. A benchmark: it prints figures, it asserts nothing.
 # Usage: scripts/bench-spacecraft.sh [SEEDS] [--fixture NAME]... [more spacecraft-bench options]
 #        (default 100 seeds, every fixture)
 set -euo pipefail

@@ -42,29 +42,39 @@
 //! inputs `identify` feeds (same settings, rates, momenta and time steps; on a log with attitude
 //! and position, `identify`'s passes with the gravity gradient folded in at the previous pass's
 //! tensor, and its choice between them); that its pooled tensor equals `identify`'s bit for bit
-//! is checked and printed. The sensitivities of Euler's equation `J w' = (J w + h) x w - h'` are
-//! integrated in `f64` (RK4, steps of at most 20 ms) along the true trajectory, from each
+//! is checked and printed. The sensitivities of Euler's equation
+//!
+//! ```text
+//! J w' = (J w + h) x w - h' + tau(J)                                                     (B1)
+//! ```
+//!
+//! are integrated in `f64` (RK4, steps of at most 20 ms) along the true trajectory, from each
 //! window's first clean rate with the true `J`, `h(t)` a natural cubic spline through the logged
 //! wheel speeds; the Fisher information of each window's samples is reduced by its initial rate
-//! (Schur complement) and summed over the windows.
+//! (Schur complement) and summed over the windows. `tau` is the external torque of the true
+//! dynamics: zero on `sat6u-pyramid-10hz` and `peer-cubesat-1hz`; on `leo-gg-1hz` (the truth
+//! file's `environment` has `gravity_gradient`) the gravity-gradient torque (G1) of
+//! `inertia::identify::gravity`,
 //!
-//! That bound is computed for `sat6u-pyramid-10hz` and `peer-cubesat-1hz` only. On `leo-gg-1hz`
-//! the model the product fits has the gravity-gradient fold, whose torque (in the true dynamics)
-//! depends on `J`; on `mems-walk-10hz` the gyro has a bias, its walk and a truncation, and the
-//! product's fit a bias per window where its test says so: the bound above has none of them. For
-//! those two the bench prints the errors, the stated std and its calibration (RMS(error /
-//! stated std)), the statuses and derivative least squares, and says why there is no ratio to a
-//! bound.
+//! ```text
+//! tau(J) = 3 mu / |r|^5 (r_B x J r_B),   r_B = R(q)^T r,   mu = 3.986004418e14 m^3/s^2
+//! ```
 //!
-//! Figures (100 seeds, `scripts/bench-spacecraft.sh 100`, about 35 s after the build on two
-//! cores): `sat6u-pyramid-10hz` 1.00-1.16 of the bound per entry, RMS(error / stated std)
-//! 1.00-1.16, 2.35e-3 % mean Frobenius error (derivative least squares 7.57 %);
-//! `peer-cubesat-1hz` 0.91-1.00 of the bound, RMS(error / stated std) 0.93-1.00, 1.64 %
-//! (derivative least squares 72.6 %); `leo-gg-1hz` `Converged` 100/100 with the gravity
-//! gradient folded in, 6.81e-3 % mean Frobenius error, axes within 6e-3 deg on average,
-//! RMS(error / stated std) 0.95-1.18 (derivative least squares 28.2 %, with (G1) 28.2 %);
-//! `mems-walk-10hz` `ModelMismatch` 99/100, 0.061 % mean Frobenius error, RMS(error / stated
-//! std) 1.70-12.9 (derivative least squares 12.9 %). BENCHMARKS.md has them all.
+//! with `r_B(t)` a natural cubic spline per axis through the clean log's attitude and position.
+//! With `f = J^-1 g` the right-hand side of (B1) solved for `w'`, the sensitivity to entry `c`
+//! (`E_c` its symmetric unit matrix) gains the torque's derivative,
+//! `d f / d p_c = J^-1 ((E_c w) x w + 3 mu / |r|^5 (r_B x E_c r_B) - E_c f)`, and
+//! `d f / d w` is unchanged (the torque does not depend on `w`). This is the bound of (B1) with
+//! the torque's dependence on `J`; the product holds the torque at its previous pass's tensor
+//! ((G2)) and fits until the tensor settles, so its fit does not draw on that dependence.
+//!
+//! On `mems-walk-10hz` the gyro has a bias, its walk and a truncation, and the product's fit a
+//! bias per window where its test says so: the bound above has none of them. There the bench
+//! prints the errors, the stated std and its calibration (RMS(error / stated std)), the statuses
+//! and derivative least squares, and says why there is no ratio to a bound.
+//!
+//! The figures are printed by `scripts/bench-spacecraft.sh [SEEDS]` (100 seeds by default) and
+//! kept in BENCHMARKS.md ("Spacecraft logs with reaction wheels (Basilisk)").
 //!
 //! Usage: `spacecraft-bench [--seeds N] [--fixture NAME]... [--data DIR]` (100 seeds, every
 //! fixture, the repository's data directory by default). `scripts/bench-spacecraft.sh [SEEDS]
@@ -155,14 +165,7 @@ const PLANS: [Plan; 4] = [
     Plan {
         name: "leo-gg-1hz",
         gyro: Gyro::White,
-        no_bound: Some(
-            "the log has attitude and position, so `identify` also fits it with the \
-             gravity-gradient torque (G1) folded into the known momentum ((G2), at the tensor of \
-             its previous pass, until the tensor settles) and keeps that fit when its residual \
-             is smaller; the bench's bound is that of the torque-free Euler equation with the \
-             wheels' momentum alone, which the gravity gradient (in the true dynamics, and \
-             depending on J) is not part of. No ratio to a bound is printed.",
-        ),
+        no_bound: None,
         published: None,
         published_percent: None,
     },
@@ -201,6 +204,9 @@ struct Truth {
     gyro_lsb_rad_s: f64,
     #[serde(default)]
     gyro_rounding: Option<String>,
+    /// The external torques of the true dynamics (`"gravity_gradient"`, ...).
+    #[serde(default)]
+    environment: Vec<String>,
     description: String,
 }
 
@@ -325,6 +331,9 @@ struct Fixture {
     h: Vec<[f64; 3]>,
     /// `h(t)` per axis.
     h_spline: [Spline; 3],
+    /// `r_B(t) = R(q(t))^T r(t)` per axis, m, when the true dynamics have the gravity-gradient
+    /// torque (G1): natural cubic splines through the clean log's attitude and position.
+    r_b_spline: Option<[Spline; 3]>,
     /// Fisher information of a window's samples on the six entries (its initial rate reduced
     /// out), times `sigma^2`, by `(first, last)` sample; and the RMS of the integrated true
     /// trajectory's distance from the clean rates over the window.
@@ -396,6 +405,33 @@ impl Fixture {
             let y: Vec<f64> = h.iter().map(|v| v[i]).collect();
             Spline::new(&clean.t, &y)
         });
+        let r_b_spline = if truth.environment.iter().any(|e| e == "gravity_gradient") {
+            let (Some(q), Some(r)) = (&clean.attitude, &clean.position) else {
+                bail!("{name}: gravity gradient on, but the clean log lacks attitude or position");
+            };
+            let mut r_b = Vec::with_capacity(n);
+            for (&q, &r) in q.iter().zip(r) {
+                let Some(rot) = gravity::rotation(q) else {
+                    bail!("{name}: an unusable attitude quaternion {q:?}");
+                };
+                r_b.push(gravity::mul_t(&rot, r));
+            }
+            Some(std::array::from_fn(|i| {
+                let y: Vec<f64> = r_b.iter().map(|v| v[i]).collect();
+                Spline::new(&clean.t, &y)
+            }))
+        } else {
+            None
+        };
+        if plan.no_bound.is_none() {
+            if let Some(other) = truth
+                .environment
+                .iter()
+                .find(|e| e.as_str() != "gravity_gradient")
+            {
+                bail!("{name}: the bound has no model of the environment's {other:?}");
+            }
+        }
         let j = truth.inertia_kg_m2;
         if plan.gyro == Gyro::Mems {
             if !(truth.gyro_bias_walk.step_std_rad_s_per_sample > 0.0 && truth.gyro_lsb_rad_s > 0.0)
@@ -448,6 +484,7 @@ impl Fixture {
             w,
             h,
             h_spline,
+            r_b_spline,
             cache: Mutex::new(HashMap::new()),
         })
     }
@@ -469,7 +506,20 @@ impl Fixture {
         let jw = mv(j, w);
         let l = [jw[0] + h[0], jw[1] + h[1], jw[2] + h[2]];
         let lxw = cross(l, w);
-        let f = mv(jinv, [lxw[0] - dh[0], lxw[1] - dh[1], lxw[2] - dh[2]]);
+        let mut g = [lxw[0] - dh[0], lxw[1] - dh[1], lxw[2] - dh[2]];
+        // The gravity-gradient torque (G1), `k (r_B x J r_B)`, with `k = 3 mu / |r|^5`.
+        let gg = self.r_b_spline.as_ref().map(|sp| {
+            let rb: [f64; 3] = std::array::from_fn(|i| sp[i].eval(t).0);
+            let d2 = rb[0] * rb[0] + rb[1] * rb[1] + rb[2] * rb[2];
+            (rb, 3.0 * gravity::EARTH_MU / (d2 * d2 * d2.sqrt()))
+        });
+        if let Some((rb, k)) = gg {
+            let tau = cross(rb, mv(j, rb));
+            for i in 0..3 {
+                g[i] += k * tau[i];
+            }
+        }
+        let f = mv(jinv, g);
         // A = J^-1 ([L]x - [w]x J): d(L x w)/dw.
         let mut a0 = Matrix3::zeros();
         for c in 0..3 {
@@ -489,12 +539,18 @@ impl Fixture {
                 ds[r][c] = a[(r, 0)] * x.s[0][c] + a[(r, 1)] * x.s[1][c] + a[(r, 2)] * x.s[2][c];
             }
         }
-        // B_c = J^-1 ((E_c w) x w - E_c f).
+        // B_c = J^-1 ((E_c w) x w + k (r_B x E_c r_B) - E_c f), the torque's term with (G1).
         for c in 0..6 {
             let e = sym_unit(c);
             let ew = mv(&e, w);
             let ef = mv(&e, f);
-            let q = cross(ew, w);
+            let mut q = cross(ew, w);
+            if let Some((rb, k)) = gg {
+                let tau = cross(rb, mv(&e, rb));
+                for i in 0..3 {
+                    q[i] += k * tau[i];
+                }
+            }
             let b = mv(jinv, [q[0] - ef[0], q[1] - ef[1], q[2] - ef[2]]);
             for r in 0..3 {
                 ds[r][c] += b[r];
@@ -582,6 +638,9 @@ impl Fixture {
 
     /// The bound of the windows `spans`: the six entries' covariance and standard deviations,
     /// and the largest RMS distance of the integrated truth from the clean rates over them.
+    /// `None` when their information is not positive definite (a reduction by the initial rate
+    /// that lost its digits to rounding, on a trajectory whose sensitivities grow over its span,
+    /// is not a bound).
     fn bound(&self, spans: &[(usize, usize)]) -> Option<Bound> {
         let mut info = M6::zeros();
         let mut worst: f64 = 0.0;
@@ -589,6 +648,9 @@ impl Fixture {
             let (f, d) = self.window_information(a, b);
             info += f;
             worst = worst.max(d);
+        }
+        if !positive_definite(&info) {
+            return None;
         }
         let cov = scaled_inverse(&info)? * (self.sigma * self.sigma);
         Some(Bound {
@@ -660,6 +722,15 @@ fn frobenius_at(covs: &[M6], truth: &Matrix3<f64>, draws: usize) -> Option<(f64,
     }
     let n = draws as f64;
     Some((sum / n, (sum2 / n).sqrt()))
+}
+
+/// Whether `f` is positive definite (Cholesky after a diagonal scaling).
+fn positive_definite(f: &M6) -> bool {
+    let d: [f64; 6] = std::array::from_fn(|i| f[(i, i)]);
+    d.iter().all(|&v| v > 0.0)
+        && M6::from_fn(|r, c| f[(r, c)] / (d[r] * d[c]).sqrt())
+            .cholesky()
+            .is_some()
 }
 
 /// `F^-1` after a diagonal scaling (the entries' information spans orders of magnitude).
@@ -1451,15 +1522,23 @@ fn report_fixture(fx: &Fixture, seeds: &[Seed], plan: &Plan, elapsed: f64) {
         .map(|s| s.fidelity)
         .filter(|x| x.is_finite())
         .collect();
+    let dynamics = if fx.r_b_spline.is_some() {
+        "`J w' = (J w + h) x w - h' + tau(J)` with the gravity-gradient torque (G1) of the true \
+         dynamics, its dependence on J in the sensitivities (the product folds the torque into \
+         the momentum at its previous pass's tensor (G2) and fits until the tensor settles)"
+    } else {
+        "`J w' = (J w + h) x w - h'`"
+    };
     println!(
         "- bound: the Cramer-Rao bound of the model the product fits (output error, white noise \
-         of the truth's std; parameters the six entries and one initial rate per window the \
-         product fitted on that seed, since its windows are separate trajectories sharing J and \
-         a window whose fit failed is out of its pooled tensor; {} seeds had no window fitted and \
-         take the bound of all their windows), per seed, sensitivities integrated in f64 along \
-         the true trajectory (its worst window's RMS distance from the clean rates: {} of the \
-         gyro noise). The one-trajectory bound (the whole log from one initial rate) is shown \
-         for what the windows cost.",
+         of the truth's std; {dynamics}; parameters the six entries and one initial rate per \
+         window the product fitted on that seed, since its windows are separate trajectories \
+         sharing J and a window whose fit failed is out of its pooled tensor; {} seeds had no \
+         window fitted and take the bound of all their windows), per seed, sensitivities \
+         integrated in f64 along the true trajectory (its worst window's RMS distance from the \
+         clean rates: {} of the gyro noise). The one-trajectory bound (the whole log from one \
+         initial rate; `-` where its information reduced by the initial rate is not positive \
+         definite in f64) is shown for what the windows cost.",
         n - fitted_only,
         g3(max(&fid) / fx.sigma)
     );
@@ -1469,12 +1548,16 @@ fn report_fixture(fx: &Fixture, seeds: &[Seed], plan: &Plan, elapsed: f64) {
 
     let mut prod = EntryStats::new();
     let mut peer = EntryStats::new();
+    let mut peer_gg = EntryStats::new();
     for s in seeds {
         if let Some(p) = &s.product {
             prod.add(&fx.truth, p, s.bound);
         }
         if let Some(p) = &s.peer {
             peer.add(&fx.truth, p, s.bound);
+        }
+        if let Some(p) = &s.peer_gg {
+            peer_gg.add(&fx.truth, p, s.bound);
         }
     }
     let bound_all: [Vec<f64>; 6] =
@@ -1499,24 +1582,34 @@ fn report_fixture(fx: &Fixture, seeds: &[Seed], plan: &Plan, elapsed: f64) {
         );
     }
     println!();
-    println!("Derivative least squares on the same noisy logs:");
-    println!();
-    println!(
-        "| entry | RMS error | mean error | RMS error / RMS bound | RMS(error / stated std) |"
-    );
-    println!("|---|---|---|---|---|");
-    for c in 0..6 {
-        println!(
-            "| {} | {} | {} | {} | {} |",
-            NAMES[c],
-            g3(rms(&peer.err[c])),
-            g3(mean(&peer.err[c])),
-            g3(rms(&peer.err[c]) / rms(&peer.bound[c])),
-            g3(rms(&peer.over_std[c])),
-        );
+    let mut tables = vec![("Derivative least squares on the same noisy logs:", &peer)];
+    if fx.gg_rows.is_some() {
+        tables.push((
+            "Derivative least squares with the gravity-gradient torque (G1) among its regressors \
+             (linear in J, from the log's attitude and position) on the same noisy logs:",
+            &peer_gg,
+        ));
     }
-    println!();
-    comparison(fx, &prod, &peer, None);
+    for (title, st) in tables {
+        println!("{title}");
+        println!();
+        println!(
+            "| entry | RMS error | mean error | RMS error / RMS bound | RMS(error / stated std) |"
+        );
+        println!("|---|---|---|---|---|");
+        for c in 0..6 {
+            println!(
+                "| {} | {} | {} | {} | {} |",
+                NAMES[c],
+                g3(rms(&st.err[c])),
+                g3(mean(&st.err[c])),
+                g3(rms(&st.err[c]) / rms(&st.bound[c])),
+                g3(rms(&st.over_std[c])),
+            );
+        }
+        println!();
+    }
+    comparison(fx, &prod, &peer, fx.gg_rows.is_some().then_some(&peer_gg));
     let covs: Vec<M6> = seeds.iter().filter_map(|s| s.cov).collect();
     let windowed = frobenius_at(&covs, &fx.truth, 20_000);
     let single = whole_bound.and_then(|b| frobenius_at(&[b.cov], &fx.truth, 20_000));
