@@ -57,11 +57,11 @@ pub fn estimate_noise(gyro: &[[f32; 3]]) -> f32 {
 
 /// Smallest share of all the differences on the median's level for the level to be read as a
 /// level of the gyro's grid (a continuous reading has one or two per value).
-const GRID_SHARE: f64 = 0.01;
+pub const GRID_SHARE: f64 = 0.01;
 
 /// Largest spread within one level of the grid, relative to the plain median: a log's decimal
 /// printing or a scale applied to the counts moves them by less.
-const LEVEL_SHARE: f64 = 0.01;
+pub const LEVEL_SHARE: f64 = 0.01;
 
 /// The median of the absolute third differences of one gyro axis, given as distinct values
 /// with their counts (ascending), read within its level when the readings sit on a grid.
@@ -85,7 +85,7 @@ const LEVEL_SHARE: f64 = 0.01;
 /// On a moving body the rounding is then measured with the noise (`sigma^2 + LSB^2/12` when
 /// the noise spans half a count or more), which is what a fit sees in each reading. Otherwise
 /// it is the plain median, the element of rank `N/2`. `None` for no value.
-pub(crate) fn level_median(runs: &[(f32, u64)], largest: f32) -> Option<f32> {
+pub fn level_median(runs: &[(f32, u64)], largest: f32) -> Option<f32> {
     let n: u64 = runs.iter().map(|&(_, c)| c).sum();
     if n == 0 {
         return None;

@@ -176,8 +176,9 @@ const PLANS: [Plan; 4] = [
             "the gyro's error is a constant bias, a bounded random walk (Y2) and a truncation \
              toward zero (Y3); the bench's bound is that of white noise with no bias, while the \
              product's fit takes a constant gyro bias per window where its test says so \
-             (`FittedWithBias`) and models neither the walk nor the truncation. No ratio to a \
-             bound is printed.",
+             (`FittedWithBias`), moves readings it finds truncated to their counts' centres \
+             ((Q1) of `inertia::grid`) and does not model the walk. No ratio to a bound is \
+             printed.",
         ),
         published: None,
         published_percent: None,
