@@ -909,6 +909,9 @@ pub(crate) struct Pooled<const M: usize> {
     info: Sym<M>,
     info_p: [f32; M],
     p_ref: [f32; M],
+    /// `sum_s d_s^T M_s d_s`, `d_s = p_s - p_1`: the stretches' spread about the pooled mean
+    /// follows from it ((P2)).
+    spread: f32,
     cost: f32,
     dof: f32,
     pub(crate) stretches: u32,
@@ -925,6 +928,7 @@ impl<const M: usize> Pooled<M> {
         info: [[0.0; M]; M],
         info_p: [0.0; M],
         p_ref: [0.0; M],
+        spread: 0.0,
         cost: 0.0,
         dof: 0.0,
         stretches: 0,
@@ -963,12 +967,38 @@ impl<const M: usize> Pooled<M> {
                 s += m[i][j] * d[j];
             }
             self.info_p[i] += s;
+            self.spread += d[i] * s;
         }
         self.cost += cost;
         self.dof += dof;
         self.stretches = self.stretches.saturating_add(1);
         self.samples = self.samples.saturating_add(samples);
         true
+    }
+
+    /// The inflation of the pooled covariance the stretches' spread about the pooled mean calls
+    /// for ((P2), [`spread_inflation`]); 1 for fewer than two stretches.
+    pub(crate) fn spread_inflation(&self) -> f32 {
+        if self.stretches < 2 || !(self.dof > 0.0) {
+            return 1.0;
+        }
+        let Some(inv) = scaled_inverse(&self.info) else {
+            return 1.0;
+        };
+        let mut explained = 0.0f32;
+        for (row, b) in inv.iter().zip(self.info_p) {
+            let mut s = 0.0;
+            for (x, c) in row.iter().zip(self.info_p) {
+                s += x * c;
+            }
+            explained += s * b;
+        }
+        spread_inflation(
+            self.spread - explained,
+            self.cost / self.dof,
+            M,
+            self.stretches,
+        )
     }
 
     /// The pooled mean, its covariance (actual units) and the residual noise `sigma`; `None`
@@ -990,6 +1020,37 @@ impl<const M: usize> Pooled<M> {
             p[i] += s;
         }
         Some((p, cov, sqrt(s2)))
+    }
+}
+
+/// Standard normal quantile of the spread test's 5 % ((P2)).
+const SPREAD_Z: f32 = 1.645;
+
+/// The pooled covariance's inflation from the stretches' spread ((P2)): with `chi2 = (sum_s
+/// d_s^T M_s d_s - info_p^T (sum M_s)^-1 info_p) / sigma^2` (the stretches' squared distances
+/// from the pooled mean in their own covariances' units, `excess` over `s2`) on
+/// `k = M (S - 1)` degrees of freedom for `S` stretches,
+///
+/// ```text
+/// inflation = chi2 / k   where chi2 > k (1 - 2/(9k) + z sqrt(2/(9k)))^3, else 1         (P2)
+/// ```
+///
+/// (Wilson and Hilferty's chi-square quantile at `z` = [`SPREAD_Z`], 5 %): stretches that
+/// disagree beyond their stated uncertainty (a walking gyro bias, a torque the model lacks)
+/// widen the pooled one by their Birge ratio; stretches that agree leave it as it is.
+fn spread_inflation(excess: f32, s2: f32, m: usize, stretches: u32) -> f32 {
+    let k = (m as f32) * (stretches as f32 - 1.0);
+    if !(k >= 1.0 && s2 > 0.0 && excess.is_finite()) {
+        return 1.0;
+    }
+    let chi2 = excess / s2;
+    let a = 2.0 / (9.0 * k);
+    let c = 1.0 - a + SPREAD_Z * sqrt(a);
+    let limit = k * c * c * c;
+    if chi2 > limit {
+        chi2 / k
+    } else {
+        1.0
     }
 }
 
@@ -1170,5 +1231,34 @@ impl<const N: usize, const K: usize, const M: usize> FitState<N, K, M> {
         self.buf.clear();
         self.last = outcome;
         outcome
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two stretches of one parameter, each with unit-noise variance 1 and a residual variance
+    /// of 1 (cost = dof): the pooled variance is 1/2, as fitted when they agree, and times their
+    /// Birge ratio `chi2 / k` when they are further apart than the 5 % test allows ((P2):
+    /// `chi2 = d^2 / 2` for two values `d` apart).
+    #[test]
+    fn stretches_that_disagree_widen_the_pool_by_their_birge_ratio() {
+        let pool = |d: f32| {
+            let mut p = Pooled::<1>::EMPTY;
+            assert!(p.add(&[10.0], &[[1.0]], 100.0, 100.0, 100));
+            assert!(p.add(&[10.0 + d], &[[1.0]], 100.0, 100.0, 100));
+            let (m, cov, _) = p.mean().unwrap();
+            (m[0], cov[0][0], p.spread_inflation())
+        };
+        let (m, v, k) = pool(1.0);
+        assert!((m - 10.5).abs() < 1e-5 && (v - 0.5).abs() < 1e-6 && k == 1.0);
+        // chi2 = 8 on one degree of freedom: beyond the 5 % point (3.84).
+        let (_, _, k) = pool(4.0);
+        assert!((k - 8.0).abs() < 1e-3, "{k}");
+        // One stretch: nothing to compare.
+        let mut p = Pooled::<1>::EMPTY;
+        p.add(&[1.0], &[[1.0]], 1.0, 1.0, 1);
+        assert_eq!(p.spread_inflation(), 1.0);
     }
 }

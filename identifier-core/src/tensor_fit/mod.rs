@@ -650,6 +650,17 @@ fn batch_len(rho: f32, n: usize) -> usize {
     l.max(1).min(cap)
 }
 
+/// `k C`: the covariance `c` scaled.
+fn scaled<const M: usize>(c: &Sym<M>, k: f32) -> Sym<M> {
+    let mut out = *c;
+    for row in out.iter_mut() {
+        for x in row.iter_mut() {
+            *x *= k;
+        }
+    }
+    out
+}
+
 /// `D C D` with `D = diag(sqrt(k))`: the covariance `c` inflated per parameter ((F10)).
 fn inflated<const M: usize>(c: &Sym<M>, k: &[f32; M]) -> Sym<M> {
     let d = k.map(sqrt);
@@ -1220,6 +1231,7 @@ impl<const N: usize> TensorFit<N> {
     /// `None` before one was fitted.
     pub fn estimate(&self) -> Option<TensorFitEstimate> {
         let (mut e, mut cov, mut noise) = self.state.pooled.mean()?;
+        let mut spread = self.state.pooled.spread_inflation();
         let mut biased = self.state.biased;
         // The checked bias ([`BiasModel::Checked`]) over all the pooled stretches: where the
         // bias model's pooled tensor differs from the one pooled as fitted by more than
@@ -1235,9 +1247,14 @@ impl<const N: usize> TensorFit<N> {
             });
             if moved {
                 (e, cov, noise) = (ea, ca, na);
+                spread = self.state.alt_pooled.spread_inflation();
                 biased = true;
             }
         }
+        // The stretches' spread about the pooled mean, where it is beyond their stated
+        // covariances ((P2) of `output_error`), widens the reported one; the tests above
+        // compare the pools as fitted.
+        let cov = scaled(&cov, spread);
         Some(TensorFitEstimate {
             tensor: tensor_of(&e),
             cov,
@@ -1258,6 +1275,7 @@ impl<const N: usize> TensorFit<N> {
     /// six entries (rank 5: `dJzz = -dJxx - dJyy`); `None` before one was fitted.
     pub fn estimate_normalized(&self) -> Option<TensorFitEstimate> {
         let (p, c5, noise) = self.normalized.mean()?;
+        let c5 = scaled(&c5, self.normalized.spread_inflation());
         let e = [p[0], p[1], 1.0 - p[0] - p[1], p[2], p[3], p[4]];
         // Row k: entry k of the six as a combination of the five free ones.
         let rows: [[f32; 5]; 6] = [
