@@ -9,8 +9,15 @@
 # (W1), one initial rate each) with the ratio of each entry's RMS error to it. The bound's
 # dynamics are J w' = (J w + h) x w - h' + tau(J): tau = 0 on sat6u and peer; on leo-gg the
 # gravity-gradient torque tau_B = 3 mu / |r|^5 (r_B x J r_B), r_B = R(q)^T r, from the clean
-# log's attitude and position, its dependence on J in the sensitivities. On mems-walk (bias,
-# walk, truncation) no ratio to a bound is printed (host-tests/src/bin/spacecraft-bench.rs).
+# log's attitude and position, its dependence on J in the sensitivities. On mems-walk the ratio
+# is to the bound of its gyro with the error treated as Gaussian (C1), per axis and window
+#   y_k - w_k(theta) = c + d_k + v_k,  d_k = d_{k-1} + s e_k,  d_first = 0,  v_k ~ N(0, r),
+#   r = sigma^2 + LSB^2/12
+# (c a free bias per window, d the walk with the truth's step s, its clamp ignored, v the white
+# noise and the truncation left once the readings are at their counts' centres): information
+# U^T Sigma^-1 U (C2), each sensitivity column whitened by a scalar Kalman filter per axis
+# started diffuse (C3), not the model the product fits (a constant bias per window, no walk)
+# (host-tests/src/bin/spacecraft-bench.rs).
 # Figures: BENCHMARKS.md. A benchmark: it prints figures, it asserts nothing.
 # Usage: scripts/bench-spacecraft.sh [SEEDS] [--fixture NAME]... [more spacecraft-bench options]
 #        (default 100 seeds, every fixture)

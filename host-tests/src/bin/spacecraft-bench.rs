@@ -68,10 +68,44 @@
 //! the torque's dependence on `J`; the product holds the torque at its previous pass's tensor
 //! ((G2)) and fits until the tensor settles, so its fit does not draw on that dependence.
 //!
-//! On `mems-walk-10hz` the gyro has a bias, its walk and a truncation, and the product's fit a
-//! bias per window where its test says so: the bound above has none of them. There the bench
-//! prints the errors, the stated std and its calibration (RMS(error / stated std)), the statuses
-//! and derivative least squares, and says why there is no ratio to a bound.
+//! On `mems-walk-10hz` the bound is that of the gyro (Y2), (Y3) with its error treated as
+//! Gaussian, not that of the model the product fits (a constant bias per window, no walk). Per
+//! axis `i` and window, `u_k` the output's sensitivity row (the six entries and the window's
+//! initial rate) at its sample `k = first..=last`, the gyro's error is
+//!
+//! ```text
+//! y_k - w_k(theta) = c + d_k + v_k,   d_k = d_{k-1} + s e_k,   d_first = 0,
+//!                    v_k ~ N(0, r),   r = sigma^2 + LSB^2 / 12                            (C1)
+//! ```
+//!
+//! `c` a free constant per window and axis (the bias `b` plus the walk at the window's first
+//! sample), `d` the walk (Y2) from there with the truth's step std `s` per sample, its clamp to
+//! `+-B` ignored, `v` the white noise and what is left of the truncation once the product has
+//! moved the readings to their counts' centres ((Q1) of `inertia::grid`), taken as uniform over a
+//! count and independent of the rest; the axes independent. With `Sigma` the covariance of
+//! `d + v` over the window (`Sigma_kl = s^2 min(k, l) + r [k = l]`, `k` and `l` counted from
+//! `first`), the information of the window is
+//!
+//! ```text
+//! F = U^T Sigma^-1 U   with the column of c eliminated (Schur complement)                  (C2)
+//! ```
+//!
+//! computed exactly, in `f64`, by whitening each column of `U` with the scalar Kalman filter of
+//! the state `c + d_k` started diffuse (an unknown constant with no prior, which eliminates `c`):
+//!
+//! ```text
+//! z = u_first, P = r;   for k > first:  P' = P + s^2,  V_k = P' + r,  nu_k = u_k - z,
+//!                       F += nu_k nu_k^T / V_k,  z += (P' / V_k) nu_k,  P = P' r / V_k        (C3)
+//! ```
+//!
+//! (the rows `nu_k / sqrt(V_k)`, `k > first`, are `U` whitened by `Sigma` with `c` taken out:
+//! their outer products sum to (C2); the first sample only fixes `c`). The window's initial
+//! rate is then reduced out and the windows summed as above. With `s = 0`, (C3) is the
+//! white-noise bound of variance `r` with a constant bias per window: the bench prints that
+//! check on the first seed's windows against the bias columns kept and eliminated by a Schur
+//! complement, and unit tests check (C3) against (C2) with a dense `Sigma`. Beside the bound the
+//! bench prints the errors, the stated std and its calibration (RMS(error / stated std)) per
+//! status.
 //!
 //! The figures are printed by `scripts/bench-spacecraft.sh [SEEDS]` (100 seeds by default) and
 //! kept in BENCHMARKS.md ("Spacecraft logs with reaction wheels (Basilisk)").
@@ -103,6 +137,7 @@ use std::time::Instant;
 
 type M6 = SMatrix<f64, 6, 6>;
 type M9 = SMatrix<f64, 9, 9>;
+type M12 = SMatrix<f64, 12, 12>;
 
 /// The six entries, in the product's order `(xx, yy, zz, xy, xz, yz)`.
 const ENTRIES: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
@@ -132,6 +167,80 @@ enum Gyro {
     /// (Y2), (Y3): the fixture's kind of MEMS gyro, a bounded bias random walk, a constant bias,
     /// white noise, truncated to the LSB.
     Mems,
+}
+
+/// The gyro error model of a bound, its white noise of the fixture's variance `r`
+/// ([`Fixture::white_var`]).
+#[derive(Clone, Copy, PartialEq)]
+enum Noise {
+    /// White noise, no bias: the model the product fits on a white-noise gyro (Y1).
+    White,
+    /// White noise and a free constant bias per window and axis, its three columns in the
+    /// information and eliminated with the initial rate (Schur complement): (C1) with `s = 0`,
+    /// the check of (C3).
+    WhiteBias,
+    /// (C1): a free constant bias per window and axis, the bias walk of step variance `step_var`
+    /// per sample, white noise, whitened by (C3).
+    Walk { step_var: f64 },
+}
+
+/// A window's `(first, last)` sample and its noise model's [`Noise::key`].
+type WindowKey = (usize, usize, (u8, u64));
+
+impl Noise {
+    /// The window cache's key.
+    fn key(self) -> (u8, u64) {
+        match self {
+            Noise::White => (0, 0),
+            Noise::WhiteBias => (1, 0),
+            Noise::Walk { step_var } => (2, step_var.to_bits()),
+        }
+    }
+}
+
+/// (C3) on one axis: the scalar Kalman filter of the bias `c + d_k` of (C1), started diffuse,
+/// applied to a row of `N` sensitivity columns at once (the filter's gain does not depend on the
+/// data).
+#[derive(Clone, Copy)]
+struct Whitener<const N: usize> {
+    /// `s^2`, the walk's step variance per sample.
+    step_var: f64,
+    /// `r`, the white noise's variance.
+    white_var: f64,
+    /// The filtered bias of each column, `z`.
+    z: [f64; N],
+    /// Its variance, `P` (`None` before the first sample).
+    p: Option<f64>,
+}
+
+impl<const N: usize> Whitener<N> {
+    fn new(step_var: f64, white_var: f64) -> Self {
+        Whitener {
+            step_var,
+            white_var,
+            z: [0.0; N],
+            p: None,
+        }
+    }
+
+    /// The next sample's row `u_k`: its innovation `nu_k` and variance `V_k`, or `None` on the
+    /// first sample (it fixes the diffuse bias and carries nothing else).
+    fn push(&mut self, u: &[f64; N]) -> Option<([f64; N], f64)> {
+        let Some(p) = self.p else {
+            self.z = *u;
+            self.p = Some(self.white_var);
+            return None;
+        };
+        let predicted = p + self.step_var;
+        let var = predicted + self.white_var;
+        let nu: [f64; N] = std::array::from_fn(|c| u[c] - self.z[c]);
+        let gain = predicted / var;
+        for c in 0..N {
+            self.z[c] += gain * nu[c];
+        }
+        self.p = Some(predicted * self.white_var / var);
+        Some((nu, var))
+    }
 }
 
 /// A fixture, the gyro its seeds get, why the bound is not printed (if it is not) and the
@@ -172,14 +281,7 @@ const PLANS: [Plan; 4] = [
     Plan {
         name: "mems-walk-10hz",
         gyro: Gyro::Mems,
-        no_bound: Some(
-            "the gyro's error is a constant bias, a bounded random walk (Y2) and a truncation \
-             toward zero (Y3); the bench's bound is that of white noise with no bias, while the \
-             product's fit takes a constant gyro bias per window where its test says so \
-             (`FittedWithBias`), moves readings it finds truncated to their counts' centres \
-             ((Q1) of `inertia::grid`) and does not model the walk. No ratio to a bound is \
-             printed.",
-        ),
+        no_bound: None,
         published: None,
         published_percent: None,
     },
@@ -315,6 +417,12 @@ struct Fixture {
     walk: Walk,
     /// The truth's LSB, rad/s ((Y3), `Gyro::Mems` only).
     lsb: f64,
+    /// The bound's gyro error model: [`Noise::White`] for (Y1), [`Noise::Walk`] (C1) for the
+    /// MEMS gyro.
+    noise: Noise,
+    /// Its white noise's variance, (rad/s)^2: `sigma^2` for (Y1), `r = sigma^2 + LSB^2 / 12` of
+    /// (C1) for the MEMS gyro (what is left of the truncation once the readings are centred).
+    white_var: f64,
     /// The gyro error of the fixture's own log (`NAME.csv` against the clean rates).
     fixture_error: Option<ErrorStats>,
     /// The gravity-gradient torque (G1) per sample as a linear map of the six entries, N m per
@@ -335,10 +443,11 @@ struct Fixture {
     /// `r_B(t) = R(q(t))^T r(t)` per axis, m, when the true dynamics have the gravity-gradient
     /// torque (G1): natural cubic splines through the clean log's attitude and position.
     r_b_spline: Option<[Spline; 3]>,
-    /// Fisher information of a window's samples on the six entries (its initial rate reduced
-    /// out), times `sigma^2`, by `(first, last)` sample; and the RMS of the integrated true
-    /// trajectory's distance from the clean rates over the window.
-    cache: Mutex<HashMap<(usize, usize), (M6, f64)>>,
+    /// Fisher information of a window's samples on the six entries (its initial rate, and bias
+    /// if the noise model has one, reduced out), times `white_var`, by `(first, last)` sample
+    /// and noise model; and the RMS of the integrated true trajectory's distance from the clean
+    /// rates over the window.
+    cache: Mutex<HashMap<WindowKey, (M6, f64)>>,
 }
 
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -443,6 +552,19 @@ impl Fixture {
                 bail!("{name}: the truth's gyro rounding is not toward zero");
             }
         }
+        // The bound's noise model: (Y1)'s white noise, or (C1) for the MEMS gyro.
+        let sigma = truth.gyro_noise_std_rad_s;
+        let (noise, white_var) = match plan.gyro {
+            Gyro::White => (Noise::White, sigma * sigma),
+            Gyro::Mems => {
+                let s = truth.gyro_bias_walk.step_std_rad_s_per_sample;
+                let lsb = truth.gyro_lsb_rad_s;
+                (
+                    Noise::Walk { step_var: s * s },
+                    sigma * sigma + lsb * lsb / 12.0,
+                )
+            }
+        };
         // The fixture's own log, for its gyro's error against the clean rates.
         let fixture_error = inertia::read(&dir.join(format!("{name}.csv")), &opts)
             .ok()
@@ -476,6 +598,8 @@ impl Fixture {
             bias: truth.gyro_bias_rad_s,
             walk: truth.gyro_bias_walk,
             lsb: truth.gyro_lsb_rad_s,
+            noise,
+            white_var,
             fixture_error,
             gg_rows,
             clean,
@@ -560,18 +684,26 @@ impl Fixture {
         Sens { w: f, s: ds }
     }
 
-    /// The window `first..=last`'s information on the six entries times `sigma^2` (its initial
-    /// rate reduced out), and the RMS distance of the integrated true trajectory from the
-    /// clean rates over it, rad/s.
-    fn window_information(&self, first: usize, last: usize) -> (M6, f64) {
-        if let Some(v) = self
-            .cache
-            .lock()
-            .ok()
-            .and_then(|c| c.get(&(first, last)).copied())
-        {
+    /// The window `first..=last`'s information on the six entries times `white_var` under
+    /// `noise` (its initial rate, and bias if `noise` has one, reduced out), and the RMS distance
+    /// of the integrated true trajectory from the clean rates over it, rad/s.
+    fn window_information(&self, first: usize, last: usize, noise: Noise) -> (M6, f64) {
+        let key = (first, last, noise.key());
+        if let Some(v) = self.cache.lock().ok().and_then(|c| c.get(&key).copied()) {
             return v;
         }
+        let r = self.white_var;
+        // (C3), one filter per axis (`Noise::Walk`).
+        let mut whiteners = [Whitener::<9>::new(
+            match noise {
+                Noise::Walk { step_var } => step_var,
+                _ => 0.0,
+            },
+            r,
+        ); 3];
+        // With the bias columns (`Noise::WhiteBias`): the six entries, the initial rate, the
+        // bias per axis.
+        let mut g = M12::zeros();
         let jinv = self.truth.try_inverse().unwrap_or_else(Matrix3::zeros);
         let t = &self.clean.t;
         let mut x = Sens {
@@ -584,10 +716,42 @@ impl Fixture {
         let mut f = M9::zeros();
         let mut dist2 = 0.0;
         for k in first..=last {
-            for r in 0..9 {
-                for c in 0..9 {
-                    f[(r, c)] +=
-                        x.s[0][r] * x.s[0][c] + x.s[1][r] * x.s[1][c] + x.s[2][r] * x.s[2][c];
+            match noise {
+                Noise::White => {
+                    for r in 0..9 {
+                        for c in 0..9 {
+                            f[(r, c)] += x.s[0][r] * x.s[0][c]
+                                + x.s[1][r] * x.s[1][c]
+                                + x.s[2][r] * x.s[2][c];
+                        }
+                    }
+                }
+                Noise::WhiteBias => {
+                    for i in 0..3 {
+                        let u: [f64; 12] = std::array::from_fn(|c| match c {
+                            0..=8 => x.s[i][c],
+                            _ if c == 9 + i => 1.0,
+                            _ => 0.0,
+                        });
+                        for a in 0..12 {
+                            for b in 0..12 {
+                                g[(a, b)] += u[a] * u[b];
+                            }
+                        }
+                    }
+                }
+                Noise::Walk { .. } => {
+                    // (C3): the innovations' information, times `r`.
+                    for i in 0..3 {
+                        if let Some((nu, v)) = whiteners[i].push(&x.s[i]) {
+                            let scale = r / v;
+                            for a in 0..9 {
+                                for b in 0..9 {
+                                    f[(a, b)] += scale * nu[a] * nu[b];
+                                }
+                            }
+                        }
+                    }
                 }
             }
             dist2 += (0..3).map(|i| (x.w[i] - self.w[k][i]).powi(2)).sum::<f64>();
@@ -622,38 +786,54 @@ impl Fixture {
                 }
             }
         }
-        // Schur complement: the window's initial rate is a nuisance parameter of its own.
-        let fjj: M6 = f.fixed_view::<6, 6>(0, 0).into_owned();
-        let fjw: SMatrix<f64, 6, 3> = f.fixed_view::<6, 3>(0, 6).into_owned();
-        let fww: Matrix3<f64> = f.fixed_view::<3, 3>(6, 6).into_owned();
-        let reduced = match fww.try_inverse() {
-            Some(inv) => fjj - fjw * inv * fjw.transpose(),
-            None => M6::zeros(),
+        // Schur complement: the window's initial rate (and with `Noise::WhiteBias` its bias) is
+        // a nuisance parameter of its own.
+        let reduced = if noise == Noise::WhiteBias {
+            let fjj: M6 = g.fixed_view::<6, 6>(0, 0).into_owned();
+            let fjn: M6 = g.fixed_view::<6, 6>(0, 6).into_owned();
+            let fnn: M6 = g.fixed_view::<6, 6>(6, 6).into_owned();
+            match scaled_inverse(&fnn) {
+                Some(inv) => fjj - fjn * inv * fjn.transpose(),
+                None => M6::zeros(),
+            }
+        } else {
+            let fjj: M6 = f.fixed_view::<6, 6>(0, 0).into_owned();
+            let fjw: SMatrix<f64, 6, 3> = f.fixed_view::<6, 3>(0, 6).into_owned();
+            let fww: Matrix3<f64> = f.fixed_view::<3, 3>(6, 6).into_owned();
+            match fww.try_inverse() {
+                Some(inv) => fjj - fjw * inv * fjw.transpose(),
+                None => M6::zeros(),
+            }
         };
         let rms = (dist2 / (3 * (last - first + 1)) as f64).sqrt();
         if let Ok(mut c) = self.cache.lock() {
-            c.insert((first, last), (reduced, rms));
+            c.insert(key, (reduced, rms));
         }
         (reduced, rms)
     }
 
-    /// The bound of the windows `spans`: the six entries' covariance and standard deviations,
-    /// and the largest RMS distance of the integrated truth from the clean rates over them.
-    /// `None` when their information is not positive definite (a reduction by the initial rate
-    /// that lost its digits to rounding, on a trajectory whose sensitivities grow over its span,
-    /// is not a bound).
+    /// The bound of the windows `spans` under the fixture's noise model: the six entries'
+    /// covariance and standard deviations, and the largest RMS distance of the integrated truth
+    /// from the clean rates over them. `None` when their information is not positive definite
+    /// (a reduction by the initial rate that lost its digits to rounding, on a trajectory whose
+    /// sensitivities grow over its span, is not a bound).
     fn bound(&self, spans: &[(usize, usize)]) -> Option<Bound> {
+        self.bound_under(spans, self.noise)
+    }
+
+    /// [`Fixture::bound`] under the noise model `noise` (white noise of variance `white_var`).
+    fn bound_under(&self, spans: &[(usize, usize)], noise: Noise) -> Option<Bound> {
         let mut info = M6::zeros();
         let mut worst: f64 = 0.0;
         for &(a, b) in spans {
-            let (f, d) = self.window_information(a, b);
+            let (f, d) = self.window_information(a, b, noise);
             info += f;
             worst = worst.max(d);
         }
         if !positive_definite(&info) {
             return None;
         }
-        let cov = scaled_inverse(&info)? * (self.sigma * self.sigma);
+        let cov = scaled_inverse(&info)? * self.white_var;
         Some(Bound {
             std: std::array::from_fn(|i| cov[(i, i)].max(0.0).sqrt()),
             cov,
@@ -1025,6 +1205,8 @@ struct Seed {
     /// Its covariance.
     cov: Option<M6>,
     bound_fitted_only: bool,
+    /// The windows of the bound, `(first, last)` sample.
+    bound_spans: Vec<(usize, usize)>,
     fidelity: f64,
     peer: Option<([f64; 6], [f64; 6])>,
     /// Derivative least squares with the gravity-gradient torque among its regressors, on a
@@ -1067,6 +1249,7 @@ fn run_seed(fx: &Fixture, seed: u64) -> Result<Seed> {
                 bound: None,
                 cov: None,
                 bound_fitted_only: false,
+                bound_spans: Vec::new(),
                 fidelity: f64::NAN,
                 peer,
                 peer_gg,
@@ -1114,6 +1297,7 @@ fn run_seed(fx: &Fixture, seed: u64) -> Result<Seed> {
         bound,
         cov,
         bound_fitted_only,
+        bound_spans: used,
         fidelity,
         peer,
         peer_gg,
@@ -1285,6 +1469,68 @@ fn comparison(fx: &Fixture, prod: &EntryStats, peer: &EntryStats, peer_gg: Optio
     println!();
 }
 
+/// The std's calibration per status (a `Converged` estimate must be within its std): per status,
+/// its seeds and the range of RMS(error / stated std) over the entries.
+fn status_lines(fx: &Fixture, seeds: &[Seed]) {
+    let mut statuses: Vec<&str> = seeds.iter().map(|s| s.status.as_str()).collect();
+    statuses.sort_unstable();
+    statuses.dedup();
+    for st in statuses {
+        let mut by = EntryStats::new();
+        for s in seeds.iter().filter(|s| s.status == st) {
+            if let Some(p) = &s.product {
+                by.add(&fx.truth, p, None);
+            }
+        }
+        let v: Vec<f64> = (0..6).map(|k| rms(&by.over_std[k])).collect();
+        println!(
+            "- status {st}: {} seeds, RMS(error / stated std) per entry {}-{}",
+            by.over_std[0].len(),
+            g3(v.iter().copied().fold(f64::INFINITY, f64::min)),
+            g3(max(&v))
+        );
+    }
+}
+
+/// The check of (C3) on one seed's windows: with the walk's step set to 0 it must give the
+/// white-noise bound of variance `r` with a constant bias per window, computed with the bias
+/// columns kept and eliminated by a Schur complement (`Noise::WhiteBias`). Beside it, what the
+/// walk adds to that bound and what the bias adds to the white-noise bound of variance `r`.
+fn bound_check(fx: &Fixture, seed: &Seed) {
+    let spans = &seed.bound_spans;
+    let under = |noise: Noise| fx.bound_under(spans, noise).map(|b| b.std);
+    let (Some(walk), Some(still), Some(biased), Some(white)) = (
+        under(fx.noise),
+        under(Noise::Walk { step_var: 0.0 }),
+        under(Noise::WhiteBias),
+        under(Noise::White),
+    ) else {
+        println!("- the bound's check: a bound is not positive definite on the seed's windows");
+        return;
+    };
+    let range = |v: [f64; 6]| {
+        format!(
+            "{}-{}",
+            g3(v.iter().copied().fold(f64::INFINITY, f64::min)),
+            g3(max(&v))
+        )
+    };
+    let worst = (0..6)
+        .map(|c| (still[c] / biased[c] - 1.0).abs())
+        .fold(0.0, f64::max);
+    println!(
+        "- the bound's check on the first seed's windows with a bound: with the walk's step set \
+         to 0, (C3) gives the white-noise bound of variance sigma^2 + LSB^2/12 with a constant \
+         bias per window (the bias columns kept and eliminated by a Schur complement instead) to \
+         {:.1e} relative at most over the entries. There the walk raises that bound {} times \
+         per entry, and the bias per window raises the white-noise bound of that variance \
+         without a bias {} times.",
+        worst,
+        range(std::array::from_fn(|c| walk[c] / biased[c])),
+        range(std::array::from_fn(|c| biased[c] / white[c])),
+    );
+}
+
 /// The figures of a fixture whose bound is not the model the product fits: errors, stated std
 /// and its calibration, no ratio to a bound.
 fn report_without_bound(fx: &Fixture, seeds: &[Seed]) {
@@ -1320,25 +1566,7 @@ fn report_without_bound(fx: &Fixture, seeds: &[Seed]) {
         );
     }
     println!();
-    // The std's calibration per status: a `Converged` estimate must be within its std.
-    let mut statuses: Vec<&str> = seeds.iter().map(|s| s.status.as_str()).collect();
-    statuses.sort_unstable();
-    statuses.dedup();
-    for st in statuses {
-        let mut by = EntryStats::new();
-        for s in seeds.iter().filter(|s| s.status == st) {
-            if let Some(p) = &s.product {
-                by.add(&fx.truth, p, None);
-            }
-        }
-        let v: Vec<f64> = (0..6).map(|k| rms(&by.over_std[k])).collect();
-        println!(
-            "- status {st}: {} seeds, RMS(error / stated std) per entry {}-{}",
-            by.over_std[0].len(),
-            g3(v.iter().copied().fold(f64::INFINITY, f64::min)),
-            g3(max(&v))
-        );
-    }
+    status_lines(fx, seeds);
     println!();
     let mut tables = vec![("Derivative least squares on the same logs:", &peer)];
     if fx.gg_rows.is_some() {
@@ -1530,19 +1758,47 @@ fn report_fixture(fx: &Fixture, seeds: &[Seed], plan: &Plan, elapsed: f64) {
     } else {
         "`J w' = (J w + h) x w - h'`"
     };
-    println!(
-        "- bound: the Cramer-Rao bound of the model the product fits (output error, white noise \
-         of the truth's std; {dynamics}; parameters the six entries and one initial rate per \
-         window the product fitted on that seed, since its windows are separate trajectories \
-         sharing J and a window whose fit failed is out of its pooled tensor; {} seeds had no \
-         window fitted and take the bound of all their windows), per seed, sensitivities \
-         integrated in f64 along the true trajectory (its worst window's RMS distance from the \
-         clean rates: {} of the gyro noise). The one-trajectory bound (the whole log from one \
-         initial rate; `-` where its information reduced by the initial rate is not positive \
-         definite in f64) is shown for what the windows cost.",
-        n - fitted_only,
-        g3(max(&fid) / fx.sigma)
-    );
+    if let Noise::Walk { step_var } = fx.noise {
+        println!(
+            "- bound: the Cramer-Rao bound of the MEMS gyro (Y2), (Y3) with its error treated as \
+             Gaussian (C1), not of the model the product fits (a constant bias per window, no \
+             walk): per axis and window a free constant bias, the bias walk of step std {} rad/s \
+             per sample (its clamp to +-{} rad/s ignored) and white noise of variance sigma^2 + \
+             LSB^2/12 = ({} rad/s)^2 (the white noise and what is left of the truncation once \
+             the readings are at their counts' centres), the axes independent; the information \
+             U^T Sigma^-1 U (C2), each sensitivity column whitened by a scalar Kalman filter per \
+             axis started diffuse (C3); {dynamics}; parameters the six entries and one initial \
+             rate and bias per window the product fitted on that seed ({} seeds had no window \
+             fitted and take the bound of all their windows), per seed, sensitivities \
+             integrated in f64 along the true trajectory (its worst window's RMS distance from \
+             the clean rates: {} of the gyro noise). The one-trajectory bound (the whole log \
+             from one initial rate and one bias, the walk throughout; `-` where its information \
+             reduced by the initial rate is not positive definite in f64) is shown for what the \
+             windows cost.",
+            g3(step_var.sqrt()),
+            g3(fx.walk.bound_rad_s),
+            g3(fx.white_var.sqrt()),
+            n - fitted_only,
+            g3(max(&fid) / fx.sigma)
+        );
+        if let Some(s) = seeds.iter().find(|s| !s.bound_spans.is_empty()) {
+            bound_check(fx, s);
+        }
+    } else {
+        println!(
+            "- bound: the Cramer-Rao bound of the model the product fits (output error, white \
+             noise of the truth's std; {dynamics}; parameters the six entries and one initial \
+             rate per window the product fitted on that seed, since its windows are separate \
+             trajectories sharing J and a window whose fit failed is out of its pooled tensor; \
+             {} seeds had no window fitted and take the bound of all their windows), per seed, \
+             sensitivities integrated in f64 along the true trajectory (its worst window's RMS \
+             distance from the clean rates: {} of the gyro noise). The one-trajectory bound (the \
+             whole log from one initial rate; `-` where its information reduced by the initial \
+             rate is not positive definite in f64) is shown for what the windows cost.",
+            n - fitted_only,
+            g3(max(&fid) / fx.sigma)
+        );
+    }
     let whole_bound = fx.bound(&[(0, samples - 1)]);
     let whole = whole_bound.map(|b| b.std);
     println!();
@@ -1583,6 +1839,21 @@ fn report_fixture(fx: &Fixture, seeds: &[Seed], plan: &Plan, elapsed: f64) {
         );
     }
     println!();
+    if fx.gyro == Gyro::Mems {
+        // The truncation's bias, if the centring (Q1) left any: the mean error beside the RMS.
+        let means: Vec<String> = (0..6).map(|c| g3(mean(&prod.err[c]))).collect();
+        let share: Vec<f64> = (0..6)
+            .map(|c| mean(&prod.err[c]).abs() / rms(&prod.err[c]))
+            .collect();
+        println!(
+            "- the product's mean error per entry (Jxx to Jyz): {} kg m^2, |mean| / RMS error {}-{}",
+            means.join(", "),
+            g3(share.iter().copied().fold(f64::INFINITY, f64::min)),
+            g3(max(&share))
+        );
+        status_lines(fx, seeds);
+        println!();
+    }
     let mut tables = vec![("Derivative least squares on the same noisy logs:", &peer)];
     if fx.gg_rows.is_some() {
         tables.push((
@@ -1619,10 +1890,14 @@ fn report_fixture(fx: &Fixture, seeds: &[Seed], plan: &Plan, elapsed: f64) {
             format!("mean {} %, RMS {} %", g3(m), g3(r))
         })
     };
+    let (model, unknown) = match fx.noise {
+        Noise::Walk { .. } => ("the product's windows under (C1)", "initial rate and bias"),
+        _ => ("the product's windowed model", "initial rate"),
+    };
     println!(
         "Frobenius error at the bound (a Gaussian error of the bound's covariance, 20000 draws): \
-         the product's windowed model {}; one trajectory over the whole log (the samples' whole \
-         information on J, the initial rate unknown) {}.",
+         {model} {}; one trajectory over the whole log (the samples' whole information on J, the \
+         {unknown} unknown) {}.",
         pair(windowed),
         pair(single)
     );
@@ -1685,4 +1960,87 @@ fn main() -> Result<()> {
     }
     println!("Total {:.1} s.", start.elapsed().as_secs_f64());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::DMatrix;
+    use rand::Rng;
+
+    /// (C3)'s information on `N` columns of `u` (the first row fixes the diffuse bias).
+    fn filtered<const N: usize>(u: &[[f64; N]], step_var: f64, white_var: f64) -> DMatrix<f64> {
+        let mut w = Whitener::<N>::new(step_var, white_var);
+        let mut f = DMatrix::zeros(N, N);
+        for row in u {
+            if let Some((nu, v)) = w.push(row) {
+                for a in 0..N {
+                    for b in 0..N {
+                        f[(a, b)] += nu[a] * nu[b] / v;
+                    }
+                }
+            }
+        }
+        f
+    }
+
+    /// (C2) with a dense `Sigma`: `[U 1]^T Sigma^-1 [U 1]`, the bias column then eliminated by a
+    /// Schur complement.
+    fn dense<const N: usize>(u: &[[f64; N]], step_var: f64, white_var: f64) -> DMatrix<f64> {
+        let n = u.len();
+        let a = DMatrix::from_fn(n, N + 1, |k, c| if c < N { u[k][c] } else { 1.0 });
+        let sigma = DMatrix::from_fn(n, n, |k, l| {
+            step_var * k.min(l) as f64 + if k == l { white_var } else { 0.0 }
+        });
+        let inv = sigma.cholesky().expect("Sigma positive definite").inverse();
+        let g = a.transpose() * inv * &a;
+        let fjj = g.view((0, 0), (N, N)).into_owned();
+        let fjb = g.view((0, N), (N, 1)).into_owned();
+        let fbb = g[(N, N)];
+        fjj - &fjb * fjb.transpose() / fbb
+    }
+
+    fn rows<const N: usize>(n: usize, seed: u64) -> Vec<[f64; N]> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        // A slow trend plus scatter, like sensitivities growing along a trajectory.
+        (0..n)
+            .map(|k| {
+                std::array::from_fn(|c| (c as f64 + 1.0) * k as f64 / n as f64 + rng.gen::<f64>())
+            })
+            .collect()
+    }
+
+    fn relative(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
+        (a - b).abs().max() / b.abs().max()
+    }
+
+    /// (C3) is (C2) exactly: the diffuse filter's innovations whiten the columns with the bias
+    /// eliminated, at unit scales and at the MEMS fixture's (`s^2` against `r`).
+    #[test]
+    fn whitener_is_the_dense_information() {
+        for (step_var, white_var) in [(0.3, 1.0), (1e-3, 2.0), (9e-12, 4.6e-8)] {
+            let u = rows::<3>(80, 7);
+            let f = filtered(&u, step_var, white_var);
+            let d = dense(&u, step_var, white_var);
+            assert!(
+                relative(&f, &d) < 1e-9,
+                "s^2 {step_var}, r {white_var}: {f} against {d}"
+            );
+        }
+    }
+
+    /// With the walk's step 0, (C3) is the white-noise information of variance `r` with a
+    /// constant bias eliminated: `(U^T U - U^T 1 1^T U / n) / r`.
+    #[test]
+    fn still_walk_is_white_noise_with_a_bias() {
+        let white_var = 4.6e-8;
+        let u = rows::<4>(50, 11);
+        let n = u.len();
+        let m = DMatrix::from_fn(n, 4, |k, c| u[k][c]);
+        let ones = DMatrix::from_element(n, 1, 1.0);
+        let sum = m.transpose() * &ones;
+        let white = (m.transpose() * &m - &sum * sum.transpose() / n as f64) / white_var;
+        let f = filtered(&u, 0.0, white_var);
+        assert!(relative(&f, &white) < 1e-10, "{f} against {white}");
+    }
 }
