@@ -76,6 +76,11 @@ pub struct PipelineSettings {
     /// default ([`WINDOW_TURN_RAD`]; 35 rad/s for 0.6 s), and its fits run when it ends,
     /// never inside it. Not finite: no windows.
     pub window_turn_rad: f32,
+    /// The gyro's readings were moved to their counts' centres from a truncation toward zero
+    /// (`k q -> k q + sign(k) q / 2`, the host's (Q1)). What is left of each count's width is
+    /// an error the fits' white noise does not hold, so a tensor from such readings is at most
+    /// `ModelMismatch`, as one whose residual is coloured ((F10') of the tensor fit).
+    pub centred_readings: bool,
 }
 
 /// The default [`PipelineSettings::window_turn_rad`], rad: eight turns of the L1 rate. The
@@ -118,7 +123,15 @@ impl PipelineSettings {
             reading_window: 0.0,
             reading_smoothing: 0.0,
             window_turn_rad: WINDOW_TURN_RAD,
+            centred_readings: false,
         }
+    }
+
+    /// The same settings for readings moved to their counts' centres
+    /// ([`PipelineSettings::centred_readings`]).
+    pub fn with_centred_readings(mut self, centred: bool) -> Self {
+        self.centred_readings = centred;
+        self
     }
 
     /// The same settings for a gyro whose readings are each the mean rate over the last
@@ -446,11 +459,12 @@ impl<const N: usize> Pipeline<N> {
                 let t = &f.tensor;
                 let j = [t[0][0], t[1][1], t[2][2], t[0][1], t[0][2], t[1][2]];
                 let ratio = f.noise / noise;
+                let coloured = f.coloured || self.settings.centred_readings;
                 if self.rotor_seen {
-                    self.estimator.with_tensor(own, j, f.cov, ratio, f.coloured)
+                    self.estimator.with_tensor(own, j, f.cov, ratio, coloured)
                 } else {
                     self.estimator
-                        .with_normalized(own, j, f.cov, ratio, f.coloured)
+                        .with_normalized(own, j, f.cov, ratio, coloured)
                 }
             }
             _ => own,

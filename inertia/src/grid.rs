@@ -177,6 +177,10 @@ impl Source for CentredSource<'_> {
         self.inner.gyro_unit_stated()
     }
 
+    fn gyro_centred(&self) -> bool {
+        true
+    }
+
     fn read_all(
         &self,
         visit: &mut Visit<'_>,

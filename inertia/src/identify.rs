@@ -478,16 +478,6 @@ pub fn identify_source(
             residual(&as_read)
         ));
         r.gyro_grid = Some(grid(true));
-        // The centred readings keep an error within each count that the fits' white noise
-        // does not hold (`scripts/bench-spacecraft.sh --fixture mems-walk-10hz` prints the
-        // std's calibration per status): such a fit is at most `ModelMismatch`.
-        for e in r.throws.iter_mut().chain(std::iter::once(&mut r.pooled)) {
-            for s in [&mut e.status, &mut e.tensor_status] {
-                if s.as_str() == "Converged" {
-                    *s = "ModelMismatch".to_string();
-                }
-            }
-        }
         r
     } else {
         let mut r = as_read.clone();
@@ -637,7 +627,8 @@ fn identify_pass(
         .with_full_scale(src.full_scale())
         .with_momentum_resolution(quantum)
         .with_averaging_gyro(src.gyro_averaging())
-        .with_filtered_gyro(filters.as_ref().map_or(0.0, |f| f.smoothing(dt_med) as f32));
+        .with_filtered_gyro(filters.as_ref().map_or(0.0, |f| f.smoothing(dt_med) as f32))
+        .with_centred_readings(src.gyro_centred());
     let inputs = Inputs {
         src,
         samples: n,

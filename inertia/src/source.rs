@@ -191,6 +191,10 @@ impl Source for ScaledSource<'_> {
         self.inner.gyro_unit_stated()
     }
 
+    fn gyro_centred(&self) -> bool {
+        self.inner.gyro_centred()
+    }
+
     fn read_all(
         &self,
         visit: &mut Visit<'_>,

@@ -1039,7 +1039,8 @@ fn product_windows(
         .with_full_scale(rec.gyro_full_scale)
         .with_momentum_resolution(0.0)
         .with_averaging_gyro(rec.gyro_averaging)
-        .with_filtered_gyro(rec.gyro_smoothing());
+        .with_filtered_gyro(rec.gyro_smoothing())
+        .with_centred_readings(report.gyro_grid.as_ref().is_some_and(|g| g.centred));
     let with_accel = rec.accel.is_some();
     let mut p = FlightPipeline::new(settings, with_accel).context("pipeline settings")?;
     let dt_med = median_dt(&rec.t);

@@ -241,6 +241,11 @@ pub trait Source: Sync {
     fn gyro_unit_stated(&self) -> bool {
         true
     }
+    /// Whether the gyro's readings come moved to their counts' centres ((Q1) of
+    /// [`crate::grid`]). False by default.
+    fn gyro_centred(&self) -> bool {
+        false
+    }
     /// One reading: `visit` gets every sample in order (until it says [`Flow::Stop`]);
     /// `progress` now and then the fraction of the log read. A malformed log fails with the
     /// error [`crate::read`] gives for it; an error of `visit` ends the reading with that
