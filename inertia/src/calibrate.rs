@@ -24,6 +24,25 @@
 //!
 //! Calibration: `j = <D, J_known + M> / <D, D>` with `D = J1_t - J1_b` (least squares over the
 //! nine entries). Identification of an object: the same difference with the calibrated `j`.
+//!
+//! # Several rotors
+//!
+//! A vehicle file (`--vehicle`) may hold several rotors (a quadrotor's four motors with the
+//! propellers off, reaction wheels), each with its own speed column and axis `g_i`. Their
+//! momentum is `h = sum_i j_i w_i g_i`, and the equation stays homogeneous as long as their
+//! inertias are known up to one common scale: with the file's `inertia_kg_m2` values `r_i`
+//! (of which only the ratios are used; for identical motors, equal values),
+//!
+//! ```text
+//! h = s sum_i r_i w_i g_i,      j_i = s r_i = j r_i / r_1,      j = j_1
+//! ```
+//!
+//! so each throw is identified once with the rotors at `UNIT_J r_i / r_1`, its tensor divided
+//! by the first rotor's unit inertia is `J1` (the tensor for `j_1 = 1` kg m^2, the others in
+//! the file's ratios), and everything above goes through with `j` the first rotor's inertia.
+//! What is calibrated is the scale `s = j / r_1`; each rotor's inertia `j r_i / r_1` comes
+//! with the standard deviation of `j` times the same ratio ([`VehicleCalibration`]). A file
+//! of one rotor is the case above: its inertia is not used at all.
 
 // 3x3 index arithmetic mirrors the equations.
 #![allow(clippy::needless_range_loop)]
@@ -32,6 +51,7 @@ use serde::Serialize;
 
 use crate::identify::{identify, IdentifyOptions, Rotor};
 use crate::recording::Recording;
+use crate::vehicle::Vehicle;
 
 /// The entries of a tensor in the order of its covariance: xx, yy, zz, xy, xz, yz.
 pub(crate) const ENTRIES: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
@@ -46,7 +66,9 @@ type M3 = [[f64; 3]; 3];
 pub struct UnitThrow {
     /// The log.
     pub source: String,
-    /// `J1`: the tensor for `j = 1` kg m^2 (multiply by `j`), in the log's gyro axes.
+    /// `J1`: the tensor for `j = 1` kg m^2 (multiply by `j`), in the log's gyro axes; with a
+    /// vehicle file of several rotors, for the first rotor's `j_1 = 1` kg m^2 and the others
+    /// in the file's ratios.
     pub j1: M3,
     /// The standard deviation of each entry of `J1` the estimate reported.
     pub j1_std: Option<M3>,
@@ -98,13 +120,41 @@ pub fn unit_throw(
     axis: [f32; 3],
     poles: Option<u32>,
 ) -> Result<UnitThrow, String> {
+    let rotor = Rotor {
+        inertia: UNIT_J,
+        axis,
+        poles,
+    };
+    unit_throw_with(rec, Some(rotor), None, UNIT_J)
+}
+
+/// The vehicle file's rotors scaled to unit inertias, `UNIT_J r_i / r_1` (the module's
+/// "Several rotors"), for [`unit_throw_vehicle`].
+pub fn unit_vehicle(v: &Vehicle) -> Result<Vehicle, String> {
+    let first = v.rotors.first().map_or(f32::NAN, |r| r.inertia_kg_m2);
+    v.scaled(UNIT_J / first).map_err(|e| e.to_string())
+}
+
+/// Identifies one recording with the vehicle file's rotors at unit inertias (`unit`, from
+/// [`unit_vehicle`]; the recording read with its columns) and fits the IMU offset: `J1` is the
+/// tensor for the first rotor's `j_1 = 1` kg m^2.
+pub fn unit_throw_vehicle(rec: &Recording, unit: &Vehicle) -> Result<UnitThrow, String> {
+    let first = unit.rotors.first().map_or(f32::NAN, |r| r.inertia_kg_m2);
+    unit_throw_with(rec, None, Some(unit.clone()), first)
+}
+
+/// [`unit_throw`] with the rotor or the vehicle's rotors given, `unit` the (first) rotor's
+/// inertia they were identified with.
+fn unit_throw_with(
+    rec: &Recording,
+    rotor: Option<Rotor>,
+    vehicle: Option<Vehicle>,
+    unit: f32,
+) -> Result<UnitThrow, String> {
+    let several = vehicle.is_some();
     let opts = IdentifyOptions {
-        rotor: Some(Rotor {
-            inertia: UNIT_J,
-            axis,
-            poles,
-        }),
-        vehicle: None,
+        rotor,
+        vehicle,
         segments: None,
         noise_std: None,
         // Decided from the log unless `INERTIA_ROTOR_UNHOLD` is set (`identify --rotor-unhold`).
@@ -116,15 +166,22 @@ pub fn unit_throw(
         trace: false,
     };
     let rep = identify(rec, &opts).map_err(|e| format!("{}: {e}", rec.source))?;
-    let t = rep
-        .pooled
-        .tensor_kg_m2
-        .ok_or_else(|| format!("{}: the rotor momentum did not fix the scale", rec.source))?;
-    let j1 = t.map(|r| r.map(|x| x as f64 / UNIT_J as f64));
+    let t = rep.pooled.tensor_kg_m2.ok_or_else(|| {
+        if several {
+            format!(
+                "{}: the rotors' momentum did not fix the scale: is it zero throughout the \
+                 free flight (motors stopped, or equal and opposite)?",
+                rec.source
+            )
+        } else {
+            format!("{}: the rotor momentum did not fix the scale", rec.source)
+        }
+    })?;
+    let j1 = t.map(|r| r.map(|x| x as f64 / unit as f64));
     let j1_std = rep
         .pooled
         .tensor_std_kg_m2
-        .map(|s| s.map(|r| r.map(|x| x as f64 / UNIT_J as f64)));
+        .map(|s| s.map(|r| r.map(|x| x as f64 / unit as f64)));
     let j1_corr = rep
         .pooled
         .tensor_cov_kg2_m4
@@ -526,10 +583,12 @@ pub struct CalibrateArgs {
     /// Motor poles (for eRPM channels).
     #[arg(long)]
     pub rotor_poles: Option<u32>,
-    /// A vehicle file with the one rotor to calibrate (its axis, any unit vector, and its
-    /// poles; its inertia is what is calibrated and is not used): instead of `--rotor-axis`
-    /// and `--rotor-poles`. Its speed is the log's rotor channel (blackbox `erpm[0]`, CSV
-    /// `rotor_rad_s`, or the CSV column the file names).
+    /// A vehicle file with the rotors to calibrate, instead of `--rotor-axis` and
+    /// `--rotor-poles`: each one's axis (any unit vector), speed column and poles. Of their
+    /// inertias only the ratios are used (equal values for identical motors): what is
+    /// calibrated is their common scale, and each rotor's inertia is reported. A file of one
+    /// rotor reads its column as the log's rotor channel (blackbox `erpm[0]`, CSV
+    /// `rotor_rad_s`, or the column the file names) and its inertia is not used.
     #[arg(long, conflicts_with_all = ["rotor_axis", "rotor_poles"])]
     pub vehicle: Option<std::path::PathBuf>,
     /// Where to write the JSON report.
@@ -744,6 +803,10 @@ pub struct CalibrationReport {
     pub proof_leave_one_out: Vec<Comparison>,
     /// Standard deviation of the rotor inertia, kg m^2 (the throws' jackknife).
     pub rotor_inertia_std_kg_m2: Option<f64>,
+    /// With a vehicle file of several rotors: the common scale calibrated and each rotor's
+    /// inertia (`rotor_inertia_kg_m2` is then the first rotor's).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vehicle: Option<VehicleCalibration>,
     /// Standard deviation of each entry of the board tensor, kg m^2 (the throws' jackknife).
     pub board_tensor_std_kg_m2: Option<M3>,
     /// The unknown object about its centre of mass, kg m^2, when `--object` was given.
@@ -775,6 +838,65 @@ pub struct CalibrationReport {
     /// deviations (each of which also counts the calibration's error, common to all).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub object_spread_ratio: Option<f64>,
+}
+
+/// The rotors of a vehicle file of several, calibrated (the module's "Several rotors").
+#[derive(Clone, Debug, Serialize)]
+pub struct VehicleCalibration {
+    /// The vehicle file.
+    pub file: String,
+    /// The common scale `s = j / r_1`: each rotor's calibrated inertia over the file's.
+    pub scale: f64,
+    /// Its standard deviation (that of `j` over `r_1`).
+    pub scale_std: Option<f64>,
+    /// Each rotor, in the file's order.
+    pub rotors: Vec<CalibratedRotor>,
+}
+
+/// One rotor of a vehicle file, calibrated.
+#[derive(Clone, Debug, Serialize)]
+pub struct CalibratedRotor {
+    /// Its name in the file.
+    pub name: String,
+    /// The file's `inertia_kg_m2` (only its ratio to the first rotor's is used).
+    pub file_inertia_kg_m2: f32,
+    /// `j_i = j r_i / r_1`, kg m^2.
+    pub inertia_kg_m2: f64,
+    /// Its standard deviation, kg m^2 (`j`'s times `r_i / r_1`: the ratios are taken as
+    /// exact).
+    pub inertia_std_kg_m2: Option<f64>,
+}
+
+impl VehicleCalibration {
+    /// The calibration of `file`'s rotors, identified as `unit` ([`unit_vehicle`]), from the
+    /// first rotor's inertia `j` and its standard deviation.
+    fn new(file: &Vehicle, unit: &Vehicle, j: f64, j_std: Option<f64>) -> Self {
+        let first = |v: &Vehicle| {
+            v.rotors
+                .first()
+                .map_or(f64::NAN, |r| r.inertia_kg_m2 as f64)
+        };
+        let (r1, u1) = (first(file), first(unit));
+        VehicleCalibration {
+            file: file.path.display().to_string(),
+            scale: j / r1,
+            scale_std: j_std.map(|s| s / r1),
+            rotors: file
+                .rotors
+                .iter()
+                .zip(&unit.rotors)
+                .map(|(r, u)| {
+                    let ratio = u.inertia_kg_m2 as f64 / u1;
+                    CalibratedRotor {
+                        name: r.name.clone(),
+                        file_inertia_kg_m2: r.inertia_kg_m2,
+                        inertia_kg_m2: j * ratio,
+                        inertia_std_kg_m2: j_std.map(|s| s * ratio),
+                    }
+                })
+                .collect(),
+        }
+    }
 }
 
 /// One object throw of several, by difference on its own.
@@ -829,40 +951,64 @@ fn object_throws(
     (each, ratio.is_finite().then_some(ratio))
 }
 
-/// Runs `inertia calibrate`.
-/// The rotor's axis and poles, and how to read the logs: from `--rotor-axis` and
-/// `--rotor-poles`, or from a vehicle file of one rotor (its column read as the rotor channel
-/// where the log has it, [`with_named_rotor`]).
+/// The rotors each throw is identified with and how to read the logs: from `--rotor-axis` and
+/// `--rotor-poles`, or from a vehicle file (of one rotor: its column read as the rotor channel
+/// where the log has it, [`with_named_rotor`]; of several: their columns, the rotors scaled by
+/// [`unit_vehicle`]).
 fn rotor_of(args: &CalibrateArgs) -> Result<RotorOf, String> {
     let Some(path) = &args.vehicle else {
         let axis = args
             .rotor_axis
             .ok_or("--rotor-axis (or --vehicle) is needed")?;
-        return Ok((axis, args.rotor_poles, crate::ReadOptions::default(), None));
+        return Ok(RotorOf {
+            rotors: UnitRotors::One {
+                axis,
+                poles: args.rotor_poles,
+                unit: None,
+            },
+            read: crate::ReadOptions::default(),
+        });
     };
-    let v = crate::vehicle::Vehicle::load(path).map_err(|e| e.to_string())?;
-    let [r] = v.rotors.as_slice() else {
-        return Err(format!(
-            "{}: calibrate takes a vehicle file of one rotor (it has {})",
-            path.display(),
-            v.rotors.len()
-        ));
-    };
+    let v = Vehicle::load(path).map_err(|e| e.to_string())?;
     let read = crate::ReadOptions {
         rotor_columns: v.columns(),
         rotor_names: v.names(),
         ..crate::ReadOptions::default()
     };
-    Ok((r.axis, r.poles, read, Some(r.unit())))
+    let rotors = match v.rotors.as_slice() {
+        [r] => UnitRotors::One {
+            axis: r.axis,
+            poles: r.poles,
+            unit: Some(r.unit()),
+        },
+        _ => UnitRotors::Several {
+            unit: Box::new(unit_vehicle(&v)?),
+            file: Box::new(v),
+        },
+    };
+    Ok(RotorOf { rotors, read })
 }
 
-/// The rotor's axis, poles, the logs' read options and the unit of the vehicle file's column.
-type RotorOf = (
-    [f32; 3],
-    Option<u32>,
-    crate::ReadOptions,
-    Option<crate::vehicle::SpeedUnit>,
-);
+/// The rotors of a calibration, as each throw is identified.
+enum UnitRotors {
+    /// One rotor at [`UNIT_J`] on `axis`, and the unit of a vehicle file's column.
+    One {
+        axis: [f32; 3],
+        poles: Option<u32>,
+        unit: Option<crate::vehicle::SpeedUnit>,
+    },
+    /// A vehicle file of several rotors, as read and scaled by [`unit_vehicle`].
+    Several {
+        file: Box<Vehicle>,
+        unit: Box<Vehicle>,
+    },
+}
+
+/// The rotors and the logs' read options.
+struct RotorOf {
+    rotors: UnitRotors,
+    read: crate::ReadOptions,
+}
 
 /// A recording whose rotor speed came from a vehicle file's named column (a CSV): that column
 /// as the rotor channel, in the unit the file declares (rad/s, rpm turned into rad/s, eRPM).
@@ -880,6 +1026,11 @@ fn with_named_rotor(mut rec: Recording, unit: Option<crate::vehicle::SpeedUnit>)
     rec
 }
 
+/// Runs `inertia calibrate`. Refused with the reason: masses not positive, `--proof-inertia`
+/// not of 3 or 6 numbers, `--object` without `--object-mass`, a vehicle file the loader
+/// refuses ([`Vehicle::load`]), a group none of whose throws could be read, identified or used
+/// (each throw named with why: a rotor column the log lacks, rotors whose momentum is zero,
+/// an unusable tensor status), and a rotor inertia that does not come out positive.
 pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
     let known: M3 = match args.proof_inertia.as_slice() {
         [a, b, c] => [[*a, 0.0, 0.0], [0.0, *b, 0.0], [0.0, 0.0, *c]],
@@ -897,7 +1048,7 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
     if !args.object.is_empty() && args.object_mass.is_none() {
         return Err("--object needs --object-mass".into());
     }
-    let (axis, poles, read, unit) = rotor_of(args)?;
+    let RotorOf { rotors, read } = rotor_of(args)?;
     // A throw that cannot be read or identified, or whose tensor is not usable, is left out
     // with its reason (a saturated or truncated log among good ones should not stop the
     // calibration); a group left without a throw is an error.
@@ -909,8 +1060,12 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
                 let source = p.display().to_string();
                 let throw = crate::read(p, &read)
                     .map_err(|e| e.to_string())
-                    .map(|rec| with_named_rotor(rec, unit))
-                    .and_then(|rec| unit_throw(&rec, axis, poles));
+                    .and_then(|rec| match &rotors {
+                        UnitRotors::One { axis, poles, unit } => {
+                            unit_throw(&with_named_rotor(rec, *unit), *axis, *poles)
+                        }
+                        UnitRotors::Several { unit, .. } => unit_throw_vehicle(&rec, unit),
+                    });
                 match throw {
                     Ok(t) if usable(&t.tensor_status) => used.push(t),
                     Ok(t) => skipped.push(SkippedThrow {
@@ -986,9 +1141,16 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
     let (per_object, object_spread_ratio) = object_throws(&board, &assembly, &objects, &known, m);
     let sd = |v: &M3| v.map(|r| r.map(f64::sqrt));
     let eig = full.object.map(|o| eigen(&o));
+    let j_std = Some(u.j.sqrt());
     Ok(CalibrationReport {
         rotor_inertia_kg_m2: j,
-        rotor_inertia_std_kg_m2: Some(u.j.sqrt()),
+        rotor_inertia_std_kg_m2: j_std,
+        vehicle: match &rotors {
+            UnitRotors::One { .. } => None,
+            UnitRotors::Several { file, unit } => {
+                Some(VehicleCalibration::new(file, unit, j, j_std))
+            }
+        },
         board_tensor_kg_m2: full.board,
         board_tensor_std_kg_m2: Some(sd(&u.board)),
         board_spread: board.iter().map(|t| rel_frobenius(&t.j1, &jb)).collect(),

@@ -814,6 +814,22 @@ fn run_calibrate(args: inertia::calibrate::CalibrateArgs) -> Result<ExitCode, St
         rep.board_tensor_kg_m2,
         rep.board_spread
     );
+    if let Some(v) = &rep.vehicle {
+        eprintln!(
+            "rotors' scale {:.4} +- {:.1e} over {}'s inertias:",
+            v.scale,
+            v.scale_std.unwrap_or(f64::NAN),
+            v.file
+        );
+        for r in &v.rotors {
+            eprintln!(
+                "  rotor {:?} inertia {:.4e} +- {:.1e} kg m^2",
+                r.name,
+                r.inertia_kg_m2,
+                r.inertia_std_kg_m2.unwrap_or(f64::NAN)
+            );
+        }
+    }
     if let (Some(l), Some(s)) = (
         rep.object_principal_moments_kg_m2,
         rep.object_principal_moments_std_kg_m2,

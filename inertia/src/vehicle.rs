@@ -140,7 +140,31 @@ impl Vehicle {
             message,
         };
         let file: File = toml::from_str(text).map_err(|e| fail(e.to_string()))?;
-        let rotors = file.rotor;
+        Self::checked(path, file.rotor)
+    }
+
+    /// The same rotors with every inertia multiplied by `k`: their ratios are kept, which is
+    /// all `inertia calibrate` takes from them (it identifies each throw with the rotors
+    /// scaled to a unit inertia, then calibrates the common scale). Checked again: a `k`
+    /// that leaves an inertia zero, negative or not finite is refused.
+    pub fn scaled(&self, k: f32) -> Result<Self, VehicleError> {
+        let rotors = self
+            .rotors
+            .iter()
+            .map(|r| VehicleRotor {
+                inertia_kg_m2: r.inertia_kg_m2 * k,
+                ..r.clone()
+            })
+            .collect();
+        Self::checked(&self.path, rotors)
+    }
+
+    /// Checks the rotors read from `path` (for messages).
+    fn checked(path: &Path, rotors: Vec<VehicleRotor>) -> Result<Self, VehicleError> {
+        let fail = |message: String| VehicleError {
+            path: path.to_path_buf(),
+            message,
+        };
         if rotors.is_empty() {
             return Err(fail("no [[rotor]] table".into()));
         }
@@ -269,6 +293,28 @@ poles = 14
             (h[2] - (2.0 * 2.387e-3 * 0.8192 - fly)).abs() < 1e-7,
             "{h:?}"
         );
+    }
+
+    /// Scaled, every inertia (and so the momentum) is multiplied by the factor, the rest
+    /// kept; a factor that leaves an inertia not positive is refused with the rotor named.
+    #[test]
+    fn scaled_keeps_the_ratios() {
+        let v = parse(PYRAMID).unwrap();
+        let s = v.scaled(0.5).unwrap();
+        for (a, b) in v.rotors.iter().zip(&s.rotors) {
+            assert_eq!(b.inertia_kg_m2, a.inertia_kg_m2 * 0.5);
+            assert_eq!((&a.name, &a.column, a.axis), (&b.name, &b.column, b.axis));
+        }
+        let speeds = [100.0, 954.929_7, 7000.0];
+        let (h, hs) = (v.momentum(&speeds), s.momentum(&speeds));
+        for k in 0..3 {
+            assert!(
+                (hs[k] - 0.5 * h[k]).abs() <= 1e-6 * h[k].abs().max(1e-9),
+                "{h:?} {hs:?}"
+            );
+        }
+        let e = v.scaled(0.0).unwrap_err().message;
+        assert!(e.contains("\"rw1\": inertia_kg_m2 must be positive"), "{e}");
     }
 
     #[test]
