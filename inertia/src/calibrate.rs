@@ -1010,12 +1010,14 @@ struct RotorOf {
     read: crate::ReadOptions,
 }
 
-/// A recording whose rotor speed came from a vehicle file's named column (a CSV): that column
-/// as the rotor channel, in the unit the file declares (rad/s, rpm turned into rad/s, eRPM).
+/// A recording read with a vehicle file's named rotor column (a CSV column, a blackbox or ULog
+/// field): that column as the rotor channel, in the unit the file declares (rad/s, rpm turned
+/// into rad/s, eRPM), in place of the log's own rotor channel (a blackbox log's `erpm[0]`),
+/// which is not the one the file names.
 fn with_named_rotor(mut rec: Recording, unit: Option<crate::vehicle::SpeedUnit>) -> Recording {
     use crate::recording::RotorSpeed;
     use crate::vehicle::SpeedUnit;
-    if let (None, Some(w), Some(unit)) = (&rec.rotor, rec.wheels.first(), unit) {
+    if let (Some(w), Some(unit)) = (rec.wheels.first(), unit) {
         let rpm = 2.0 * core::f32::consts::PI / 60.0;
         rec.rotor = Some(match unit {
             SpeedUnit::RadPerSec => RotorSpeed::RadPerSec(w.clone()),
