@@ -74,6 +74,22 @@ pub struct SampleRecord {
     pub external_momentum: Option<[f32; 3]>,
 }
 
+/// Makes a new pipeline with `settings` and copies it into `dst`; false (and `dst` as it was)
+/// when the settings are refused. The new pipeline is one temporary in this function's frame,
+/// copied from by reference (a binding of it, or a move out of the `Option`, would be a second
+/// copy of its tens of kilobytes on the stack).
+#[inline(never)]
+fn fresh_pipeline_into(dst: &mut FlightPipeline, settings: PipelineSettings, accel: bool) -> bool {
+    let fresh = FlightPipeline::new(settings, accel);
+    match &fresh {
+        Some(p) => {
+            *dst = *p;
+            true
+        }
+        None => false,
+    }
+}
+
 /// Why the loop could not start.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -500,11 +516,11 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: BoardInputs> SampleLoop<IF, C
         self.flag_closed = false;
         self.counters = LoopCounters::default();
         self.pending = None;
-        let Some(pipeline) = FlightPipeline::new(settings, self.with_accel) else {
-            return Err(InitError::PipelineSettings);
-        };
-        self.pipeline = pipeline;
-        Ok(())
+        if fresh_pipeline_into(&mut self.pipeline, settings, self.with_accel) {
+            Ok(())
+        } else {
+            Err(InitError::PipelineSettings)
+        }
     }
 
     /// Ends the free flight being fed, if any (a replayed log has ended): its trajectory is

@@ -960,18 +960,6 @@ fn replay(path: &str, refit_every: RefitEvery, lossless: bool, uart: &mut Usart1
     let (jobs_p, jobs_c) = jobs.split();
     let (done_p, done_c) = done.split();
     let (reports_p, reports_c) = reports.split();
-    let mut parts = StepParts {
-        lp,
-        ring: ring_c,
-        jobs: jobs_p,
-        done: done_c,
-        reports: reports_p,
-    };
-    let mut ends = ThreadEnds {
-        jobs: jobs_c,
-        done: done_p,
-        reports: reports_c,
-    };
     let mut sampler = Sampler {
         reader: ReplayReader::new(file, &header),
         ring: ring_p,
@@ -982,120 +970,159 @@ fn replay(path: &str, refit_every: RefitEvery, lossless: bool, uart: &mut Usart1
         tick: 0,
         fold: None,
     };
-    // SAFETY: `sampler` is a local of this function, which never returns; the sample
-    // interrupt lets its reference go at the end of the pass, before it is used here again.
-    let (back, free) = pass(
-        parts,
-        unsafe { forever(&mut sampler) },
-        &mut ends,
-        &header,
+    let mut run = Passes {
+        parts: Some(StepParts {
+            lp,
+            ring: ring_c,
+            jobs: jobs_p,
+            done: done_c,
+            reports: reports_p,
+        }),
+        ends: ThreadEnds {
+            jobs: jobs_c,
+            done: done_p,
+            reports: reports_c,
+        },
+        sampler: &mut sampler,
+        header,
         refit_every,
-        uart,
-    );
-    parts = back;
-    let mut chosen = free;
-    let mut passes = 1u32;
-    let mut folded = false;
+    };
+    let free = pass(&mut run, uart);
     if header.orbit {
-        // The passes with the gravity gradient folded in, at the previous pass's tensor, as
-        // `inertia identify` makes them ((G3)).
-        let mut last: Option<PassEnd> = None;
-        let mut prev = free;
-        for _ in 0..gravity::MAX_PASSES {
-            let Some(j) = prev.report.tensor.tensor else {
-                break;
-            };
-            let Some((file, again)) = open_replay(cpath, &mut table) else {
-                defmt::error!("cannot read replay file {=str} again", path);
-                exit(2)
-            };
-            if (again.samples, again.sample_len()) != (header.samples, header.sample_len()) {
-                defmt::error!("the replay file {=str} changed between passes", path);
-                exit(2)
-            }
-            sampler.reader = ReplayReader::new(file, &header);
-            sampler.left = header.samples;
-            sampler.carry = 0.0;
-            sampler.waiting = None;
-            sampler.tick = 0;
-            sampler.fold = Some(GravityFold::new(j));
-            if let Err(e) = parts.lp.restart() {
-                defmt::error!("restart failed: {}", e);
-                exit(1)
-            }
-            passes += 1;
-            defmt::info!(
-                "pass {=u32}: the gravity-gradient torque folded in at J=[{=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}] kg m^2; stack high-water {=usize} bytes since the previous pass began (the loop's restart included)",
-                passes,
-                j[0][0],
-                j[0][1],
-                j[0][2],
-                j[1][0],
-                j[1][1],
-                j[1][2],
-                j[2][0],
-                j[2][1],
-                j[2][2],
-                stack::high_water()
-            );
-            // SAFETY: as for the first pass.
-            let (back, next) = pass(
-                parts,
-                unsafe { forever(&mut sampler) },
-                &mut ends,
-                &header,
-                refit_every,
-                uart,
-            );
-            parts = back;
-            let moved = gravity::tensor_moved(&j, next.report.tensor.tensor, next.tensor_std);
-            defmt::info!(
-                "pass {=u32} ended: residual ratio {=f32} (torque-free {=f32}), tensor moved {=f32} of its std",
-                passes,
-                next.residual_ratio,
-                free.residual_ratio,
-                moved
-            );
-            last = Some(next);
-            prev = next;
-            if gravity::settled(moved) {
-                break;
-            }
+        orbit_passes(&mut run, &free, cpath, path, &mut table, uart)
+    }
+    finish(&free, 1, false, uart)
+}
+
+/// What the passes of one replay share: the loop and the queue ends (handed to the interrupts
+/// for a pass and back after it), the sample interrupt's state (its file read again for each
+/// pass), the header and the re-fit period.
+struct Passes<'a> {
+    parts: Option<StepParts>,
+    ends: ThreadEnds,
+    sampler: &'a mut Sampler,
+    header: ReplayHeader,
+    refit_every: u32,
+}
+
+/// The passes with the gravity-gradient torque folded in, at the previous pass's tensor, after
+/// the torque-free pass `free`, as `inertia identify` makes them ((G3) of
+/// [`identifier_core::gravity`]), then the final report (see [`replay`]). Not inlined: its
+/// frame (a pass's end kept) is on the stack only for an orbit log.
+#[inline(never)]
+fn orbit_passes(
+    run: &mut Passes,
+    free: &PassEnd,
+    cpath: &CStr,
+    path: &str,
+    table: &mut [u8; replay_format::ROTOR_LEN * identifier_core::MAX_ROTORS],
+    uart: &mut Usart1,
+) -> ! {
+    let header = run.header;
+    let mut passes = 1u32;
+    let mut last: Option<PassEnd> = None;
+    let mut prev = free.report.tensor.tensor;
+    for _ in 0..gravity::MAX_PASSES {
+        let Some(j) = prev else {
+            break;
+        };
+        let Some((file, again)) = open_replay(cpath, table) else {
+            defmt::error!("cannot read replay file {=str} again", path);
+            exit(2)
+        };
+        if (again.samples, again.sample_len()) != (header.samples, header.sample_len()) {
+            defmt::error!("the replay file {=str} changed between passes", path);
+            exit(2)
         }
-        if let Some(l) = last {
-            if gravity::keep_folded(l.residual_ratio, free.residual_ratio) {
-                chosen = l;
-                folded = true;
-            }
+        let s = &mut *run.sampler;
+        s.reader = ReplayReader::new(file, &header);
+        s.left = header.samples;
+        s.carry = 0.0;
+        s.waiting = None;
+        s.tick = 0;
+        s.fold = Some(GravityFold::new(j));
+        let Some(parts) = run.parts.as_mut() else {
+            exit(3)
+        };
+        // The restart's own stack high-water, painted (its new pipeline is a temporary of
+        // tens of kilobytes under the replay's frame with the loop).
+        stack::paint();
+        let restarted = parts.lp.restart();
+        let restart_high_water = stack::high_water();
+        if let Err(e) = restarted {
+            defmt::error!("restart failed: {}", e);
+            exit(1)
+        }
+        passes += 1;
+        defmt::info!(
+            "pass {=u32}: the gravity-gradient torque folded in at J=[{=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}] kg m^2; the loop restarted (stack high-water {=usize} of {=usize} bytes)",
+            passes,
+            j[0][0],
+            j[0][1],
+            j[0][2],
+            j[1][0],
+            j[1][1],
+            j[1][2],
+            j[2][0],
+            j[2][1],
+            j[2][2],
+            restart_high_water,
+            stack::size()
+        );
+        let next = pass(run, uart);
+        let moved = gravity::tensor_moved(&j, next.report.tensor.tensor, next.tensor_std);
+        defmt::info!(
+            "pass {=u32} ended: residual ratio {=f32} (torque-free {=f32}), tensor moved {=f32} of its std",
+            passes,
+            next.residual_ratio,
+            free.residual_ratio,
+            moved
+        );
+        prev = next.report.tensor.tensor;
+        last = Some(next);
+        if gravity::settled(moved) {
+            break;
         }
     }
-    let r = chosen.report;
-    firmware::app::log_report(&r);
+    match &last {
+        Some(l) if gravity::keep_folded(l.residual_ratio, free.residual_ratio) => {
+            finish(l, passes, true, uart)
+        }
+        _ => finish(free, passes, false, uart),
+    }
+}
+
+/// The replay's final report: `end`'s, the one `inertia identify` reports, after `passes`
+/// passes (`folded`: with the gravity gradient folded in).
+fn finish(end: &PassEnd, passes: u32, folded: bool, uart: &mut Usart1) -> ! {
+    let r = &end.report;
+    firmware::app::log_report(r);
     defmt::info!(
         "final replay samples={=u32} passes={=u32} gravity_gradient={=bool}",
-        chosen.stepped,
+        end.stepped,
         passes,
         folded
     );
-    firmware::app::log_tensor(&r, true);
-    send_report(uart, &r, None);
+    firmware::app::log_tensor(r, true);
+    send_report(uart, r, None);
     exit(0)
 }
 
-/// One paced pass of [`replay`] over the file `sampler` reads, with the loop and queue ends
-/// in `parts` (handed back with the pass's end): the fit slot, the two interrupts and thread
-/// mode's fits until every sample was stepped, then the last flight's fits. A function of its
-/// own so that its frame (the slot) and the loop's construction or restart (in [`replay`]'s)
-/// are not on the stack at the same time.
+/// One paced pass of [`replay`] over the file `run`'s sampler reads: the fit slot, the two
+/// interrupts and thread mode's fits until every sample was stepped, then the last flight's
+/// fits. A function of its own so that its frame (the slot) and the loop's construction or
+/// restart (in [`replay`]'s and [`orbit_passes`]') are not on the stack at the same time.
 #[inline(never)]
-fn pass(
-    parts: StepParts,
-    sampler: &'static mut Sampler,
-    ends: &mut ThreadEnds,
-    header: &ReplayHeader,
-    refit_every: u32,
-    uart: &mut Usart1,
-) -> (StepParts, PassEnd) {
+fn pass(run: &mut Passes, uart: &mut Usart1) -> PassEnd {
+    let header = run.header;
+    let refit_every = run.refit_every;
+    let ends = &mut run.ends;
+    let Some(parts) = run.parts.take() else {
+        exit(3)
+    };
+    // SAFETY: the sampler is a local of `replay`, which never returns; the sample interrupt
+    // lets this reference go at the end of the pass, before the sampler is used again.
+    let sampler: &'static mut Sampler = unsafe { forever(&mut *run.sampler) };
     // The fit slot: the fits' own copy of the pipeline.
     let mut slot: FlightPipeline = *parts.lp.pipeline();
     let loop_depth = stack::depth();
@@ -1210,8 +1237,6 @@ fn pass(
     // thread mode: no sample comes any more), as `inertia identify` does at the end of a log,
     // so that no flight is reported without its fits.
     lp.end_flight();
-    let report = lp.report();
-    let e = lp.pipeline().estimate();
     defmt::info!(
         "paced rate={=f32} Hz delivered={=u32} stepped={=u32} dropped={=u32} waits={=u32} ring_peak={=u32} ring_capacity={=u32} holds={=u32} held_for_fit={=u32} fit_jobs={=u32} adopted={=u32} inline_fits={=u32} reports_dropped={=u32} worst_fit_latency={=u32} samples {=f32} s worst_refit_latency={=u32} samples {=f32} s",
         rate,
@@ -1251,20 +1276,29 @@ fn pass(
         );
         exit(4)
     }
-    let parts = StepParts {
+    let end = pass_end(lp, st.stepped);
+    run.parts = Some(StepParts {
         lp,
         ring,
         jobs,
         done,
         reports,
-    };
-    let end = PassEnd {
-        report,
+    });
+    end
+}
+
+/// The end of a pass over the replay of `lp` (`stepped` samples): its report and its
+/// pipeline's standard deviations and residual. Not inlined: the estimate (a few hundred bytes)
+/// is in this frame only while it is taken.
+#[inline(never)]
+fn pass_end(lp: &ReplayLoop, stepped: u32) -> PassEnd {
+    let e = lp.pipeline().estimate();
+    PassEnd {
+        report: lp.report(),
         tensor_std: e.tensor_std,
         residual_ratio: e.residual_ratio,
-        stepped: st.stepped,
-    };
-    (parts, end)
+        stepped,
+    }
 }
 
 /// Reads exactly `buf.len()` bytes; false at the end of the file or on an error.
