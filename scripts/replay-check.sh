@@ -12,8 +12,9 @@
 # (host-tests gen-throw --scenario board_throw --seed 1, same flywheel, speed in rad/s) and
 # the same throw as a Betaflight blackbox log (--format betaflight: filtered gyro and
 # accelerometer, eRPM) and as a PX4 ULog (--format px4: interval means, esc_status), a toss
-# without a rotor as a CSV and a ULog, user mistakes, and four spacecraft fixtures with
-# reaction wheels and their vehicle files (inertia/tests/data/spacecraft).
+# without a rotor as a CSV and a ULog, user mistakes, and six spacecraft fixtures with
+# reaction wheels and their vehicle files (inertia/tests/data/spacecraft), two of them on orbit
+# with the gravity-gradient torque folded in (the firmware's passes as identify's).
 # THROWN_FC_DIR overrides where the thrown-FC logs are looked for.
 # Exit 1 when any log differs.
 set -euo pipefail
@@ -67,11 +68,12 @@ gen --scenario clipped_toss --seed 2 --out "$OUT/bad_clipped.csv"
 bad=("$OUT/bad_still.csv" "$OUT/bad_degps.csv" "$OUT/bad_time_ms.csv" "$OUT/bad_clipped.csv")
 logs+=("${bad[@]}")
 # Spacecraft with reaction wheels, their vehicle files (`--vehicle`, several rotors through
-# Rotors::momentum on both sides): the fixtures whose identification does not fold in the
-# gravity-gradient torque (that needs the attitude and position columns, which the firmware has
-# no input for).
+# Rotors::momentum on both sides). On the orbit logs with attitude and position columns
+# (leo-gg-1hz, leo-dipole-1hz) identify folds the gravity-gradient torque into the momentum
+# and refits at the tensor found: the replay carries the orbit (format version 6) and the
+# firmware makes the same passes with the same function (identifier_core::gravity).
 SC=inertia/tests/data/spacecraft
-for n in leo-free-1hz sat6u-pyramid-10hz mems-walk-10hz peer-cubesat-1hz; do
+for n in leo-free-1hz sat6u-pyramid-10hz mems-walk-10hz peer-cubesat-1hz leo-gg-1hz leo-dipole-1hz; do
     logs+=("$SC/$n.csv")
 done
 

@@ -25,9 +25,12 @@
 #
 # With --log FILE (any log `inertia identify` reads: blackbox, ULog, phyphox, CSV):
 # `inertia export-replay` writes the per-sample f32 inputs `inertia identify` gives its
-# FlightPipeline (rate, specific force, rotor speed, dt, at the log's own rate) and the
+# FlightPipeline (rate, specific force, rotor speed, dt, at the log's own rate; on an orbit log
+# with a known rotor momentum also each sample's time, attitude and position) and the
 # pipeline's settings; the QEMU firmware (`--replay`) feeds them to its sample loop's
-# FlightPipeline and both identifiers, reporting at 10 Hz of log time. The driver and the
+# FlightPipeline and both identifiers, reporting at 10 Hz of log time. An orbit log is replayed
+# in identify's passes with the gravity-gradient torque folded in (one after another; the
+# defmt lines `pass N ...`), and the final estimate is the pass identify reports. The driver and the
 # simulated part are not in this path (their 16-bit counts cannot carry a log's f32 values
 # unchanged). The final on-board estimate (status, a, std_a, tensor_kg_m2 or null,
 # throws_detected, the counters) is decoded from the UART capture and written to --json;

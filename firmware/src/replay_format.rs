@@ -5,11 +5,12 @@
 //!
 //! ```text
 //! offset 0  magic  b"IRPL"
-//!        4  u32    version (5)
+//!        4  u32    version (6; version 5 files, the same without flag bit 1, are read too)
 //!        8  f32    sample rate, Hz (1 / median dt of the log)
 //!       12  f32    gyro noise, rad/s
 //!       16  f32    gyro full scale, rad/s (the estimator's saturation level)
-//!       20  u32    flags: bit 0 accelerometer present
+//!       20  u32    flags: bit 0 accelerometer present, bit 1 orbit (each sample carries its
+//!                  time, attitude and position)
 //!       24  f32    rotor momentum's quantum, kg m^2/s (inertia times the speed telemetry's
 //!                  step, as `inertia identify` computes it; 0: exact)
 //!       28  f32    gyro averaging: the share of each sample interval a reading is the mean
@@ -22,7 +23,10 @@
 //!                  (16 bytes each; the rotor table, (R1) of identifier_core::Rotors)
 //!  44 + 16r n x { f32x3 rate rad/s, f32x3 specific force m/s^2, f32 dt s,
 //!                 u32 sample flags (bit 0: an actuator acted on the body, held out),
-//!                 r x f32 rotor speed rad/s relative to the body }   (32 + 4r bytes each)
+//!                 r x f32 rotor speed rad/s relative to the body,
+//!                 with flag bit 1 only: f64 time s (the log's), f32x4 attitude quaternion
+//!                 (w, x, y, z; v_N = R(q) v_B), f64x3 position m (Earth-centred inertial) }
+//!                 (32 + 4r bytes each, 48 more with flag bit 1)
 //! ```
 //!
 //! Why the header carries these: the momentum's quantum (from version 2, as the speed's
@@ -34,22 +38,30 @@
 //! (from version 4, `identifier_core::PipelineSettings::with_filtered_gyro`), for Betaflight
 //! logs; the rotor table and a speed per rotor and sample (from version 5), for vehicles with
 //! several wheels; the per-sample flags (version 5), for the samples a satellite's board marks
-//! as actuated (thrusters, magnetorquers), which the firmware keeps out.
+//! as actuated (thrusters, magnetorquers), which the firmware keeps out; the orbit (version 6,
+//! flag bit 1), for the gravity-gradient torque `inertia identify` folds into the known
+//! momentum on an orbiting vehicle's log ([`identifier_core::gravity`]): the firmware folds it
+//! with the same function, from the log's own `f64` times, `f32` attitude and `f64` position
+//! (what `identify` computes it from), at each pass's tensor.
 
 use identifier_core::{Rotor, MAX_ROTORS};
 
 /// First four bytes.
 pub const MAGIC: [u8; 4] = *b"IRPL";
-/// Format version.
-pub const VERSION: u32 = 5;
+/// Format version written.
+pub const VERSION: u32 = 6;
+/// The oldest version read (no orbit).
+pub const OLDEST_VERSION: u32 = 5;
 /// The header's fixed part, bytes (the rotor table follows).
 pub const HEADER_LEN: usize = 44;
 /// One rotor of the table, bytes.
 pub const ROTOR_LEN: usize = 16;
 /// One sample without rotor speeds, bytes (4 more per rotor).
 pub const SAMPLE_BASE_LEN: usize = 32;
+/// A sample's orbit (header flag bit 1), bytes.
+pub const ORBIT_LEN: usize = 48;
 /// The longest sample, bytes.
-pub const SAMPLE_MAX_LEN: usize = SAMPLE_BASE_LEN + 4 * MAX_ROTORS;
+pub const SAMPLE_MAX_LEN: usize = SAMPLE_BASE_LEN + 4 * MAX_ROTORS + ORBIT_LEN;
 
 /// The replay's header.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -63,6 +75,10 @@ pub struct ReplayHeader {
     pub full_scale: f32,
     /// The log has an accelerometer (the free-flight gate decides); else every sample is free.
     pub with_accel: bool,
+    /// Each sample carries its time, attitude and position ([`OrbitSample`], version 6): the
+    /// log is an orbiting vehicle's with a known rotor momentum, which `inertia identify`
+    /// identifies with the gravity gradient folded in.
+    pub orbit: bool,
     /// The rotor momentum's quantum, kg m^2/s (0: taken as exact).
     pub momentum_quantum: f32,
     /// The share of each sample interval a gyro reading is the mean over (0: instants).
@@ -78,7 +94,8 @@ pub struct ReplayHeader {
 impl ReplayHeader {
     /// Bytes of one sample of this replay.
     pub fn sample_len(&self) -> usize {
-        SAMPLE_BASE_LEN + 4 * (self.rotors as usize).min(MAX_ROTORS)
+        let orbit = if self.orbit { ORBIT_LEN } else { 0 };
+        SAMPLE_BASE_LEN + 4 * (self.rotors as usize).min(MAX_ROTORS) + orbit
     }
 
     /// Bytes of the rotor table.
@@ -100,6 +117,18 @@ pub struct ReplaySample {
     pub actuated: bool,
     /// Rotor speeds, rad/s, in the table's order (zero past the header's count).
     pub speeds: [f32; MAX_ROTORS],
+}
+
+/// One replayed sample's orbit (header flag bit 1): what `inertia identify` computes the
+/// gravity-gradient torque from ([`identifier_core::gravity::GravityFold::step`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct OrbitSample {
+    /// The log's time, s.
+    pub t: f64,
+    /// Attitude quaternion `(w, x, y, z)`, `v_N = R(q) v_B`.
+    pub attitude: [f32; 4],
+    /// Position in an Earth-centred inertial frame, m.
+    pub position: [f64; 3],
 }
 
 /// Why a header was refused.
@@ -141,7 +170,7 @@ impl ReplayHeader {
             return Err(ReplayError::BadMagic);
         }
         let v = u32_at(b, 4);
-        if v != VERSION {
+        if !(OLDEST_VERSION..=VERSION).contains(&v) {
             return Err(ReplayError::BadVersion(v));
         }
         let rotors = u32_at(b, 36);
@@ -153,6 +182,8 @@ impl ReplayHeader {
             noise_std: f32_at(b, 12),
             full_scale: f32_at(b, 16),
             with_accel: u32_at(b, 20) & 1 != 0,
+            // Version 5 had no bit 1.
+            orbit: v >= 6 && u32_at(b, 20) & 2 != 0,
             momentum_quantum: f32_at(b, 24),
             gyro_averaging: f32_at(b, 28),
             gyro_smoothing: f32_at(b, 32),
@@ -168,7 +199,11 @@ impl ReplayHeader {
         put(out, 8, self.rate_hz.to_bits());
         put(out, 12, self.noise_std.to_bits());
         put(out, 16, self.full_scale.to_bits());
-        put(out, 20, u32::from(self.with_accel));
+        put(
+            out,
+            20,
+            u32::from(self.with_accel) | u32::from(self.orbit) << 1,
+        );
         put(out, 24, self.momentum_quantum.to_bits());
         put(out, 28, self.gyro_averaging.to_bits());
         put(out, 32, self.gyro_smoothing.to_bits());
@@ -228,6 +263,46 @@ pub fn encode_sample(s: &ReplaySample, rotors: usize, out: &mut [u8]) -> usize {
     SAMPLE_BASE_LEN + 4 * rotors
 }
 
+fn f64_at(b: &[u8], at: usize) -> f64 {
+    f64::from_bits(u64::from(u32_at(b, at)) | u64::from(u32_at(b, at + 4)) << 32)
+}
+
+fn put64(out: &mut [u8], at: usize, word: u64) {
+    put(out, at, word as u32);
+    put(out, at + 4, (word >> 32) as u32);
+}
+
+/// Decodes the orbit of one sample of a replay with `rotors` rotors and the orbit flag (`b`:
+/// its [`ReplayHeader::sample_len`] bytes).
+pub fn decode_orbit(b: &[u8], rotors: usize) -> OrbitSample {
+    let at = SAMPLE_BASE_LEN + 4 * rotors.min(MAX_ROTORS);
+    OrbitSample {
+        t: f64_at(b, at),
+        attitude: [
+            f32_at(b, at + 8),
+            f32_at(b, at + 12),
+            f32_at(b, at + 16),
+            f32_at(b, at + 20),
+        ],
+        position: [f64_at(b, at + 24), f64_at(b, at + 32), f64_at(b, at + 40)],
+    }
+}
+
+/// Encodes the orbit `o` after the rotor speeds of a sample with `rotors` rotors in `out`
+/// (at least [`SAMPLE_BASE_LEN`] + 4 per rotor + [`ORBIT_LEN`] bytes); returns the sample's
+/// length.
+pub fn encode_orbit(o: &OrbitSample, rotors: usize, out: &mut [u8]) -> usize {
+    let at = SAMPLE_BASE_LEN + 4 * rotors.min(MAX_ROTORS);
+    put64(out, at, o.t.to_bits());
+    for (k, q) in o.attitude.iter().enumerate() {
+        put(out, at + 8 + 4 * k, q.to_bits());
+    }
+    for (k, r) in o.position.iter().enumerate() {
+        put64(out, at + 24 + 8 * k, r.to_bits());
+    }
+    at + ORBIT_LEN
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
@@ -240,6 +315,7 @@ mod tests {
             noise_std: 1e-4,
             full_scale: 34.9,
             with_accel: false,
+            orbit: false,
             momentum_quantum: 2.5e-7,
             gyro_averaging: 0.0,
             gyro_smoothing: 1e-6,
@@ -279,5 +355,55 @@ mod tests {
             ReplayHeader::decode(&bad),
             Err(ReplayError::TooManyRotors(9))
         );
+        let mut bad = b;
+        bad[4] = 7;
+        assert_eq!(ReplayHeader::decode(&bad), Err(ReplayError::BadVersion(7)));
+    }
+
+    #[test]
+    fn orbit_round_trips_and_version_5_is_read() {
+        let h = ReplayHeader {
+            rate_hz: 1.0,
+            noise_std: 1e-4,
+            full_scale: f32::INFINITY,
+            with_accel: false,
+            orbit: true,
+            momentum_quantum: 0.0,
+            gyro_averaging: 0.0,
+            gyro_smoothing: 0.0,
+            rotors: 4,
+            samples: 11_355,
+        };
+        let mut b = [0u8; HEADER_LEN];
+        h.encode(&mut b);
+        assert_eq!(ReplayHeader::decode(&b), Ok(h));
+        assert_eq!(h.sample_len(), 32 + 16 + ORBIT_LEN);
+        let o = OrbitSample {
+            t: 11_354.000_000_1,
+            attitude: [0.866_275_6, 0.376_985_44, 0.174_203_62, -0.277_671_86],
+            position: [5_491_727.76, 4_032_680.86, -941_899.308],
+        };
+        let mut speeds = [0.0; MAX_ROTORS];
+        speeds[..4].copy_from_slice(&[100.0, -149.6, 200.0, -49.7]);
+        let s = ReplaySample {
+            omega: [0.012, -0.018, 0.015],
+            accel: [0.0; 3],
+            dt: 1.0,
+            actuated: false,
+            speeds,
+        };
+        let mut out = [0u8; SAMPLE_MAX_LEN];
+        assert_eq!(encode_sample(&s, 4, &mut out), 48);
+        assert_eq!(encode_orbit(&o, 4, &mut out), h.sample_len());
+        let l = h.sample_len();
+        assert_eq!(decode_sample(&out[..l], 4), s);
+        assert_eq!(decode_orbit(&out[..l], 4), o);
+        // A version 5 file: its flag bit 1 (unused then) does not make it an orbit.
+        let mut v5 = b;
+        v5[4] = 5;
+        let d = ReplayHeader::decode(&v5).unwrap();
+        assert!(!d.orbit);
+        assert_eq!(d.sample_len(), 48);
+        assert_eq!(ReplayHeader { orbit: true, ..d }, h);
     }
 }

@@ -10,6 +10,7 @@
 //! | the same, for the tensor at the bound | [`TensorFit`] (output error, started from [`TensorEstimator`]'s tensor or the ratio fit's moments; the pipeline uses it when it fits to the noise) | `J` in kg m^2 with its covariance when a known rotor momentum fixes the scale ([`TensorFit::close`]), else `J / trace J` ([`TensorFit::close_normalized`]) |
 //! | the paper's method, as published | [`Identifier`] (V.F. Shcherbak's invariant relations, with the sign-change correction) | `a` and the paper's convergence criterion; on noisy data far above the bound (`scripts/bench-estimators.sh`) |
 //! | a model with one extra effect (bias, torque, damping, products, rotor) | [`ExtendedIdentifier`] | `a` and the effect |
+//! | an orbiting vehicle's attitude and position with its gyro (and wheels) | [`gravity`]: Earth's gravity-gradient torque at a tensor, folded into the known momentum for [`FlightPipeline::step`] | the extra momentum per sample, and the rule that decides when the passes at the tensor found have settled |
 //!
 //! Nothing is to be trusted unless its status says so: one [`Status`] for every estimator,
 //! [`Status::Converged`] given only when the estimate's own standard deviations are within the
@@ -87,6 +88,7 @@ mod convergence;
 mod exact;
 pub mod extended;
 pub mod free_flight;
+pub mod gravity;
 mod identifier;
 mod inertia;
 pub mod invariant;

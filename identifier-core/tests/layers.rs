@@ -4,7 +4,7 @@
 //!
 //! | layer | modules | what they hold |
 //! |---|---|---|
-//! | 1 | `linalg`, `symmetric`, `exact`, `inertia`, `convergence`, `rotors` | arithmetic, ratios, the convergence criterion, the rotors' momentum |
+//! | 1 | `linalg`, `symmetric`, `exact`, `inertia`, `convergence`, `rotors`, `gravity` | arithmetic, ratios, the convergence criterion, the rotors' momentum, the gravity-gradient torque's |
 //! | 2 | `settings`, `invariant`, `status` | the paper's functions and settings, the statuses |
 //! | 3 | `identifier`, `refined`, `refined_bias`, `extended`, `tensor`, `output_error` | the per-sample estimators and the fits' shared machinery |
 //! | 4 | `ratio_fit`, `tensor_fit` | the end-of-flight fits |
@@ -22,6 +22,7 @@ const LAYERS: [&[&str]; 6] = [
         "inertia",
         "convergence",
         "rotors",
+        "gravity",
     ],
     &["settings", "invariant", "status"],
     &[

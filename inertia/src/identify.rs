@@ -506,15 +506,14 @@ fn identify_model(
 
         let mut next = identify_pass(src, opts, Some(j), progress)?;
         next.gravity_gradient = true;
-        let moved = match (next.pooled.tensor_kg_m2, next.pooled.tensor_std_kg_m2) {
-            (Some(a), Some(s)) => (0..9).fold(0.0f32, |m, k| {
-                let (r, c) = (k / 3, k % 3);
-                m.max((a[r][c] - j[r][c]).abs() / s[r][c])
-            }),
-            _ => f32::INFINITY,
-        };
+        // (G3): the rule the firmware's replay of an orbit log applies too.
+        let moved = identifier_core::gravity::tensor_moved(
+            &j,
+            next.pooled.tensor_kg_m2,
+            next.pooled.tensor_std_kg_m2,
+        );
         report = next;
-        if moved.is_nan() || moved < 0.1 {
+        if identifier_core::gravity::settled(moved) {
             break;
         }
     }
@@ -522,7 +521,9 @@ fn identify_model(
     // the one whose residual is smaller is the likelier (a simulated orbit without the
     // torque keeps the torque-free model).
     let ratio = |r: &Report| r.pooled.residual_ratio;
-    if report.gravity_gradient && ratio(&report) < ratio(&free) {
+    if report.gravity_gradient
+        && identifier_core::gravity::keep_folded(ratio(&report), ratio(&free))
+    {
         Ok(report)
     } else {
         Ok(free)

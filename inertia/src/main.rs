@@ -919,12 +919,13 @@ fn run_export_replay(args: ExportReplayArgs) -> Result<ExitCode, String> {
     };
     let e = replay::export(&rec, rotors, args.noise_std, args.rotor.hold(), &args.out)?;
     eprintln!(
-        "{}: {} samples at {} Hz, noise {} rad/s, accelerometer {}",
+        "{}: {} samples at {} Hz, noise {} rad/s, accelerometer {}, orbit (gravity gradient) {}",
         args.out.display(),
         e.samples,
         e.rate_hz,
         e.noise_std,
-        e.with_accel
+        e.with_accel,
+        e.orbit
     );
     Ok(ExitCode::SUCCESS)
 }

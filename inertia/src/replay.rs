@@ -1,7 +1,7 @@
 //! `inertia export-replay`: the per-sample `f32` inputs `inertia identify` gives its
 //! `FlightPipeline` (rate, specific force, rotor speeds, time step), the rotor table and the
 //! pipeline's settings, written as the replay file the QEMU firmware reads (`firmware-qemu
-//! --replay`, `scripts/run.sh --log`). The layout (version 5) is documented in
+//! --replay`, `scripts/run.sh --log`). The layout (version 6) is documented in
 //! `firmware/src/replay_format.rs`.
 //!
 //! Every value is computed as in `identify` (same expressions, same order): the rate is
@@ -13,9 +13,12 @@
 //! same `identifier_core::Rotors::momentum` as `identify`; the momentum's quantum is written
 //! as `identify` computes it (`inertia * resolution`). With a vehicle file (`--vehicle`) the
 //! table is its rotors and each sample carries their columns in rad/s (as logged times the
-//! file's factor, as `identify` computes them); `identify`'s gravity-gradient fold of orbit
-//! logs (attitude and position columns) is not carried: the firmware has no such input. No
-//! sample is flagged as actuated (a log says nothing of actuators).
+//! file's factor, as `identify` computes them). On an orbiting vehicle's log (attitude and
+//! position columns) with a known rotor momentum, where `identify` folds the gravity-gradient
+//! torque into the momentum, each sample also carries the log's `f64` time, its attitude and
+//! its position (header flag bit 1): the firmware folds the torque with the same function
+//! (`identifier_core::gravity`) in the same passes. No sample is flagged as actuated (a log
+//! says nothing of actuators).
 
 use std::io::Write;
 use std::path::Path;
@@ -43,6 +46,8 @@ pub struct Exported {
     pub noise_std: f32,
     /// Accelerometer present.
     pub with_accel: bool,
+    /// Each sample carries its time, attitude and position (the gravity-gradient fold).
+    pub orbit: bool,
 }
 
 /// Writes the replay file of `rec` to `out`.
@@ -129,15 +134,28 @@ pub fn export(
         (None, None) => Vec::new(),
     };
     let with_accel = rec.accel.is_some();
+    // The orbit, where `identify` folds the gravity gradient: attitude and position columns
+    // and a known rotor momentum.
+    let orbit = match (&rec.attitude, &rec.position) {
+        (Some(q), Some(r)) if !table.is_empty() => {
+            if q.len() != n || r.len() != n {
+                return Err("the log's attitude or position columns are short".into());
+            }
+            Some((q, r))
+        }
+        _ => None,
+    };
     let rotors = table.len() as u32;
-    let mut b: Vec<u8> = Vec::with_capacity(44 + 16 * table.len() + (32 + 4 * table.len()) * n);
+    let per_sample = 32 + 4 * table.len() + if orbit.is_some() { 48 } else { 0 };
+    let mut b: Vec<u8> = Vec::with_capacity(44 + 16 * table.len() + per_sample * n);
     // Fixed part (44 bytes).
     b.extend_from_slice(b"IRPL");
-    b.extend_from_slice(&5u32.to_le_bytes());
+    b.extend_from_slice(&6u32.to_le_bytes());
     b.extend_from_slice(&rate.to_le_bytes());
     b.extend_from_slice(&noise.to_le_bytes());
     b.extend_from_slice(&rec.gyro_full_scale.to_le_bytes());
-    b.extend_from_slice(&u32::from(with_accel).to_le_bytes());
+    let flags = u32::from(with_accel) | u32::from(orbit.is_some()) << 1;
+    b.extend_from_slice(&flags.to_le_bytes());
     // The momentum's quantum as `identify` computes it (`momentum_quantum`).
     let quantum = match (&rotor, step) {
         (Some(r), Some(q)) => r.inertia * q,
@@ -155,7 +173,7 @@ pub fn export(
             b.extend_from_slice(&a.to_le_bytes());
         }
     }
-    // The samples (32 bytes and 4 a rotor each).
+    // The samples (32 bytes, 4 a rotor, 48 with the orbit each).
     for i in 0..n {
         let f = rec.accel.as_ref().map(|a| a[i]).unwrap_or([0.0; 3]);
         for x in rec.gyro[i].iter().chain(f.iter()) {
@@ -170,6 +188,15 @@ pub fn export(
         for w in &wheels {
             b.extend_from_slice(&w[i].to_le_bytes());
         }
+        if let Some((q, r)) = orbit {
+            b.extend_from_slice(&rec.t[i].to_le_bytes());
+            for x in q[i] {
+                b.extend_from_slice(&x.to_le_bytes());
+            }
+            for x in r[i] {
+                b.extend_from_slice(&x.to_le_bytes());
+            }
+        }
     }
     let mut file = std::fs::File::create(out).map_err(|e| format!("{}: {e}", out.display()))?;
     file.write_all(&b)
@@ -179,5 +206,6 @@ pub fn export(
         rate_hz: rate,
         noise_std: noise,
         with_accel,
+        orbit: orbit.is_some(),
     })
 }

@@ -292,6 +292,33 @@ fn exercise_tensor() {
     black_box(identifier_core::symmetric::sqrt(black_box(2.0)));
 }
 
+fn exercise_gravity() {
+    use identifier_core::gravity::{
+        gravity_gradient_torque, keep_folded, mul, mul_t, rotation, settled, sqrt, tensor_moved,
+        GravityFold,
+    };
+    let j = black_box([[0.4f32, 0.01, 0.0], [0.01, 0.3, 0.0], [0.0, 0.0, 0.15]]);
+    let mut fold = GravityFold::new(j);
+    for k in 0..black_box(100usize) {
+        black_box(fold.step(
+            black_box(k as f64),
+            black_box([0.9, 0.1, -0.2, 0.3]),
+            black_box([6.8e6, 1.0e5, -2.0e5]),
+        ));
+    }
+    let q = black_box([0.5f32, 0.5, 0.5, 0.5]);
+    if let Some(r) = rotation(q) {
+        black_box(mul(&r, black_box([1.0, 2.0, 3.0])));
+        black_box(mul_t(&r, black_box([1.0, 2.0, 3.0])));
+    }
+    let jd = black_box([[0.4f64, 0.01, 0.0], [0.01, 0.3, 0.0], [0.0, 0.0, 0.15]]);
+    black_box(gravity_gradient_torque(&jd, q, black_box([6.8e6, 0.0, 1.0])));
+    black_box(sqrt(black_box(2.0)));
+    let moved = tensor_moved(&j, black_box(Some(j)), black_box(Some(j)));
+    black_box(settled(moved));
+    black_box(keep_folded(black_box(1.0), black_box(2.0)));
+}
+
 /// Entry point of the image (the linker's default entry symbol).
 #[no_mangle]
 pub extern "C" fn _start() -> ! {
@@ -300,5 +327,6 @@ pub extern "C" fn _start() -> ! {
         exercise_refined();
         exercise_extended();
         exercise_tensor();
+        exercise_gravity();
     }
 }

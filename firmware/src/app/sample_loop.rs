@@ -67,6 +67,27 @@ pub struct SampleRecord {
     /// The sample clock when this loop read it, us ([`SampleLoop::read_record`]); `None` for
     /// a replayed sample.
     pub read_at_us: Option<u32>,
+    /// A replayed sample's extra momentum from a known external torque, kg m^2/s, added to
+    /// the rotors' before the pipeline (the gravity-gradient torque's impulse (G2) of
+    /// [`identifier_core::gravity`], as `inertia identify` adds it on an orbit log); `None`:
+    /// none (always for a record read by the loop, which has no attitude or position).
+    pub external_momentum: Option<[f32; 3]>,
+}
+
+/// Makes a new pipeline with `settings` and copies it into `dst`; false (and `dst` as it was)
+/// when the settings are refused. The new pipeline is one temporary in this function's frame,
+/// copied from by reference (a binding of it, or a move out of the `Option`, would be a second
+/// copy of its tens of kilobytes on the stack).
+#[inline(never)]
+fn fresh_pipeline_into(dst: &mut FlightPipeline, settings: PipelineSettings, accel: bool) -> bool {
+    let fresh = FlightPipeline::new(settings, accel);
+    match &fresh {
+        Some(p) => {
+            *dst = *p;
+            true
+        }
+        None => false,
+    }
 }
 
 /// Why the loop could not start.
@@ -440,6 +461,7 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: BoardInputs> SampleLoop<IF, C
             speeds_known,
             actuated: self.last_inputs.actuated,
             read_at_us: Some(now),
+            external_momentum: None,
         })
     }
 
@@ -466,6 +488,39 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: BoardInputs> SampleLoop<IF, C
     /// call after every [`SampleLoop::poll`] and send it like a periodic one.
     pub fn take_failed_report(&mut self) -> Option<Report> {
         self.pending.take()
+    }
+
+    /// Starts the estimators over as [`SampleLoop::new_with`] made them, with the same
+    /// settings, rotors and accelerometer choice: a fresh paper's and refined identifier, a
+    /// fresh free-flight pipeline, zero counters, the report schedule and time base from the
+    /// clock's reading now. The gyro is left as it is (not re-initialised). For a replay's
+    /// next pass over the same log (the gravity-gradient passes of an orbit log, QEMU
+    /// `--replay`). Not inlined: the new pipeline (tens of kilobytes) is made in this
+    /// function's frame, gone once it returns.
+    #[inline(never)]
+    pub fn restart(&mut self) -> Result<(), InitError<IF::Error>> {
+        let settings = *self.pipeline.settings();
+        self.identifier =
+            Identifier::new(identifier_settings(&self.config)).map_err(InitError::Settings)?;
+        self.refined =
+            Refined::new(refined_settings(&self.config)).ok_or(InitError::RefinedSettings)?;
+        let now_us = self.clock.now_us(self.gyro.interface());
+        self.time = SampleTime::new(&self.config, settings.rate_hz, now_us);
+        self.reports = ReportSchedule::new(&self.config, now_us);
+        self.health = SensorHealth::default();
+        self.rate_check = RateCheck::new(&self.config);
+        self.last_inputs = SampleInputs::default();
+        self.not_fed = 0;
+        self.was_actuated = false;
+        self.check_identity = false;
+        self.flag_closed = false;
+        self.counters = LoopCounters::default();
+        self.pending = None;
+        if fresh_pipeline_into(&mut self.pipeline, settings, self.with_accel) {
+            Ok(())
+        } else {
+            Err(InitError::PipelineSettings)
+        }
     }
 
     /// Ends the free flight being fed, if any (a replayed log has ended): its trajectory is
@@ -540,6 +595,14 @@ impl<IF: RegisterInterface, C: SampleClock<IF>, R: BoardInputs> SampleLoop<IF, C
             bench::loop_begin();
             let momentum = (rec.speeds_known && !self.rotors.is_empty())
                 .then(|| self.rotors.momentum(&rec.speeds));
+            // The external torque's momentum added as `inertia identify` adds it.
+            let momentum = match rec.external_momentum {
+                Some([g0, g1, g2]) => {
+                    let [h0, h1, h2] = momentum.unwrap_or([0.0; 3]);
+                    Some([h0 + g0, h1 + g1, h2 + g2])
+                }
+                None => momentum,
+            };
             self.last_inputs = SampleInputs {
                 gyro: rec.omega,
                 accel: rec.accel,

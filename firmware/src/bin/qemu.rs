@@ -8,7 +8,9 @@
 //! own samples, at its own rate, into the sample loop's free-flight pipeline and both
 //! identifiers ([`SampleLoop::replay_sample`]; the driver, the simulated part, the
 //! plausibility gate and the sample clock are bypassed, since the part's 16-bit counts cannot
-//! carry the log's `f32` values unchanged).
+//! carry the log's `f32` values unchanged). An orbit log's replay (format version 6 with its
+//! time, attitude and position) runs `inertia identify`'s passes with the gravity-gradient
+//! torque folded in, one after another, and reports the one `identify` reports ([`replay`]).
 //! Exit codes: 0 log replayed, 1 gyro init failed, 2 log unreadable, 3 bad arguments,
 //! 4 log shorter than its header says (truncated file or a read error).
 //!
@@ -25,7 +27,7 @@ use critical_section::Mutex;
 use defmt_semihosting as _;
 use firmware::app::{read_into_ring, FitJob, FitKind, FitScheduler, RingRead, Stepper};
 use firmware::log_format::{decode_sample, Header, HEADER_LEN, SAMPLE_LEN};
-use firmware::replay_format::{self, ReplayHeader};
+use firmware::replay_format::{self, OrbitSample, ReplayHeader};
 use firmware::uplink::{send_report, ByteSink};
 use firmware::{
     stack, InitError, NoBoardInputs, NoDelay, Report, SampleLoop, SampleRecord, TensorReport,
@@ -33,14 +35,16 @@ use firmware::{
 use heapless::spsc::{Consumer, Producer, Queue};
 use icm42688::sim::{SampleSource, SimIcm42688};
 use icm42688::{Config, GyroOdr, Icm42688, SpiInterface};
+use identifier_core::gravity::{self, GravityFold};
 use identifier_core::{FlightPipeline, Rotors};
 use semihosting::fs::File;
 use semihosting::io::Read;
 
 /// Samples read per semihosting call.
 const CHUNK: usize = 64;
-/// Replay samples read per semihosting call (up to 64 bytes each).
-const REPLAY_CHUNK: usize = 16;
+/// The replay reader's buffer, bytes: whole samples read per semihosting call (16 of a
+/// thrown flight controller's 36 bytes, 9 of an orbit log's 112 with 8 wheels).
+const REPLAY_BUF: usize = 1024;
 
 /// Samples from the log file, read in chunks.
 struct LogSource {
@@ -415,17 +419,33 @@ fn run_log(path: &str, fail_every: u32, uart: &mut Usart1) -> ! {
 /// The replay file's samples, read in chunks.
 struct ReplayReader {
     file: File,
-    buf: [u8; REPLAY_CHUNK * replay_format::SAMPLE_MAX_LEN],
+    buf: [u8; REPLAY_BUF],
     len: usize,
     pos: usize,
     /// Bytes of one sample.
     sample_len: usize,
     /// Rotors per sample.
     rotors: usize,
+    /// Each sample carries its orbit (time, attitude, position).
+    orbit: bool,
 }
 
 impl ReplayReader {
-    fn next(&mut self) -> Option<replay_format::ReplaySample> {
+    /// A reader of `file`'s samples, its header and rotor table read.
+    fn new(file: File, header: &ReplayHeader) -> Self {
+        ReplayReader {
+            file,
+            buf: [0; REPLAY_BUF],
+            len: 0,
+            pos: 0,
+            sample_len: header.sample_len(),
+            rotors: header.rotors as usize,
+            orbit: header.orbit,
+        }
+    }
+
+    /// The next sample and its orbit (zero without one).
+    fn next(&mut self) -> Option<(replay_format::ReplaySample, OrbitSample)> {
         let l = self.sample_len;
         if self.len - self.pos < l {
             let rest = self.len - self.pos;
@@ -441,9 +461,15 @@ impl ReplayReader {
                 }
             }
         }
-        let s = replay_format::decode_sample(&self.buf[self.pos..self.pos + l], self.rotors);
+        let b = &self.buf[self.pos..self.pos + l];
+        let s = replay_format::decode_sample(b, self.rotors);
+        let o = if self.orbit {
+            replay_format::decode_orbit(b, self.rotors)
+        } else {
+            OrbitSample::default()
+        };
         self.pos += l;
-        Some(s)
+        Some((s, o))
     }
 }
 
@@ -494,6 +520,9 @@ struct Sampler {
     waiting: Option<SampleRecord>,
     /// SysTick ticks since the last sample.
     tick: u32,
+    /// The gravity-gradient torque's momentum (G2) at this pass's tensor, added to each
+    /// sample's (an orbit log's passes after the first, [`replay`]).
+    fold: Option<GravityFold>,
 }
 
 /// The stepper's state, handed to `PendSV` once and handed back at the end.
@@ -547,18 +576,24 @@ fn SysTick() {
         }
     }
     let sample = if s.left > 0 { s.reader.next() } else { None };
-    let Some(x) = sample else {
+    let Some((x, o)) = sample else {
         if s.waiting.is_some() {
             return;
         }
-        // The log has ended: no more ticks.
+        // The log has ended: no more ticks, and this pass's sampler is let go (a next pass
+        // hands a new one through `SAMPLER`).
         // SAFETY: SysTick's control register; only this handler and start-up touch it.
         unsafe { (*cortex_m::peripheral::SYST::PTR).csr.write(0) };
+        *S = None;
         ENDED.store(true, Ordering::Release);
         cortex_m::peripheral::SCB::set_pendsv();
         return;
     };
     s.left -= 1;
+    // (G2) at this pass's tensor, from the log's own time, attitude and position: the
+    // function `inertia identify` calls, on every sample in order (a sample lost to a full
+    // ring keeps its share of the impulse).
+    let external_momentum = s.fold.as_mut().map(|f| f.step(o.t, o.attitude, o.position));
     let rec = SampleRecord {
         omega: x.omega,
         accel: x.accel,
@@ -568,6 +603,7 @@ fn SysTick() {
         speeds_known: true,
         actuated: x.actuated,
         read_at_us: None,
+        external_momentum,
     };
     DELIVERED.fetch_add(1, Ordering::Relaxed);
     match s.ring.enqueue(rec) {
@@ -618,10 +654,11 @@ fn PendSV() {
 /// A `'static` reference to `x`.
 ///
 /// # Safety
-/// `x` is a local of a function that never returns, and that function does not use it again
-/// except through the reference returned.
+/// `x` outlives every use of the reference returned: it is a local of a function that never
+/// returns, or every copy of the reference is gone before its frame ends (handed back by the
+/// interrupts and dropped). Meanwhile `x` is not used except through the reference returned.
 unsafe fn forever<T>(x: &mut T) -> &'static mut T {
-    // SAFETY: the caller's frame outlives the program (see above); no other reference is used.
+    // SAFETY: see above; no other reference is used while this one lives.
     unsafe { &mut *(x as *mut T) }
 }
 
@@ -770,12 +807,74 @@ fn build_replay_loop(
     )
 }
 
+/// Opens the replay file `cpath` and reads its header and rotor table (into `table`); `None`
+/// when it cannot be opened or read, or its header is refused.
+fn open_replay(
+    cpath: &CStr,
+    table: &mut [u8; replay_format::ROTOR_LEN * identifier_core::MAX_ROTORS],
+) -> Option<(File, ReplayHeader)> {
+    let mut file = File::open(cpath).ok()?;
+    let mut h = [0u8; replay_format::HEADER_LEN];
+    if !read_exact(&mut file, &mut h) {
+        return None;
+    }
+    let header = match ReplayHeader::decode(&h) {
+        Ok(hd) => hd,
+        Err(e) => {
+            defmt::error!("replay header refused: {}", e);
+            return None;
+        }
+    };
+    if !read_exact(&mut file, &mut table[..header.table_len()]) {
+        return None;
+    }
+    Some((file, header))
+}
+
+/// The stepper's queue ends and the loop, handed to `PendSV` for a pass and back after it.
+struct StepParts {
+    lp: &'static mut ReplayLoop,
+    ring: Consumer<'static, SampleRecord>,
+    jobs: Producer<'static, FitJob<'static>>,
+    done: Consumer<'static, FitJob<'static>>,
+    reports: Producer<'static, Report>,
+}
+
+/// Thread mode's queue ends: fit jobs in, fitted jobs out, reports to send.
+struct ThreadEnds {
+    jobs: Consumer<'static, FitJob<'static>>,
+    done: Producer<'static, FitJob<'static>>,
+    reports: Consumer<'static, Report>,
+}
+
+/// How a pass over the replay ended.
+#[derive(Clone, Copy)]
+struct PassEnd {
+    /// The loop's report once the log ended and its last flight was fitted.
+    report: Report,
+    /// The pipeline's tensor's standard deviations (with `report.tensor.tensor`).
+    tensor_std: Option<[[f32; 3]; 3]>,
+    /// The pipeline's residual over the gyro noise.
+    residual_ratio: f32,
+    /// Samples stepped.
+    stepped: u32,
+}
+
 /// `--replay`: the log's samples into the sample loop at the log's own rate, delivered by the
 /// SysTick interrupt into a ring, stepped by PendSV, the fits in thread mode on a copy of the
 /// pipeline ([`firmware::app::fits`]). `refit_every`: continuous mode's re-fit period in
 /// samples fed (0: none). `lossless`: a sample that finds the ring full waits for the next
 /// tick instead of being lost (a file can wait, a sensor cannot: for the bit-for-bit checks
 /// on logs whose flights follow each other faster than a fit runs).
+///
+/// An orbit log (header flag, [`OrbitSample`]) is replayed in the passes `inertia identify`
+/// makes ((G3) of [`identifier_core::gravity`]): once torque-free, then again from its start
+/// (the file read again through semihosting, the loop restarted) with the gravity-gradient
+/// torque's momentum at the previous pass's tensor added to each sample's
+/// ([`GravityFold`], computed in the sample interrupt), until the tensor has settled or after
+/// [`gravity::MAX_PASSES`] such passes; the last one is reported when its residual is smaller
+/// than the torque-free pass's ([`gravity::keep_folded`]), else the torque-free one. Each pass
+/// is a whole paced replay with its fits off the sample path; they run one after another.
 // Not inlined into `main`: the loop is tens of kilobytes, and the two modes' loops in one
 // frame would need stack for both.
 #[inline(never)]
@@ -789,25 +888,11 @@ fn replay(path: &str, refit_every: RefitEvery, lossless: bool, uart: &mut Usart1
     let Ok(cpath) = CStr::from_bytes_until_nul(&name) else {
         exit(2)
     };
-    let Ok(mut file) = File::open(cpath) else {
-        defmt::error!("cannot open replay file {=str}", path);
-        exit(2)
-    };
-    let mut h = [0u8; replay_format::HEADER_LEN];
-    if !read_exact(&mut file, &mut h) {
-        exit(2)
-    }
-    let header = match ReplayHeader::decode(&h) {
-        Ok(hd) => hd,
-        Err(e) => {
-            defmt::error!("replay header refused: {}", e);
-            exit(2)
-        }
-    };
     let mut table = [0u8; replay_format::ROTOR_LEN * identifier_core::MAX_ROTORS];
-    if !read_exact(&mut file, &mut table[..header.table_len()]) {
+    let Some((file, header)) = open_replay(cpath, &mut table) else {
+        defmt::error!("cannot read replay file {=str}", path);
         exit(2)
-    }
+    };
     let n_rotors = header.rotors as usize;
     let mut list = [identifier_core::Rotor::new(0.0, [0.0; 3]); identifier_core::MAX_ROTORS];
     for (i, r) in list.iter_mut().take(n_rotors).enumerate() {
@@ -825,7 +910,7 @@ fn replay(path: &str, refit_every: RefitEvery, lossless: bool, uart: &mut Usart1
         }
     };
     defmt::info!(
-        "replay {=str}: {=u32} samples at {=f32} Hz, noise {=f32} rad/s, full scale {=f32} rad/s, accelerometer {=bool}, rotors {=u32}, momentum quantum {=f32} kg m^2/s, re-fit every {=u32} samples",
+        "replay {=str}: {=u32} samples at {=f32} Hz, noise {=f32} rad/s, full scale {=f32} rad/s, accelerometer {=bool}, rotors {=u32}, momentum quantum {=f32} kg m^2/s, re-fit every {=u32} samples, orbit {=bool}",
         path,
         header.samples,
         header.rate_hz,
@@ -834,7 +919,8 @@ fn replay(path: &str, refit_every: RefitEvery, lossless: bool, uart: &mut Usart1
         header.with_accel,
         header.rotors,
         header.momentum_quantum,
-        refit_every
+        refit_every,
+        header.orbit
     );
     for r in list.iter().take(n_rotors) {
         defmt::info!(
@@ -864,27 +950,181 @@ fn replay(path: &str, refit_every: RefitEvery, lossless: bool, uart: &mut Usart1
             exit(1)
         }
     };
-    // SAFETY: `built` is a local of this function, which never returns (`paced` does not);
-    // from here on it is reached only through `lp`.
+    // SAFETY: `built` is a local of this function, which never returns; from here on it is
+    // reached only through `lp`.
     let lp = unsafe { forever(app) };
-    paced(lp, file, &header, refit_every, lossless, uart)
+    let Some((ring, jobs, done, reports)) = queues() else {
+        exit(3)
+    };
+    let (ring_p, ring_c) = ring.split();
+    let (jobs_p, jobs_c) = jobs.split();
+    let (done_p, done_c) = done.split();
+    let (reports_p, reports_c) = reports.split();
+    let mut sampler = Sampler {
+        reader: ReplayReader::new(file, &header),
+        ring: ring_p,
+        left: header.samples,
+        carry: 0.0,
+        lossless,
+        waiting: None,
+        tick: 0,
+        fold: None,
+    };
+    let mut run = Passes {
+        parts: Some(StepParts {
+            lp,
+            ring: ring_c,
+            jobs: jobs_p,
+            done: done_c,
+            reports: reports_p,
+        }),
+        ends: ThreadEnds {
+            jobs: jobs_c,
+            done: done_p,
+            reports: reports_c,
+        },
+        sampler: &mut sampler,
+        header,
+        refit_every,
+    };
+    let free = pass(&mut run, uart);
+    if header.orbit {
+        orbit_passes(&mut run, &free, cpath, path, &mut table, uart)
+    }
+    finish(&free, 1, false, uart)
 }
 
-/// The paced replay of [`replay`] once its loop is built: the fit slot, the queues, the two
-/// interrupts and thread mode's fits. A function of its own so that its frame (the slot) and
-/// the loop's construction (in [`replay`]'s) are not on the stack at the same time.
-#[inline(never)]
-fn paced(
-    lp: &'static mut ReplayLoop,
-    file: File,
-    header: &ReplayHeader,
+/// What the passes of one replay share: the loop and the queue ends (handed to the interrupts
+/// for a pass and back after it), the sample interrupt's state (its file read again for each
+/// pass), the header and the re-fit period.
+struct Passes<'a> {
+    parts: Option<StepParts>,
+    ends: ThreadEnds,
+    sampler: &'a mut Sampler,
+    header: ReplayHeader,
     refit_every: u32,
-    lossless: bool,
+}
+
+/// The passes with the gravity-gradient torque folded in, at the previous pass's tensor, after
+/// the torque-free pass `free`, as `inertia identify` makes them ((G3) of
+/// [`identifier_core::gravity`]), then the final report (see [`replay`]). Not inlined: its
+/// frame (a pass's end kept) is on the stack only for an orbit log.
+#[inline(never)]
+fn orbit_passes(
+    run: &mut Passes,
+    free: &PassEnd,
+    cpath: &CStr,
+    path: &str,
+    table: &mut [u8; replay_format::ROTOR_LEN * identifier_core::MAX_ROTORS],
     uart: &mut Usart1,
 ) -> ! {
-    let n_rotors = header.rotors as usize;
+    let header = run.header;
+    let mut passes = 1u32;
+    let mut last: Option<PassEnd> = None;
+    let mut prev = free.report.tensor.tensor;
+    for _ in 0..gravity::MAX_PASSES {
+        let Some(j) = prev else {
+            break;
+        };
+        let Some((file, again)) = open_replay(cpath, table) else {
+            defmt::error!("cannot read replay file {=str} again", path);
+            exit(2)
+        };
+        if (again.samples, again.sample_len()) != (header.samples, header.sample_len()) {
+            defmt::error!("the replay file {=str} changed between passes", path);
+            exit(2)
+        }
+        let s = &mut *run.sampler;
+        s.reader = ReplayReader::new(file, &header);
+        s.left = header.samples;
+        s.carry = 0.0;
+        s.waiting = None;
+        s.tick = 0;
+        s.fold = Some(GravityFold::new(j));
+        let Some(parts) = run.parts.as_mut() else {
+            exit(3)
+        };
+        // The restart's own stack high-water, painted (its new pipeline is a temporary of
+        // tens of kilobytes under the replay's frame with the loop).
+        stack::paint();
+        let restarted = parts.lp.restart();
+        let restart_high_water = stack::high_water();
+        if let Err(e) = restarted {
+            defmt::error!("restart failed: {}", e);
+            exit(1)
+        }
+        passes += 1;
+        defmt::info!(
+            "pass {=u32}: the gravity-gradient torque folded in at J=[{=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}, {=f32}] kg m^2; the loop restarted (stack high-water {=usize} of {=usize} bytes)",
+            passes,
+            j[0][0],
+            j[0][1],
+            j[0][2],
+            j[1][0],
+            j[1][1],
+            j[1][2],
+            j[2][0],
+            j[2][1],
+            j[2][2],
+            restart_high_water,
+            stack::size()
+        );
+        let next = pass(run, uart);
+        let moved = gravity::tensor_moved(&j, next.report.tensor.tensor, next.tensor_std);
+        defmt::info!(
+            "pass {=u32} ended: residual ratio {=f32} (torque-free {=f32}), tensor moved {=f32} of its std",
+            passes,
+            next.residual_ratio,
+            free.residual_ratio,
+            moved
+        );
+        prev = next.report.tensor.tensor;
+        last = Some(next);
+        if gravity::settled(moved) {
+            break;
+        }
+    }
+    match &last {
+        Some(l) if gravity::keep_folded(l.residual_ratio, free.residual_ratio) => {
+            finish(l, passes, true, uart)
+        }
+        _ => finish(free, passes, false, uart),
+    }
+}
+
+/// The replay's final report: `end`'s, the one `inertia identify` reports, after `passes`
+/// passes (`folded`: with the gravity gradient folded in).
+fn finish(end: &PassEnd, passes: u32, folded: bool, uart: &mut Usart1) -> ! {
+    let r = &end.report;
+    firmware::app::log_report(r);
+    defmt::info!(
+        "final replay samples={=u32} passes={=u32} gravity_gradient={=bool}",
+        end.stepped,
+        passes,
+        folded
+    );
+    firmware::app::log_tensor(r, true);
+    send_report(uart, r, None);
+    exit(0)
+}
+
+/// One paced pass of [`replay`] over the file `run`'s sampler reads: the fit slot, the two
+/// interrupts and thread mode's fits until every sample was stepped, then the last flight's
+/// fits. A function of its own so that its frame (the slot) and the loop's construction or
+/// restart (in [`replay`]'s and [`orbit_passes`]') are not on the stack at the same time.
+#[inline(never)]
+fn pass(run: &mut Passes, uart: &mut Usart1) -> PassEnd {
+    let header = run.header;
+    let refit_every = run.refit_every;
+    let ends = &mut run.ends;
+    let Some(parts) = run.parts.take() else {
+        exit(3)
+    };
+    // SAFETY: the sampler is a local of `replay`, which never returns; the sample interrupt
+    // lets this reference go at the end of the pass, before the sampler is used again.
+    let sampler: &'static mut Sampler = unsafe { forever(&mut *run.sampler) };
     // The fit slot: the fits' own copy of the pipeline.
-    let mut slot: FlightPipeline = *lp.pipeline();
+    let mut slot: FlightPipeline = *parts.lp.pipeline();
     let loop_depth = stack::depth();
     let report_every = {
         let r = header.rate_hz / 10.0;
@@ -894,41 +1134,30 @@ fn paced(
             1
         }
     };
-    let Some((ring, jobs, done, reports)) = queues() else {
-        exit(3)
-    };
-    let (ring_p, ring_c) = ring.split();
-    let (jobs_p, mut jobs_c) = jobs.split();
-    let (mut done_p, done_c) = done.split();
-    let (reports_p, mut reports_c) = reports.split();
-    let mut sampler = Sampler {
-        reader: ReplayReader {
-            file,
-            buf: [0; REPLAY_CHUNK * replay_format::SAMPLE_MAX_LEN],
-            len: 0,
-            pos: 0,
-            sample_len: header.sample_len(),
-            rotors: n_rotors,
-        },
-        ring: ring_p,
-        left: header.samples,
-        carry: 0.0,
-        lossless,
-        waiting: None,
-        tick: 0,
-    };
-    // SAFETY: `slot` and `sampler` are locals of this function, which never returns; from here
-    // on it reaches them only through the interrupts and what the stepper hands back.
-    let (slot, sampler) = unsafe { (forever(&mut slot), forever(&mut sampler)) };
+    for c in [&DELIVERED, &DROPPED, &WAITS, &PEAK] {
+        c.store(0, Ordering::Relaxed);
+    }
+    ENDED.store(false, Ordering::Release);
+    // SAFETY: `slot` is a local of this function, which returns only once the interrupts have
+    // handed back the stepper holding its reference (`BACK`), dropped below with no fit job
+    // out; meanwhile it is reached only through the stepper and its jobs.
+    let slot = unsafe { forever(&mut slot) };
+    let StepParts {
+        lp,
+        ring,
+        jobs,
+        done,
+        reports,
+    } = parts;
     critical_section::with(|cs| {
         *SAMPLER.borrow_ref_mut(cs) = Some(sampler);
         *STEP.borrow_ref_mut(cs) = Some(StepCtx {
             lp,
             stepper: Stepper::new(slot, refit_every, report_every),
-            ring: ring_c,
-            jobs: jobs_p,
-            done: done_c,
-            reports: reports_p,
+            ring,
+            jobs,
+            done,
+            reports,
         });
     });
     stack::paint();
@@ -940,7 +1169,7 @@ fn paced(
     let mut fits = 0u32;
     let mut worst = (0u32, 0u32);
     let back = loop {
-        if let Some(mut job) = jobs_c.dequeue() {
+        if let Some(mut job) = ends.jobs.dequeue() {
             job.run(|| DELIVERED.load(Ordering::Relaxed));
             let l = job.latency();
             fits += 1;
@@ -962,13 +1191,13 @@ fn paced(
             if refit_every > 0 {
                 latest = job.report;
             }
-            if done_p.enqueue(job).is_err() {
+            if ends.done.enqueue(job).is_err() {
                 defmt::error!("fit job queue full");
             }
             cortex_m::peripheral::SCB::set_pendsv();
             continue;
         }
-        if let Some(mut r) = reports_c.dequeue() {
+        if let Some(mut r) = ends.reports.dequeue() {
             // Continuous mode reports the latest fit of the window so far.
             if let Some(t) = latest {
                 r.tensor = t;
@@ -984,13 +1213,22 @@ fn paced(
         // Sleep until an interrupt, checked with interrupts masked so that none is missed
         // between the checks above and the sleep (WFI wakes on a pending interrupt).
         critical_section::with(|cs| {
-            if !jobs_c.ready() && !reports_c.ready() && BACK.borrow_ref(cs).is_none() {
+            if !ends.jobs.ready() && !ends.reports.ready() && BACK.borrow_ref(cs).is_none() {
                 cortex_m::asm::wfi();
             }
         });
     };
-    let StepCtx { lp, stepper, .. } = back;
-    while let Some(r) = reports_c.dequeue() {
+    let StepCtx {
+        lp,
+        stepper,
+        ring,
+        jobs,
+        done,
+        reports,
+    } = back;
+    // The stepper (the slot's last reference) is not used again.
+    let st = stepper.stats;
+    while let Some(r) = ends.reports.dequeue() {
         firmware::app::log_report(&r);
         firmware::app::log_tensor(&r, false);
         send_report(uart, &r, None);
@@ -999,13 +1237,6 @@ fn paced(
     // thread mode: no sample comes any more), as `inertia identify` does at the end of a log,
     // so that no flight is reported without its fits.
     lp.end_flight();
-    let r = lp.report();
-    firmware::app::log_report(&r);
-    let n = stepper.stats.stepped;
-    defmt::info!("final replay samples={=u32}", n);
-    firmware::app::log_tensor(&r, true);
-    send_report(uart, &r, None);
-    let st = stepper.stats;
     defmt::info!(
         "paced rate={=f32} Hz delivered={=u32} stepped={=u32} dropped={=u32} waits={=u32} ring_peak={=u32} ring_capacity={=u32} holds={=u32} held_for_fit={=u32} fit_jobs={=u32} adopted={=u32} inline_fits={=u32} reports_dropped={=u32} worst_fit_latency={=u32} samples {=f32} s worst_refit_latency={=u32} samples {=f32} s",
         rate,
@@ -1045,7 +1276,29 @@ fn paced(
         );
         exit(4)
     }
-    exit(0)
+    let end = pass_end(lp, st.stepped);
+    run.parts = Some(StepParts {
+        lp,
+        ring,
+        jobs,
+        done,
+        reports,
+    });
+    end
+}
+
+/// The end of a pass over the replay of `lp` (`stepped` samples): its report and its
+/// pipeline's standard deviations and residual. Not inlined: the estimate (a few hundred bytes)
+/// is in this frame only while it is taken.
+#[inline(never)]
+fn pass_end(lp: &ReplayLoop, stepped: u32) -> PassEnd {
+    let e = lp.pipeline().estimate();
+    PassEnd {
+        report: lp.report(),
+        tensor_std: e.tensor_std,
+        residual_ratio: e.residual_ratio,
+        stepped,
+    }
 }
 
 /// Reads exactly `buf.len()` bytes; false at the end of the file or on an error.

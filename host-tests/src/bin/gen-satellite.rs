@@ -1,5 +1,5 @@
 //! Writes a simulated small satellite's gyro and reaction-wheel log as a firmware replay file
-//! (`firmware::replay_format`, version 5), for the QEMU image's continuous mode
+//! (`firmware::replay_format`, version 6, no orbit), for the QEMU image's continuous mode
 //! (`scripts/firmware-paced.sh`, `scripts/run.sh --replay FILE --refit-every N`).
 //!
 //! The body: a 3U-class satellite of inertia `J` (kg m^2, with products of inertia) tumbling
@@ -151,6 +151,7 @@ fn main() -> anyhow::Result<()> {
         noise_std: a.noise as f32,
         full_scale: 2000f32.to_radians(),
         with_accel: false,
+        orbit: false,
         momentum_quantum: 0.0,
         gyro_averaging: 0.0,
         gyro_smoothing: 0.0,
