@@ -10,7 +10,8 @@
 //!       12  f32    gyro noise, rad/s
 //!       16  f32    gyro full scale, rad/s (the estimator's saturation level)
 //!       20  u32    flags: bit 0 accelerometer present, bit 1 orbit (each sample carries its
-//!                  time, attitude and position)
+//!                  time, attitude and position), bit 2 the gyro's readings moved to their
+//!                  counts' centres (`inertia`'s (Q1): the tensor is at most ModelMismatch)
 //!       24  f32    rotor momentum's quantum, kg m^2/s (inertia times the speed telemetry's
 //!                  step, as `inertia identify` computes it; 0: exact)
 //!       28  f32    gyro averaging: the share of each sample interval a reading is the mean
@@ -79,6 +80,9 @@ pub struct ReplayHeader {
     /// log is an orbiting vehicle's with a known rotor momentum, which `inertia identify`
     /// identifies with the gravity gradient folded in.
     pub orbit: bool,
+    /// The gyro's readings were moved to their counts' centres from a truncation toward zero
+    /// (version 6; `identifier_core::PipelineSettings::centred_readings`).
+    pub centred: bool,
     /// The rotor momentum's quantum, kg m^2/s (0: taken as exact).
     pub momentum_quantum: f32,
     /// The share of each sample interval a gyro reading is the mean over (0: instants).
@@ -184,6 +188,7 @@ impl ReplayHeader {
             with_accel: u32_at(b, 20) & 1 != 0,
             // Version 5 had no bit 1.
             orbit: v >= 6 && u32_at(b, 20) & 2 != 0,
+            centred: v >= 6 && u32_at(b, 20) & 4 != 0,
             momentum_quantum: f32_at(b, 24),
             gyro_averaging: f32_at(b, 28),
             gyro_smoothing: f32_at(b, 32),
@@ -202,7 +207,7 @@ impl ReplayHeader {
         put(
             out,
             20,
-            u32::from(self.with_accel) | u32::from(self.orbit) << 1,
+            u32::from(self.with_accel) | u32::from(self.orbit) << 1 | u32::from(self.centred) << 2,
         );
         put(out, 24, self.momentum_quantum.to_bits());
         put(out, 28, self.gyro_averaging.to_bits());
@@ -316,6 +321,7 @@ mod tests {
             full_scale: 34.9,
             with_accel: false,
             orbit: false,
+            centred: false,
             momentum_quantum: 2.5e-7,
             gyro_averaging: 0.0,
             gyro_smoothing: 1e-6,
@@ -368,6 +374,7 @@ mod tests {
             full_scale: f32::INFINITY,
             with_accel: false,
             orbit: true,
+            centred: false,
             momentum_quantum: 0.0,
             gyro_averaging: 0.0,
             gyro_smoothing: 0.0,
@@ -405,5 +412,11 @@ mod tests {
         assert!(!d.orbit);
         assert_eq!(d.sample_len(), 48);
         assert_eq!(ReplayHeader { orbit: true, ..d }, h);
+        // Centred readings (flag bit 2) round-trip, and do not change a sample's length.
+        let c = ReplayHeader { centred: true, ..h };
+        c.encode(&mut b);
+        assert_eq!(b[20], 0b110);
+        assert_eq!(ReplayHeader::decode(&b), Ok(c));
+        assert_eq!(c.sample_len(), h.sample_len());
     }
 }

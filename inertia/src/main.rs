@@ -890,7 +890,9 @@ fn run_export_replay(args: ExportReplayArgs) -> Result<ExitCode, String> {
     };
     let mut rec = read(&args.input, &opts).map_err(|e| e.to_string())?;
     // The readings `identify` fits: moved to their counts' centres where it takes them as
-    // truncated toward zero (`Report::gyro_grid`, (Q1) of `inertia::grid`).
+    // truncated toward zero (`Report::gyro_grid`, (Q1) of `inertia::grid`), said in the header
+    // so that the firmware's estimate is at most `ModelMismatch` as `identify`'s is.
+    let mut centred = false;
     if inertia::grid::detect(&inertia::source::RecordingSource::new(&rec))
         .map_err(|e| e.to_string())?
         .is_some()
@@ -905,6 +907,7 @@ fn run_export_replay(args: ExportReplayArgs) -> Result<ExitCode, String> {
         };
         if let Ok(report) = inertia::identify::identify(&rec, &iopts) {
             if let Some(g) = report.gyro_grid.filter(|g| g.centred) {
+                centred = true;
                 for w in &mut rec.gyro {
                     for (x, q) in w.iter_mut().zip(g.lsb_rad_s) {
                         *x = inertia::grid::centre(*x, q);
@@ -917,7 +920,14 @@ fn run_export_replay(args: ExportReplayArgs) -> Result<ExitCode, String> {
         Some(v) => replay::Rotors::Vehicle(v),
         None => replay::Rotors::Flag(rotor),
     };
-    let e = replay::export(&rec, rotors, args.noise_std, args.rotor.hold(), &args.out)?;
+    let e = replay::export(
+        &rec,
+        rotors,
+        args.noise_std,
+        args.rotor.hold(),
+        centred,
+        &args.out,
+    )?;
     eprintln!(
         "{}: {} samples at {} Hz, noise {} rad/s, accelerometer {}, orbit (gravity gradient) {}",
         args.out.display(),

@@ -56,6 +56,7 @@ pub fn export(
     rotors: Rotors<'_>,
     noise_std: Option<f32>,
     hold: RotorHold,
+    centred: bool,
     out: &Path,
 ) -> Result<Exported, String> {
     let n = rec.len();
@@ -154,7 +155,7 @@ pub fn export(
     b.extend_from_slice(&rate.to_le_bytes());
     b.extend_from_slice(&noise.to_le_bytes());
     b.extend_from_slice(&rec.gyro_full_scale.to_le_bytes());
-    let flags = u32::from(with_accel) | u32::from(orbit.is_some()) << 1;
+    let flags = u32::from(with_accel) | u32::from(orbit.is_some()) << 1 | u32::from(centred) << 2;
     b.extend_from_slice(&flags.to_le_bytes());
     // The momentum's quantum as `identify` computes it (`momentum_quantum`).
     let quantum = match (&rotor, step) {

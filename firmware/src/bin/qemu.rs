@@ -935,7 +935,8 @@ fn replay(path: &str, refit_every: RefitEvery, lossless: bool, uart: &mut Usart1
         .with_full_scale(header.full_scale)
         .with_momentum_resolution(header.momentum_quantum)
         .with_averaging_gyro(header.gyro_averaging)
-        .with_filtered_gyro(header.gyro_smoothing);
+        .with_filtered_gyro(header.gyro_smoothing)
+        .with_centred_readings(header.centred);
     // Matched by reference, not moved out of the `Result`: a move would be a second copy of
     // the loop in this frame.
     let mut built = build_replay_loop(settings, header.with_accel, rotors);

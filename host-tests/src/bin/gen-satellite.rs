@@ -152,6 +152,7 @@ fn main() -> anyhow::Result<()> {
         full_scale: 2000f32.to_radians(),
         with_accel: false,
         orbit: false,
+        centred: false,
         momentum_quantum: 0.0,
         gyro_averaging: 0.0,
         gyro_smoothing: 0.0,
