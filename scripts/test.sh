@@ -79,7 +79,7 @@ log "firmware end to end under QEMU (simulated body -> gyro log -> firmware -> d
 scripts/firmware-e2e.sh
 
 log "logs replayed through the firmware under QEMU: on-board == inertia identify pooled (bit for bit), UART telemetry == defmt"
-scripts/replay-check.sh
+scripts/replay-check.sh --quick
 
 log "fits off the sample path under QEMU: 8 kHz throw and 10 Hz satellite paced by SysTick, no sample dropped"
 scripts/firmware-paced.sh --quick
