@@ -16,7 +16,7 @@
 //!
 //! The readings alone do not tell the two roundings apart (only the crossings of zero do, a
 //! few samples each). `inertia identify` fits the log as read and, where the residual is
-//! within a few counts, once more with (Q1) applied ([`CentredSource`]), and keeps the one
+//! within a few counts, once more with (Q1) applied ([`centred`]), and keeps the one
 //! whose residual is smaller: the two have the same parameters, so that is the likelier.
 //!
 //! [`detect`] finds `q` per axis from the distinct readings: with at most [`MAX_LEVELS`] of
@@ -29,9 +29,8 @@
 
 use std::collections::HashMap;
 
-use crate::readers::gyro_filters::GyroFilters;
 use crate::readers::ReadError;
-use crate::source::{Channels, Flow, Reading, Sample, Source, Visit};
+use crate::source::{Flow, MappedSource, Sample, Source};
 
 /// Most distinct readings per axis looked at (a 16-bit gyro has 65536 counts).
 pub const MAX_LEVELS: usize = 1 << 16;
@@ -138,68 +137,10 @@ pub fn centre(v: f32, q: f32) -> f32 {
     }
 }
 
-/// `inner` with every gyro reading moved to its cell's centre under truncation toward zero
+/// `inner` with every gyro reading moved to its count's centre under truncation toward zero
 /// ((Q1), per axis LSB `lsb`).
-pub struct CentredSource<'a> {
-    inner: &'a dyn Source,
-    lsb: [f32; 3],
-}
-
-impl<'a> CentredSource<'a> {
-    /// `inner` read with (Q1) applied on axes of LSB `lsb`.
-    pub fn new(inner: &'a dyn Source, lsb: [f32; 3]) -> Self {
-        CentredSource { inner, lsb }
-    }
-}
-
-impl Source for CentredSource<'_> {
-    fn name(&self) -> String {
-        self.inner.name()
-    }
-
-    fn channels(&self) -> Channels {
-        self.inner.channels()
-    }
-
-    fn full_scale(&self) -> f32 {
-        self.inner.full_scale()
-    }
-
-    fn gyro_averaging(&self) -> f32 {
-        self.inner.gyro_averaging()
-    }
-
-    fn gyro_filters(&self) -> Option<GyroFilters> {
-        self.inner.gyro_filters()
-    }
-
-    fn gyro_unit_stated(&self) -> bool {
-        self.inner.gyro_unit_stated()
-    }
-
-    fn gyro_centred(&self) -> bool {
-        true
-    }
-
-    fn read_all(
-        &self,
-        visit: &mut Visit<'_>,
-        progress: &mut dyn FnMut(f32),
-    ) -> Result<Reading, ReadError> {
-        let lsb = self.lsb;
-        let mut centred = |s: &Sample| {
-            let mut s = *s;
-            for (g, q) in s.gyro.iter_mut().zip(lsb) {
-                *g = centre(*g, q);
-            }
-            visit(&s)
-        };
-        self.inner.read_all(&mut centred, progress)
-    }
-
-    fn warnings(&self, found: Vec<String>) -> Vec<String> {
-        self.inner.warnings(found)
-    }
+pub fn centred<'a>(inner: &'a dyn Source, lsb: [f32; 3]) -> MappedSource<'a> {
+    MappedSource::new(inner, centre, lsb, true)
 }
 
 #[cfg(test)]

@@ -457,7 +457,7 @@ pub fn identify_source(
     if !within {
         return Ok(as_read);
     }
-    let centred_src = crate::grid::CentredSource::new(src, lsb);
+    let centred_src = crate::grid::centred(src, lsb);
     let centred = identify_model(&centred_src, opts, progress)?;
     let grid = |c: bool| GyroGrid {
         lsb_rad_s: lsb,
@@ -818,7 +818,7 @@ pub fn scale_systematic(
     for k in 0..3 {
         let mut scale = [1.0f32; 3];
         scale[k] += tolerance_percent / 100.0;
-        let scaled = crate::source::ScaledSource::new(src, scale);
+        let scaled = crate::source::MappedSource::scaled(src, scale);
         let rep = identify_source(&scaled, &opts, &mut Quiet)?;
         a_shift[k] = a0
             .zip(rep.pooled.a)

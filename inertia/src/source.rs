@@ -151,22 +151,42 @@ impl Source for RecordingSource<'_> {
     }
 }
 
-/// Another [`Source`] with each gyro axis multiplied by `scale`: the same log as a gyro with
-/// other scale factors would have written it (what `inertia identify --gyro-scale-tolerance`
-/// re-identifies to see how far a scale-factor error moves the estimate).
-pub struct ScaledSource<'a> {
+/// Another [`Source`] with each gyro axis's reading `g` replaced by `map(g, k)` (`k` that
+/// axis's constant): the same log as another gyro would have written it. Two are made:
+/// [`MappedSource::scaled`] (`g k`: other scale factors, what `inertia identify
+/// --gyro-scale-tolerance` re-identifies to see how far a scale-factor error moves the
+/// estimate) and `crate::grid::centred` (readings moved to their counts' centres, (Q1)).
+pub struct MappedSource<'a> {
     inner: &'a dyn Source,
-    scale: [f32; 3],
+    map: fn(f32, f32) -> f32,
+    k: [f32; 3],
+    centred: bool,
 }
 
-impl<'a> ScaledSource<'a> {
+impl<'a> MappedSource<'a> {
+    /// `inner` read with each axis's reading `g` as `map(g, k[axis])`; `centred` says the
+    /// readings come moved to their counts' centres ([`Source::gyro_centred`]).
+    pub fn new(
+        inner: &'a dyn Source,
+        map: fn(f32, f32) -> f32,
+        k: [f32; 3],
+        centred: bool,
+    ) -> Self {
+        MappedSource {
+            inner,
+            map,
+            k,
+            centred,
+        }
+    }
+
     /// `inner` read with its gyro axes multiplied by `scale`.
-    pub fn new(inner: &'a dyn Source, scale: [f32; 3]) -> Self {
-        ScaledSource { inner, scale }
+    pub fn scaled(inner: &'a dyn Source, scale: [f32; 3]) -> Self {
+        MappedSource::new(inner, |g, k| g * k, scale, inner.gyro_centred())
     }
 }
 
-impl Source for ScaledSource<'_> {
+impl Source for MappedSource<'_> {
     fn name(&self) -> String {
         self.inner.name()
     }
@@ -192,7 +212,7 @@ impl Source for ScaledSource<'_> {
     }
 
     fn gyro_centred(&self) -> bool {
-        self.inner.gyro_centred()
+        self.centred
     }
 
     fn read_all(
@@ -200,15 +220,15 @@ impl Source for ScaledSource<'_> {
         visit: &mut Visit<'_>,
         progress: &mut dyn FnMut(f32),
     ) -> Result<Reading, ReadError> {
-        let scale = self.scale;
-        let mut scaled = |s: &Sample| {
+        let (map, k) = (self.map, self.k);
+        let mut mapped = |s: &Sample| {
             let mut s = *s;
-            for (g, k) in s.gyro.iter_mut().zip(scale) {
-                *g *= k;
+            for (g, k) in s.gyro.iter_mut().zip(k) {
+                *g = map(*g, k);
             }
             visit(&s)
         };
-        self.inner.read_all(&mut scaled, progress)
+        self.inner.read_all(&mut mapped, progress)
     }
 
     fn warnings(&self, found: Vec<String>) -> Vec<String> {
