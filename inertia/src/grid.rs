@@ -41,27 +41,85 @@ pub const MIN_LEVELS: usize = 8;
 /// Largest distance of a reading from its count, in counts, on a grid.
 pub const GRID_SLACK: f64 = 0.02;
 
+/// Distinct readings of an axis at which [`GridStats`] checks once that they sit on a grid,
+/// letting the axis go if not (a continuous reading need not fill [`MAX_LEVELS`] first).
+pub const EARLY_CHECK: usize = 4096;
+
+/// Whether the distinct readings counted in `map` sit on a grid ([`grid_of`]).
+fn on_grid(map: &HashMap<u32, u64>) -> bool {
+    let values: Vec<(f32, u64)> = map.iter().map(|(&b, &c)| (f32::from_bits(b), c)).collect();
+    grid_of(&values).is_some()
+}
+
 /// Readings closer than this share of their size are one count.
 const SAME_COUNT: f64 = 1e-5;
 
-/// The LSB of each gyro axis, rad/s, when every axis's readings sit on a grid through zero
-/// (`None` otherwise, or for a log with no reading).
-pub fn detect(src: &dyn Source) -> Result<Option<[f32; 3]>, ReadError> {
-    let mut seen: [Option<HashMap<u32, u64>>; 3] = Default::default();
-    for s in &mut seen {
-        *s = Some(HashMap::new());
+/// The distinct readings of each gyro axis, counted while there are at most [`MAX_LEVELS`] of
+/// them (an axis past that is dropped: its readings are not whole counts of a 16-bit gyro).
+#[derive(Clone, Debug)]
+pub struct GridStats {
+    seen: [Option<HashMap<u32, u64>>; 3],
+}
+
+impl Default for GridStats {
+    fn default() -> Self {
+        GridStats {
+            seen: [
+                Some(HashMap::new()),
+                Some(HashMap::new()),
+                Some(HashMap::new()),
+            ],
+        }
     }
-    src.read_all(
-        &mut |s: &Sample| {
-            for (m, v) in seen.iter_mut().zip(s.gyro) {
-                if let Some(map) = m {
-                    *map.entry(v.to_bits()).or_insert(0) += 1;
-                    if map.len() > MAX_LEVELS {
-                        *m = None;
-                    }
+}
+
+impl GridStats {
+    /// The next sample's rates.
+    #[inline]
+    pub fn push(&mut self, w: [f32; 3]) {
+        for (m, v) in self.seen.iter_mut().zip(w) {
+            if let Some(map) = m {
+                let before = map.len();
+                *map.entry(v.to_bits()).or_insert(0) += 1;
+                let n = map.len();
+                // Continuous readings are let go once they have shown it, not at the cap.
+                let off_grid = n > before && n == EARLY_CHECK && !on_grid(map);
+                if n > MAX_LEVELS || off_grid {
+                    *m = None;
                 }
             }
-            Ok(if seen.iter().all(Option::is_none) {
+        }
+    }
+
+    /// True when no axis can be on a grid any more.
+    pub fn exhausted(&self) -> bool {
+        self.seen.iter().all(Option::is_none)
+    }
+
+    /// The LSB of each axis, rad/s, when every axis's readings sit on a grid through zero
+    /// ([`grid_of`]).
+    pub fn lsb(&self) -> Option<[f32; 3]> {
+        let mut lsb = [0.0f32; 3];
+        for (q, m) in lsb.iter_mut().zip(&self.seen) {
+            let values: Vec<(f32, u64)> = m
+                .as_ref()?
+                .iter()
+                .map(|(&b, &c)| (f32::from_bits(b), c))
+                .collect();
+            *q = grid_of(&values)?;
+        }
+        Some(lsb)
+    }
+}
+
+/// The LSB of each gyro axis, rad/s, when every axis's readings sit on a grid through zero
+/// (`None` otherwise, or for a log with no reading): [`GridStats`] over one reading of `src`.
+pub fn detect(src: &dyn Source) -> Result<Option<[f32; 3]>, ReadError> {
+    let mut stats = GridStats::default();
+    src.read_all(
+        &mut |s: &Sample| {
+            stats.push(s.gyro);
+            Ok(if stats.exhausted() {
                 Flow::Stop
             } else {
                 Flow::Continue
@@ -69,18 +127,7 @@ pub fn detect(src: &dyn Source) -> Result<Option<[f32; 3]>, ReadError> {
         },
         &mut |_| {},
     )?;
-    let mut lsb = [0.0f32; 3];
-    for (q, m) in lsb.iter_mut().zip(&seen) {
-        let Some(map) = m else {
-            return Ok(None);
-        };
-        let values: Vec<(f32, u64)> = map.iter().map(|(&b, &c)| (f32::from_bits(b), c)).collect();
-        match grid_of(&values) {
-            Some(g) => *q = g,
-            None => return Ok(None),
-        }
-    }
-    Ok(Some(lsb))
+    Ok(stats.lsb())
 }
 
 /// The LSB of one axis's distinct readings with their counts, when they sit on a grid through

@@ -240,6 +240,10 @@ pub struct Report {
     /// is not within [`GRID_RESIDUAL_COUNTS`] counts.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gyro_grid: Option<GyroGrid>,
+    /// Each gyro axis's LSB, rad/s, when the readings are whole counts (the survey's
+    /// [`crate::grid::GridStats`]; not written to JSON).
+    #[serde(skip)]
+    pub gyro_lsb: Option<[f32; 3]>,
 }
 
 /// The fit's residual, in counts of the gyro's grid, below which `identify` also fits the
@@ -449,7 +453,7 @@ pub fn identify_source(
 ) -> Result<Report, IdentifyError> {
     let as_read = identify_model(src, opts, progress)?;
     let residual = |r: &Report| r.pooled.residual_ratio * r.noise_std;
-    let Some(lsb) = crate::grid::detect(src)? else {
+    let Some(lsb) = as_read.gyro_lsb else {
         return Ok(as_read);
     };
     let largest = lsb.iter().copied().fold(0.0f32, f32::max);
@@ -769,6 +773,7 @@ fn identify_pass(
         rotor_momentum_quantum: (quantum > 0.0).then_some(quantum),
         gravity_gradient: false,
         gyro_grid: None,
+        gyro_lsb: sv.gyro_lsb,
         throws: throws.into_iter().map(|(_, j)| j).collect(),
         pooled: pooled_json,
         warnings,

@@ -47,6 +47,9 @@ pub struct Survey {
     /// The gyro's unit warning ([`UnitCheck::rate_warning`]: rates sustained above 50 rad/s),
     /// also in `warnings`.
     pub gyro_units: Option<String>,
+    /// Each gyro axis's LSB, rad/s, when its readings are whole counts
+    /// ([`crate::grid::GridStats`]).
+    pub gyro_lsb: Option<[f32; 3]>,
 }
 
 /// The resolution of a rotor-speed channel: the smallest change between consecutive logged
@@ -197,9 +200,13 @@ pub fn survey(
     let mut rotor_step = RotorStep::default();
     let mut span: Option<(f64, f64)> = None;
     let mut rate_max = 1.0f32;
+    let mut grid = crate::grid::GridStats::default();
     let reading = src.read_all(
         &mut |s| {
             dt.push(s.t);
+            if !grid.exhausted() {
+                grid.push(s.gyro);
+            }
             if wanted.noise {
                 noise.push(s.gyro);
             }
@@ -261,6 +268,7 @@ pub fn survey(
         rotor_step: wanted.rotor_step.and(rotor_step.step()),
         accel_units,
         gyro_units,
+        gyro_lsb: grid.lsb(),
     })
 }
 

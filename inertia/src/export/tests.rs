@@ -50,6 +50,7 @@ fn report(tensor: Option<[[f32; 3]; 3]>, status: &str) -> Report {
         trace: None,
         gyro_scale: None,
         gyro_grid: None,
+        gyro_lsb: None,
     }
 }
 

@@ -228,6 +228,7 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
         rotor_momentum_quantum: (quantum > 0.0).then_some(quantum),
         gravity_gradient: false,
         gyro_grid: None,
+        gyro_lsb: None,
         throws,
         pooled,
         warnings,
