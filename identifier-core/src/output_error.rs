@@ -976,34 +976,11 @@ impl<const M: usize> Pooled<M> {
         true
     }
 
-    /// The inflation of the pooled covariance the stretches' spread about the pooled mean calls
-    /// for ((P2), [`spread_inflation`]); 1 for fewer than two stretches.
-    pub(crate) fn spread_inflation(&self) -> f32 {
-        if self.stretches < 2 || !(self.dof > 0.0) {
-            return 1.0;
-        }
-        let Some(inv) = scaled_inverse(&self.info) else {
-            return 1.0;
-        };
-        let mut explained = 0.0f32;
-        for (row, b) in inv.iter().zip(self.info_p) {
-            let mut s = 0.0;
-            for (x, c) in row.iter().zip(self.info_p) {
-                s += x * c;
-            }
-            explained += s * b;
-        }
-        spread_inflation(
-            self.spread - explained,
-            self.cost / self.dof,
-            M,
-            self.stretches,
-        )
-    }
-
-    /// The pooled mean, its covariance (actual units) and the residual noise `sigma`; `None`
-    /// before a stretch was added.
-    pub(crate) fn mean(&self) -> Option<([f32; M], Sym<M>, f32)> {
+    /// The pooled mean, its covariance (actual units), the residual noise `sigma` and the
+    /// inflation of that covariance the stretches' spread about the mean calls for ((P2),
+    /// [`spread_inflation`]; 1 for one stretch, not applied to the covariance returned);
+    /// `None` before a stretch was added.
+    pub(crate) fn mean(&self) -> Option<([f32; M], Sym<M>, f32, f32)> {
         if self.stretches == 0 || !(self.dof > 0.0) {
             return None;
         }
@@ -1011,6 +988,7 @@ impl<const M: usize> Pooled<M> {
         let s2 = self.cost / self.dof;
         let mut p = self.p_ref;
         let mut cov = inv;
+        let mut explained = 0.0f32;
         for i in 0..M {
             let mut s = 0.0;
             for j in 0..M {
@@ -1018,8 +996,10 @@ impl<const M: usize> Pooled<M> {
                 cov[i][j] = inv[i][j] * s2;
             }
             p[i] += s;
+            explained += s * self.info_p[i];
         }
-        Some((p, cov, sqrt(s2)))
+        let spread = spread_inflation(self.spread - explained, s2, M, self.stretches);
+        Some((p, cov, sqrt(s2), spread))
     }
 }
 
@@ -1178,7 +1158,7 @@ impl<const N: usize, const K: usize, const M: usize> FitState<N, K, M> {
 
     /// The pooled estimate with the bias model on every stretch (mean, covariance, noise),
     /// when every pooled stretch had it fitted; `None` otherwise.
-    pub(crate) fn alternative(&self) -> Option<([f32; M], Sym<M>, f32)> {
+    pub(crate) fn alternative(&self) -> Option<([f32; M], Sym<M>, f32, f32)> {
         let all = self.alt_complete && self.alt_pooled.stretches == self.pooled.stretches;
         if all {
             self.alt_pooled.mean()
@@ -1248,8 +1228,8 @@ mod tests {
             let mut p = Pooled::<1>::EMPTY;
             assert!(p.add(&[10.0], &[[1.0]], 100.0, 100.0, 100));
             assert!(p.add(&[10.0 + d], &[[1.0]], 100.0, 100.0, 100));
-            let (m, cov, _) = p.mean().unwrap();
-            (m[0], cov[0][0], p.spread_inflation())
+            let (m, cov, _, k) = p.mean().unwrap();
+            (m[0], cov[0][0], k)
         };
         let (m, v, k) = pool(1.0);
         assert!((m - 10.5).abs() < 1e-5 && (v - 0.5).abs() < 1e-6 && k == 1.0);
@@ -1259,6 +1239,6 @@ mod tests {
         // One stretch: nothing to compare.
         let mut p = Pooled::<1>::EMPTY;
         p.add(&[1.0], &[[1.0]], 1.0, 1.0, 1);
-        assert_eq!(p.spread_inflation(), 1.0);
+        assert_eq!(p.mean().unwrap().3, 1.0);
     }
 }

@@ -1130,7 +1130,8 @@ impl<const N: usize> RatioFit<N> {
     /// each stretch's marginal information, `cov(p) = sigma^2 (sum M_s)^-1`,
     /// `sigma^2 = sum cost_s / sum dof_s`. `None` before a stretch was fitted.
     pub fn estimate(&self) -> Option<RatioFitEstimate> {
-        let (p, cov, noise) = self.state.pooled.mean()?;
+        // The ratio fit's pool reports its covariance as fitted ((P2) is the tensor fit's).
+        let (p, cov, noise, _) = self.state.pooled.mean()?;
         let (a, dadp) = ratios_of(p[0], p[1])?;
         let mut std_a = [0.0f32; 3];
         for i in 0..3 {

@@ -1230,15 +1230,14 @@ impl<const N: usize> TensorFit<N> {
     /// The estimate pooled over the closed stretches (information-weighted, `output_error`),
     /// `None` before one was fitted.
     pub fn estimate(&self) -> Option<TensorFitEstimate> {
-        let (mut e, mut cov, mut noise) = self.state.pooled.mean()?;
-        let mut spread = self.state.pooled.spread_inflation();
+        let (mut e, mut cov, mut noise, mut spread) = self.state.pooled.mean()?;
         let mut biased = self.state.biased;
         // The checked bias ([`BiasModel::Checked`]) over all the pooled stretches: where the
         // bias model's pooled tensor differs from the one pooled as fitted by more than
         // [`HAUSMAN_Z`] standard deviations of the difference on any entry, a bias common to
         // the stretches moves it (each stretch's own comparison sees a sixth of it on six
         // windows), and the bias model's pool is the estimate.
-        if let Some((ea, ca, na)) = self.state.alternative() {
+        if let Some((ea, ca, na, sa)) = self.state.alternative() {
             let moved = (0..6).any(|i| {
                 let diag = |c: &Sym<6>| c.get(i).and_then(|r| r.get(i)).copied().unwrap_or(0.0);
                 let d = ea.get(i).copied().unwrap_or(0.0) - e.get(i).copied().unwrap_or(0.0);
@@ -1246,8 +1245,7 @@ impl<const N: usize> TensorFit<N> {
                 v > 0.0 && d * d > HAUSMAN_Z * HAUSMAN_Z * v
             });
             if moved {
-                (e, cov, noise) = (ea, ca, na);
-                spread = self.state.alt_pooled.spread_inflation();
+                (e, cov, noise, spread) = (ea, ca, na, sa);
                 biased = true;
             }
         }
@@ -1274,8 +1272,8 @@ impl<const N: usize> TensorFit<N> {
     /// [`TensorFit::close_normalized`]: `tensor` is `J / trace J`, `cov` the covariance of its
     /// six entries (rank 5: `dJzz = -dJxx - dJyy`); `None` before one was fitted.
     pub fn estimate_normalized(&self) -> Option<TensorFitEstimate> {
-        let (p, c5, noise) = self.normalized.mean()?;
-        let c5 = scaled(&c5, self.normalized.spread_inflation());
+        let (p, c5, noise, spread) = self.normalized.mean()?;
+        let c5 = scaled(&c5, spread);
         let e = [p[0], p[1], 1.0 - p[0] - p[1], p[2], p[3], p[4]];
         // Row k: entry k of the six as a combination of the five free ones.
         let rows: [[f32; 5]; 6] = [
