@@ -184,6 +184,15 @@ pub fn centre(v: f32, q: f32) -> f32 {
     }
 }
 
+/// (Q1) for every reading of a recording's gyro, axis by axis (LSB `lsb`).
+pub fn centre_readings(gyro: &mut [[f32; 3]], lsb: [f32; 3]) {
+    for w in gyro {
+        for (x, q) in w.iter_mut().zip(lsb) {
+            *x = centre(*x, q);
+        }
+    }
+}
+
 /// `inner` with every gyro reading moved to its count's centre under truncation toward zero
 /// ((Q1), per axis LSB `lsb`).
 pub fn centred<'a>(inner: &'a dyn Source, lsb: [f32; 3]) -> MappedSource<'a> {

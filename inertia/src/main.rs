@@ -908,11 +908,7 @@ fn run_export_replay(args: ExportReplayArgs) -> Result<ExitCode, String> {
         if let Ok(report) = inertia::identify::identify(&rec, &iopts) {
             if let Some(g) = report.gyro_grid.filter(|g| g.centred) {
                 centred = true;
-                for w in &mut rec.gyro {
-                    for (x, q) in w.iter_mut().zip(g.lsb_rad_s) {
-                        *x = inertia::grid::centre(*x, q);
-                    }
-                }
+                inertia::grid::centre_readings(&mut rec.gyro, g.lsb_rad_s);
             }
         }
     }

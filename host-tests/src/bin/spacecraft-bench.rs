@@ -943,40 +943,6 @@ struct Windows {
     gravity: bool,
 }
 
-/// (G2) sample by sample, as `identify` folds it (`inertia::identify::gravity`): minus the
-/// gravity-gradient torque's inertial impulse (trapezoid, `f64`) in the body frame.
-struct Fold {
-    j: [[f64; 3]; 3],
-    impulse_n: [f64; 3],
-    prev: Option<(f64, [f64; 3])>,
-}
-
-impl Fold {
-    fn new(j: [[f32; 3]; 3]) -> Self {
-        Fold {
-            j: j.map(|r| r.map(f64::from)),
-            impulse_n: [0.0; 3],
-            prev: None,
-        }
-    }
-
-    fn step(&mut self, t: f64, q: [f32; 4], r: [f64; 3]) -> [f32; 3] {
-        let Some(rot) = gravity::rotation(q) else {
-            return [0.0; 3];
-        };
-        let tau_b = gravity::gravity_gradient_torque(&self.j, q, r);
-        let tau_n = rot.map(|row| row[0] * tau_b[0] + row[1] * tau_b[1] + row[2] * tau_b[2]);
-        if let Some((t0, prev)) = self.prev {
-            let dt = t - t0;
-            for k in 0..3 {
-                self.impulse_n[k] += 0.5 * dt * (prev[k] + tau_n[k]);
-            }
-        }
-        self.prev = Some((t, tau_n));
-        gravity::mul_t(&rot, self.impulse_n).map(|x| -x as f32)
-    }
-}
-
 /// [`product_windows`] through `identify`'s passes: on a log with attitude and position, the
 /// passes with the gravity gradient folded in at the previous pass's tensor until it moves by
 /// less than a tenth of its std (at most `gravity::MAX_PASSES`), kept when their residual is
@@ -990,11 +956,7 @@ fn replica(rec: &Recording, vehicle: &Vehicle, report: &Report) -> Result<Window
     let rec = match &report.gyro_grid {
         Some(g) if g.centred => {
             let mut c = rec.clone();
-            for w in &mut c.gyro {
-                for (x, q) in w.iter_mut().zip(g.lsb_rad_s) {
-                    *x = inertia::grid::centre(*x, q);
-                }
-            }
+            inertia::grid::centre_readings(&mut c.gyro, g.lsb_rad_s);
             centred = c;
             &centred
         }
@@ -1010,20 +972,16 @@ fn replica(rec: &Recording, vehicle: &Vehicle, report: &Report) -> Result<Window
             break;
         };
         let next = product_windows(rec, vehicle, report, Some(j))?;
-        let moved = match (next.tensor, next.tensor_std) {
-            (Some(a), Some(s)) => (0..9).fold(0.0f32, |m, k| {
-                let (r, c) = (k / 3, k % 3);
-                m.max((a[r][c] - j[r][c]).abs() / s[r][c])
-            }),
-            _ => f32::INFINITY,
-        };
+        let moved = identifier_core::gravity::tensor_moved(&j, next.tensor, next.tensor_std);
         last = Some(next);
-        if moved.is_nan() || moved < 0.1 {
+        if identifier_core::gravity::settled(moved) {
             break;
         }
     }
     match last {
-        Some(w) if w.residual_ratio < free.residual_ratio => Ok(w),
+        Some(w) if identifier_core::gravity::keep_folded(w.residual_ratio, free.residual_ratio) => {
+            Ok(w)
+        }
         _ => Ok(free),
     }
 }
@@ -1034,7 +992,7 @@ fn product_windows(
     report: &Report,
     fold_at: Option<[[f32; 3]; 3]>,
 ) -> Result<Windows> {
-    let mut fold = fold_at.map(Fold::new);
+    let mut fold = fold_at.map(gravity::GravityFold::new);
     let settings = PipelineSettings::for_rate(report.rate_hz, report.noise_std)
         .with_full_scale(rec.gyro_full_scale)
         .with_momentum_resolution(0.0)
