@@ -924,6 +924,11 @@ impl<const M: usize> Pooled<M> {
         self.cost
     }
 
+    /// The pooled stretches' summed degrees of freedom.
+    pub(crate) fn dof(&self) -> f32 {
+        self.dof
+    }
+
     pub(crate) const EMPTY: Self = Pooled {
         info: [[0.0; M]; M],
         info_p: [0.0; M],
@@ -1062,6 +1067,10 @@ pub(crate) struct StretchResult<const M: usize> {
     /// checked bias): its parameters of interest, unit-noise covariance, cost and parameter
     /// count, pooled apart for the pooled comparison of the two models.
     pub(crate) alt: Option<Alternative<M>>,
+    /// The gyro bias's walk the fit whitened by (`tensor_fit`'s (F12)): its step variance per
+    /// sample, (rad/s)^2, and the cost of the fitted parameters without the whitening
+    /// (`sum_b n_b |r_b|^2`); `None` without a walk.
+    pub(crate) walk: Option<(f32, f32)>,
 }
 
 /// A stretch's fit with the other bias model ([`StretchResult::alt`]).
@@ -1096,6 +1105,12 @@ pub(crate) struct FitState<const N: usize, const K: usize, const M: usize> {
     pub(crate) alt_pooled: Pooled<M>,
     /// Every stretch in `pooled` is in `alt_pooled` too.
     pub(crate) alt_complete: bool,
+    /// The pooled stretches' costs without a walk's whitening ([`StretchResult::walk`]).
+    pub(crate) raw_cost: f32,
+    /// A pooled stretch was fitted with a walk.
+    pub(crate) walked: bool,
+    /// The largest walk step variance per sample found on a pooled stretch, (rad/s)^2.
+    pub(crate) walk_step_var: f32,
 }
 
 impl<const N: usize, const K: usize, const M: usize> FitState<N, K, M> {
@@ -1111,6 +1126,9 @@ impl<const N: usize, const K: usize, const M: usize> FitState<N, K, M> {
         last: StretchOutcome::Empty,
         alt_pooled: Pooled::EMPTY,
         alt_complete: true,
+        raw_cost: 0.0,
+        walked: false,
+        walk_step_var: 0.0,
     };
 
     /// Ends the open stretch: `fit` fits its blocks (at least 8), the result is pooled, and the
@@ -1168,12 +1186,21 @@ impl<const N: usize, const K: usize, const M: usize> FitState<N, K, M> {
     }
 
     /// Keeps a pooled stretch's tests: whether its torque test rejected, and its cost with the
-    /// torque; its scale test; whether its residual was coloured.
+    /// torque; its scale test; whether its residual was coloured; its walk.
     fn note_torque<const M2: usize>(&mut self, r: &StretchResult<M2>) {
         self.torque |= r.torque.is_some();
         self.torque_cost += r.torque.unwrap_or(r.cost);
         self.scale |= r.scale;
         self.coloured |= r.coloured;
+        if let Some((step_var, raw)) = r.walk {
+            self.walked = true;
+            self.raw_cost += raw;
+            if step_var > self.walk_step_var {
+                self.walk_step_var = step_var;
+            }
+        } else {
+            self.raw_cost += r.cost;
+        }
     }
 
     /// [`FitState::close`] pooling into `pooled` instead of the state's own (a fit of other

@@ -458,7 +458,8 @@ impl<const N: usize> Pipeline<N> {
             Some(f) if self.rotor_seen || f.noise <= TRAJECTORY_FIT_RATIO * noise => {
                 let t = &f.tensor;
                 let j = [t[0][0], t[1][1], t[2][2], t[0][1], t[0][2], t[1][2]];
-                let ratio = f.noise / noise;
+                // (F13) of the fit: with a walking bias, the residual's level with the walk's.
+                let ratio = f.residual / noise;
                 let coloured = f.coloured || self.settings.centred_readings;
                 if self.rotor_seen {
                     self.estimator.with_tensor(own, j, f.cov, ratio, coloured)

@@ -1096,6 +1096,7 @@ impl<const N: usize> RatioFit<N> {
                 torque,
                 scale: false,
                 alt: None,
+                walk: None,
             })
         });
         if matches!(

@@ -244,6 +244,11 @@ pub struct Report {
     /// [`crate::grid::GridStats`]; not written to JSON).
     #[serde(skip)]
     pub gyro_lsb: Option<[f32; 3]>,
+    /// The gyro bias's random walk the tensor's fit found and whitened its residual by ((F12),
+    /// (F13) of the tensor fit): its rate random walk, rad/s per sqrt(s) (the step std per
+    /// sample times the square root of the rate). Absent where none was found.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gyro_bias_walk_rad_s_per_sqrt_s: Option<f32>,
 }
 
 /// The fit's residual, in counts of the gyro's grid, below which `identify` also fits the
@@ -763,6 +768,16 @@ fn identify_pass(
         }
     }
     warnings.extend(scale_floor_warning(&pooled_json));
+    // The walk's step is per pipeline sample (the log's rate over the decimation).
+    let walk = (pooled.bias_walk > 0.0)
+        .then(|| pooled.bias_walk * (settings.rate_hz / f32::from(settings.decimation)).sqrt());
+    if let Some(k) = walk {
+        warnings.push(format!(
+            "the gyro's bias walks (a rate random walk of {k:.3e} rad/s per sqrt(s)): the fit \
+             whitened its residual by the walk, and the tensor is at most ModelMismatch, its \
+             standard deviation the walk's"
+        ));
+    }
     Ok(Report {
         input: src.name(),
         log_samples: n,
@@ -774,6 +789,7 @@ fn identify_pass(
         gravity_gradient: false,
         gyro_grid: None,
         gyro_lsb: sv.gyro_lsb,
+        gyro_bias_walk_rad_s_per_sqrt_s: walk,
         throws: throws.into_iter().map(|(_, j)| j).collect(),
         pooled: pooled_json,
         warnings,

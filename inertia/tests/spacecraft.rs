@@ -112,10 +112,43 @@ fn a_residual_dipole_or_a_truncating_walking_gyro_is_never_converged_and_says_ho
             rep.pooled.tensor_status, rep.pooled.residual_ratio
         );
         assert_ne!(rep.pooled.tensor_status, "Converged", "{name}");
-        // Their residuals are near the noise's level but coloured ((F10') of the tensor fit):
+        // Their residuals are near the noise's level but coloured ((F10') of the tensor fit), or
+        // the gyro's bias walks ((F12)):
         // the standard deviations grow with the residual seen, so the error stays within them
         // as in the other logs here.
         assert!(z < 4.0, "{name}: max |error| / std {z}");
+    }
+}
+
+/// The MEMS log's gyro bias walks (Basilisk's `imuSensor`, bounded random walk of the truth
+/// file's step per sample): the fit finds the walk ((F12), (F13) of the tensor fit) within a
+/// factor of two of the truth's rate random walk, says so, and keeps the tensor within its
+/// standard deviation; on the logs whose gyro has white noise and a constant bias it finds none.
+#[test]
+fn a_walking_gyro_bias_is_found_and_sized_and_a_white_gyro_has_none() {
+    let name = "mems-walk-10hz";
+    let text = std::fs::read_to_string(data(&format!("{name}.truth.toml"))).unwrap();
+    let v: toml::Value = toml::from_str(&text).unwrap();
+    let step = v["gyro_bias_walk"]["step_std_rad_s_per_sample"]
+        .as_float()
+        .unwrap();
+    let rate = v["rate_hz"].as_float().unwrap();
+    let want = step * rate.sqrt();
+    let rep = identify(name);
+    let got = rep
+        .gyro_bias_walk_rad_s_per_sqrt_s
+        .expect("the MEMS gyro's walk is found");
+    let (fro, z) = errors(&rep, &truth(name));
+    println!("{name}: walk {got:.3e} rad/s/sqrt(s) (truth {want:.3e}), Frobenius {fro:.4} %, max z {z:.2}");
+    assert!(
+        f64::from(got) > 0.5 * want && f64::from(got) < 2.0 * want,
+        "{got} against {want}"
+    );
+    assert!(rep.warnings.iter().any(|w| w.contains("bias walks")));
+    assert!(z < 4.0, "{z}");
+    for white in ["sat6u-pyramid-10hz", "peer-cubesat-1hz"] {
+        let rep = identify(white);
+        assert_eq!(rep.gyro_bias_walk_rad_s_per_sqrt_s, None, "{white}");
     }
 }
 

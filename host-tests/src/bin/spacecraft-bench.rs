@@ -1172,6 +1172,8 @@ struct Seed {
     /// log with attitude and position.
     peer_gg: Option<([f64; 6], [f64; 6])>,
     noise_estimate: f32,
+    /// The gyro bias's rate random walk `identify` found, rad/s per sqrt(s) (`None`: none).
+    walk_estimate: Option<f32>,
     /// `identify` kept the fit with the gravity gradient folded in.
     gravity: bool,
     /// The replica's choice of fold agrees with `identify`'s.
@@ -1213,6 +1215,7 @@ fn run_seed(fx: &Fixture, seed: u64) -> Result<Seed> {
                 peer,
                 peer_gg,
                 noise_estimate: f32::NAN,
+                walk_estimate: None,
                 gravity: false,
                 replica_gravity_matches: false,
                 gyro_error,
@@ -1261,6 +1264,7 @@ fn run_seed(fx: &Fixture, seed: u64) -> Result<Seed> {
         peer,
         peer_gg,
         noise_estimate: report.noise_std,
+        walk_estimate: report.gyro_bias_walk_rad_s_per_sqrt_s,
         gravity: report.gravity_gradient,
         replica_gravity_matches: win.gravity == report.gravity_gradient,
         gyro_error,
@@ -1616,6 +1620,31 @@ fn report_fixture(fx: &Fixture, seeds: &[Seed], plan: &Plan, elapsed: f64) {
         g3(max(&noise)),
         g3(fx.sigma)
     );
+    let walks: Vec<f64> = seeds
+        .iter()
+        .filter_map(|s| s.walk_estimate.map(f64::from))
+        .collect();
+    let truth_walk = if fx.gyro == Gyro::Mems {
+        format!(
+            "truth {} rad/s per sqrt(s), its step per sample times sqrt(rate)",
+            g3(fx.walk.step_std_rad_s_per_sample * (1.0 / median_dt(&fx.clean.t)).sqrt())
+        )
+    } else {
+        "truth none".to_string()
+    };
+    if walks.is_empty() {
+        println!("- gyro bias walk the product found ((F12) of the tensor fit): none on {n} seeds ({truth_walk})");
+    } else {
+        let mut sorted = walks.clone();
+        sorted.sort_by(f64::total_cmp);
+        println!(
+            "- gyro bias walk the product found ((F12), (F13) of the tensor fit; the largest of a seed's windows): on {} of {n} seeds, median {} rad/s per sqrt(s) (range {}-{}; {truth_walk})",
+            walks.len(),
+            g3(sorted[sorted.len() / 2]),
+            g3(sorted[0]),
+            g3(sorted[sorted.len() - 1]),
+        );
+    }
     if fx.gyro == Gyro::Mems {
         let stats = |e: &ErrorStats| {
             format!(

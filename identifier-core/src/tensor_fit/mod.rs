@@ -170,6 +170,35 @@
 //! segments' sandwich sees the residual within one flight, not what moves a whole flight's
 //! answer). `scripts/bench-objects.sh` measures both fits on thrown objects of known inertia.
 //!
+//! # A gyro bias that walks
+//!
+//! A satellite's MEMS gyro drifts over its long, slow flight: its bias is a random walk, not
+//! a constant, and a residual near the noise's level hides a slow error that a constant bias
+//! leaves in the estimate and a white covariance does not count. Where the bias model is
+//! checked (a long flight whose gyro bias nothing measures, [`BiasModel::Checked`]), the walk
+//! is looked for: per axis, the walk `d` of step variance `lambda sigma^2` per sample is read
+//! in each block mean beside the white noise, and the fit becomes the generalised least squares
+//! of that error, the residuals and every sensitivity column whitened by the walk's Kalman
+//! filter over the blocks (`walk`):
+//!
+//! ```text
+//! cost = sum_b sum_axes nu_b^2 / V_b,   F = sum nu_(R,b) nu_(R,b)^T / V_b               (F12)
+//! ```
+//!
+//! (`nu` the filter's innovations of the residual and of the rows `R_b`, `V_b` their variance
+//! in units of `sigma^2`; `V_b = 1 / n_b` and the plain fit without a walk). `lambda` is the
+//! maximum of the restricted likelihood of the fit ((F13) of `walk`) over candidates four times
+//! apart about the walk that equals one block's white variance over the whole stretch, refined
+//! by a parabola, at the constant bias's parameters, then once more at the parameters the walk
+//! gives. It is taken when its likelihood ratio against no walk exceeds 3.84 (chi-square, one
+//! degree of freedom, 5 %): a walk missed leaves a covariance too small, a small one taken in
+//! vain one a little larger. A stretch fitted with a walk counts as coloured ((F10')): the
+//! tensor is at most `ModelMismatch`, usable with its stated standard deviation. Its residual
+//! level ([`TensorFitEstimate::residual`]) is the residual not whitened, the walk's error in it,
+//! which the choices between models (the gravity gradient folded in or not, readings centred
+//! or as read) compare: the walk would take up a torque the model lacks as well. `scripts/bench-spacecraft.sh` measures the errors against the bound of the MEMS
+//! gyro's own model and the calibration of the reported standard deviation.
+//!
 //! # Up to scale
 //!
 //! Without rotor momentum (`h = 0`), `w(t)` of (F1) does not change when `J` is multiplied by
@@ -211,6 +240,7 @@ mod reading;
 mod shooting;
 #[cfg(test)]
 mod tests;
+mod walk;
 
 use model::*;
 use normal::*;
@@ -231,8 +261,17 @@ pub struct TensorFitEstimate {
     pub tensor: [[f32; 3]; 3],
     /// Covariance of the entries `(Jxx, Jyy, Jzz, Jxy, Jxz, Jyz)`, (kg m^2)^2.
     pub cov: [[f32; 6]; 6],
-    /// Gyro noise per sample seen in the fits' residuals, rad/s.
+    /// Gyro noise per sample seen in the fits' residuals, rad/s: the white noise's, with a
+    /// walking bias ((F12)) that of the residuals whitened by the walk's filter.
     pub noise: f32,
+    /// The residual's level per sample, rad/s: with a walking bias ((F12)) that of the fitted
+    /// parameters' residuals not whitened (`sqrt(sum_b n_b |r_b|^2 / dof)`, the walk's error
+    /// included), which the fit to the noise is judged by and fits of other models are
+    /// compared by; `noise` itself where no walk was found.
+    pub residual: f32,
+    /// The gyro bias's walk found on the pooled stretches ((F12), (F13)): the largest step std
+    /// per sample, rad/s; 0 where none was found.
+    pub bias_walk: f32,
     /// Stretches (free flights) that gave a fit.
     pub stretches: u32,
     /// Samples in them.
@@ -449,6 +488,13 @@ fn fit_model<
             if *cells != Cells::NONE && !cells.plausible(&t1) {
                 return None;
             }
+            // A long flight whose gyro bias nothing measures: the bias may walk ((F12),
+            // (F13)).
+            let ((t1, cost1, f1), rule) = if bias == BiasModel::Checked {
+                walked(blocks, &rule, (t1, cost1, f1), trace, cells, dof1)
+            } else {
+                ((t1, cost1, f1), rule)
+            };
             if let Some(c1) = scaled_inverse(&f1) {
                 let g = |i: usize| t1.get(i).copied().unwrap_or(0.0);
                 let (inflation, lag1, col) = residual_inflation(
@@ -482,10 +528,20 @@ fn fit_model<
                     params: PB,
                     bias: Some([g(M + 3), g(M + 4), g(M + 5)]),
                     lag1,
-                    coloured: col,
+                    // A walking bias ((F12)) is fitted as a model of the gyro's error, not of
+                    // the noise: what it takes up the white noise does not hold, and the
+                    // tensor says so as a coloured residual's does ((F10')).
+                    coloured: col || rule.walk > 0.0,
                     torque,
                     scale,
                     alt: None,
+                    walk: (rule.walk > 0.0).then(|| {
+                        let plain = rule.with_walk(0.0);
+                        let raw =
+                            visit_fit::<PB, 0>(blocks, &plain, total, &t1, trace, cells, &mut ())
+                                .map_or(f32::INFINITY, |(c, _, _)| c);
+                        (rule.walk * cost1 / dof1, raw)
+                    }),
                 });
             }
         }
@@ -519,7 +575,83 @@ fn fit_model<
         torque,
         scale,
         alt,
+        walk: None,
     })
+}
+
+/// (F13): the gyro bias's walk of largest restricted likelihood at `theta` (its step variance
+/// per sample over the white noise's; each candidate's parameters at the Gauss-Newton optimum
+/// from `theta`, [`walk::restricted_deviance`]) and its likelihood ratio against no walk;
+/// `None` when a deviance cannot be computed.
+fn walk_restricted<const P: usize>(
+    blocks: &[Block<6>],
+    rule: &StepRule,
+    theta: &[f32; P],
+    trace: f32,
+    cells: &Cells,
+    dof: f32,
+) -> Option<(f32, f32)> {
+    let deviance = |lambda: f32| {
+        let whitened = rule.with_walk(lambda);
+        let (cost, f, g) = normal(blocks, &whitened, blocks.len(), theta, trace, cells)?;
+        walk::restricted_deviance(blocks, lambda, (cost, &f, &g), dof)
+    };
+    let none = deviance(0.0)?;
+    let lambdas = walk::candidates(blocks);
+    let mut devs = [f32::INFINITY; walk::CANDIDATES];
+    for (d, l) in devs.iter_mut().zip(lambdas) {
+        *d = deviance(l).unwrap_or(f32::INFINITY);
+    }
+    let (lambda, best) = walk::refined(&lambdas, &devs);
+    let ratio = none - best;
+    (ratio.is_finite() && lambda > 0.0).then_some((lambda, ratio))
+}
+
+/// The bias model's `fit` (parameters, cost, normal matrix) refitted with the walk its
+/// residuals show ((F12), (F13)), with the rule that whitens by it; the fit and `rule` as they
+/// are when no walk is found. The walk of largest restricted likelihood at the constant bias's
+/// parameters ([`walk_restricted`]) is fitted, found again at the parameters that fit gives,
+/// and taken when its likelihood ratio there passes [`walk::WALK_LR`] (fitted again if it
+/// moved by more than a quarter).
+#[allow(clippy::type_complexity)]
+#[inline(never)]
+fn walked<const P: usize>(
+    blocks: &[Block<6>],
+    rule: &StepRule,
+    fit: ([f32; P], f32, Sym<P>),
+    trace: f32,
+    cells: &Cells,
+    dof: f32,
+) -> (([f32; P], f32, Sym<P>), StepRule) {
+    let refit = |theta: &[f32; P], lambda: f32| {
+        let whitened = rule.with_walk(lambda);
+        levenberg(
+            |p| normal(blocks, &whitened, blocks.len(), p, trace, cells),
+            *theta,
+            30,
+            dof,
+            TOLERANCE,
+            Start::Warm,
+        )
+        .map(|f| (f, whitened))
+    };
+    let Some((first, _)) = walk_restricted(blocks, rule, &fit.0, trace, cells, dof) else {
+        return (fit, *rule);
+    };
+    let Some((once, whitened)) = refit(&fit.0, first) else {
+        return (fit, *rule);
+    };
+    let Some((lambda, ratio)) = walk_restricted(blocks, rule, &once.0, trace, cells, dof) else {
+        return (fit, *rule);
+    };
+    if !(ratio > walk::WALK_LR) {
+        return (fit, *rule);
+    }
+    let settled = lambda < 1.25 * first && lambda > 0.8 * first;
+    if settled {
+        return (once, whitened);
+    }
+    refit(&once.0, lambda).unwrap_or((once, whitened))
 }
 
 /// The score tests at a fitted model's optimum, from one evaluation: `theta` that model's
@@ -1253,10 +1385,19 @@ impl<const N: usize> TensorFit<N> {
         // covariances ((P2) of `output_error`), widens the reported one; the tests above
         // compare the pools as fitted.
         let cov = scaled(&cov, spread);
+        // The residual as the parameters leave it, the walk's error in it.
+        let dof = self.state.pooled.dof();
+        let residual = if self.state.walked && dof > 0.0 {
+            sqrt(self.state.raw_cost / dof)
+        } else {
+            noise
+        };
         Some(TensorFitEstimate {
             tensor: tensor_of(&e),
             cov,
             noise,
+            residual,
+            bias_walk: sqrt(self.state.walk_step_var),
             stretches: self.state.pooled.stretches,
             samples: self.state.pooled.samples,
             biased,
@@ -1300,6 +1441,9 @@ impl<const N: usize> TensorFit<N> {
             tensor: tensor_of(&e),
             cov,
             noise,
+            // The fits up to scale test no walk.
+            residual: noise,
+            bias_walk: 0.0,
             stretches: self.normalized.stretches,
             samples: self.normalized.samples,
             biased: self.state.biased,

@@ -554,6 +554,9 @@ pub(super) struct StepRule {
     pub(super) det: f32,
     /// The gyro readings' own time variance, which the rotor's readings lack ([`rotor_node`]).
     pub(super) gyro_spread: f32,
+    /// The gyro bias's walk, its step variance per sample over the white noise's ((F12)): 0
+    /// (none), or the fit's residuals and sensitivities are whitened by its Kalman filter.
+    pub(super) walk: f32,
 }
 
 impl StepRule {
@@ -571,12 +574,20 @@ impl StepRule {
             j: *j,
             det: det(j),
             gyro_spread: 0.0,
+            walk: 0.0,
         }
     }
 
     /// The same rule for gyro readings of own time variance `gyro_spread` ([`rotor_node`]).
     pub(super) fn with_gyro_spread(mut self, gyro_spread: f32) -> Self {
         self.gyro_spread = gyro_spread;
+        self
+    }
+
+    /// The same rule for a gyro bias walking with step variance `walk` per sample over the
+    /// white noise's ((F12)).
+    pub(super) fn with_walk(mut self, walk: f32) -> Self {
+        self.walk = walk;
         self
     }
 

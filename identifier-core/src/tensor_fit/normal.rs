@@ -261,6 +261,10 @@ pub(super) fn normal_visit<const P: usize, const C: usize>(
     // (F7): `J^-1 u`, what `dw/dd_c` loses where error `c` is on.
     let ku = if oc > 0 { mul(&k, offset.u) } else { [0.0; 3] };
     let mut sums = NormalSums::<P>::EMPTY;
+    // (F12): a walking bias's filter, one per axis, its gains shared.
+    let walking = rule.walk > 0.0;
+    let mut gains = walk::Gains::new(rule.walk);
+    let mut filtered = [walk::Filtered::<P>::ZERO; 3];
     // Node b-1: block, rotor momentum at the mean time, its curvature, `|ybar|`.
     let mut prev: Option<(&Block<6>, [f32; 3], [f32; 3], f32)> = None;
     let mut hd = [0.0f32; 3];
@@ -324,6 +328,14 @@ pub(super) fn normal_visit<const P: usize, const C: usize>(
         // The low part of `w`: the momentum is `l - lc` (compensated), so `w - J^-1 lc`.
         let w_lo = mul(&k, x.lc);
         let mut rows = [[0.0f32; P]; 3];
+        // The block's weight: its samples, or with a walk the inverse of its innovations'
+        // variance ((F12)).
+        let (weight, gain) = if walking {
+            let (v, gain) = gains.next(b.n);
+            (1.0 / v, gain)
+        } else {
+            (b.n, 0.0)
+        };
         for i in 0..3 {
             // (F5): the gyro reads (1 + kappa_i) times the block mean of w_i.
             let mean_w = w[i] + corr[i];
@@ -333,7 +345,6 @@ pub(super) fn normal_visit<const P: usize, const C: usize>(
             // alone), with `w`'s low part.
             let dev = b.deviation(i, w[i]) + w_lo[i] - corr[i] - bias[i];
             let r = if scale { dev - kappa[i] * mean_w } else { dev };
-            seen.residual(i, r);
             let mut row = [0.0f32; P];
             let ui = &u[i];
             let uc = |c: usize| ui.get(c).copied().unwrap_or(0.0);
@@ -381,10 +392,16 @@ pub(super) fn normal_visit<const P: usize, const C: usize>(
                     *dst = mean_w;
                 }
             }
+            // (F12): the residual and its row as the walk's innovations.
+            let (r, row) = match filtered.get_mut(i) {
+                Some(f) if walking => f.innovate(gain, r, &row),
+                _ => (r, row),
+            };
+            seen.residual(i, r);
             if C == 0 {
-                sums.add_cost(b.n, r);
+                sums.add_cost(weight, r);
             } else {
-                sums.add(b.n, r, &row);
+                sums.add(weight, r, &row);
             }
             if let Some(dst) = rows.get_mut(i) {
                 *dst = row;
@@ -395,7 +412,7 @@ pub(super) fn normal_visit<const P: usize, const C: usize>(
         let s_w0 = core::array::from_fn(|i| core::array::from_fn(|c| col(i, 6 + c)));
         seen.node(&Node {
             index: idx,
-            weight: b.n,
+            weight,
             rows: &rows,
             l: x.l,
             k: &k,

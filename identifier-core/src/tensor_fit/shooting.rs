@@ -275,5 +275,6 @@ pub(super) fn fit_segments(
         torque: None,
         scale: false,
         alt: None,
+        walk: None,
     })
 }

@@ -69,6 +69,9 @@ pub(crate) struct Pooled {
     pub fed_inputs: u32,
     /// The bias removed, measured on the bench when `Some`.
     pub bias: Option<[f32; 3]>,
+    /// The gyro bias's walk the tensor's fit found ((F12) of the tensor fit): its step std per
+    /// pipeline sample, rad/s; 0 where none was found.
+    pub bias_walk: f32,
 }
 
 impl Pooled {
@@ -79,6 +82,7 @@ impl Pooled {
             estimate,
             fed_inputs: p.fed_inputs(),
             bias,
+            bias_walk: p.tensor_fit().estimate().map_or(0.0, |e| e.bias_walk),
         }
     }
 }

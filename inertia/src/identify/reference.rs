@@ -229,6 +229,7 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
         gravity_gradient: false,
         gyro_grid: None,
         gyro_lsb: None,
+        gyro_bias_walk_rad_s_per_sqrt_s: None,
         throws,
         pooled,
         warnings,
