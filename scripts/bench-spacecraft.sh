@@ -16,8 +16,8 @@
 # (c a free bias per window, d the walk with the truth's step s, its clamp ignored, v the white
 # noise and the truncation left once the readings are at their counts' centres): information
 # U^T Sigma^-1 U (C2), each sensitivity column whitened by a scalar Kalman filter per axis
-# started diffuse (C3), not the model the product fits (a constant bias per window, no walk)
-# (host-tests/src/bin/spacecraft-bench.rs).
+# started diffuse (C3): the model the product fits where it finds the walk ((F12), (F13) of
+# the tensor fit) (host-tests/src/bin/spacecraft-bench.rs).
 # Figures: BENCHMARKS.md. A benchmark: it prints figures, it asserts nothing.
 # Usage: scripts/bench-spacecraft.sh [SEEDS] [--fixture NAME]... [more spacecraft-bench options]
 #        (default 100 seeds, every fixture)

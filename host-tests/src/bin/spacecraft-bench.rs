@@ -69,7 +69,8 @@
 //! ((G2)) and fits until the tensor settles, so its fit does not draw on that dependence.
 //!
 //! On `mems-walk-10hz` the bound is that of the gyro (Y2), (Y3) with its error treated as
-//! Gaussian, not that of the model the product fits (a constant bias per window, no walk). Per
+//! Gaussian: the model the product fits where it finds the walk ((F12), (F13) of the tensor
+//! fit: a constant bias per window, the walk from its first sample, white noise). Per
 //! axis `i` and window, `u_k` the output's sensitivity row (the six entries and the window's
 //! initial rate) at its sample `k = first..=last`, the gyro's error is
 //!
@@ -1749,8 +1750,8 @@ fn report_fixture(fx: &Fixture, seeds: &[Seed], plan: &Plan, elapsed: f64) {
     if let Noise::Walk { step_var } = fx.noise {
         println!(
             "- bound: the Cramer-Rao bound of the MEMS gyro (Y2), (Y3) with its error treated as \
-             Gaussian (C1), not of the model the product fits (a constant bias per window, no \
-             walk): per axis and window a free constant bias, the bias walk of step std {} rad/s \
+             Gaussian (C1), the model the product fits where it finds the walk ((F12), (F13) \
+             of the tensor fit): per axis and window a free constant bias, the bias walk of step std {} rad/s \
              per sample (its clamp to +-{} rad/s ignored) and white noise of variance sigma^2 + \
              LSB^2/12 = ({} rad/s)^2 (the white noise and what is left of the truncation once \
              the readings are at their counts' centres), the axes independent; the information \
