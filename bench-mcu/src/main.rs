@@ -358,6 +358,46 @@ fn tensor_flight_close_mismatch(
     (ticks, outcome, fit.estimate())
 }
 
+/// The gyro bias walk's step std per sample added by [`tensor_flight_close_walk`], rad/s.
+const WALK_STEP_RAD_S: f32 = 1e-4;
+
+/// As [`tensor_flight_close`], with a constant gyro bias and a bias random walk (steps of std
+/// [`WALK_STEP_RAD_S`], uniform from a linear congruential generator) added to the gyro, and
+/// closed as the pipeline closes a window of a long flight without an accelerometer,
+/// `close_with_bias`: the bias model checked, the walk looked for by its restricted likelihood
+/// over eleven candidates, twice, and the window refitted with it ((F12), (F13) of the tensor
+/// fit): the satellite image's end-of-window path.
+#[inline(never)]
+fn tensor_flight_close_walk(
+    syst: &mut SYST,
+    init: [[f32; 3]; 3],
+) -> (u64, StretchOutcome, Option<TensorFitEstimate>) {
+    let mut sig = Throw::board();
+    let dt = sig.dt();
+    let mut fit = pipeline_tensor_fit();
+    let mut seed = 7u32;
+    let mut walk = [0.0f32; 3];
+    let bias = [2e-3f32, -1e-3, 1e-3];
+    for _ in 0..Throw::SAMPLES {
+        let (w, h) = sig.next_sample();
+        for x in walk.iter_mut() {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let u = (seed >> 8) as f32 / 16_777_216.0 - 0.5;
+            *x += WALK_STEP_RAD_S * 3.464_101_6 * u;
+        }
+        let w = [
+            w[0] + bias[0] + walk[0],
+            w[1] + bias[1] + walk[1],
+            w[2] + bias[2] + walk[2],
+        ];
+        fit.step(w, h, dt);
+    }
+    let (ticks, outcome) = measure_long(syst, || {
+        core::hint::black_box(&mut fit).close_with_bias(Some(init))
+    });
+    (ticks, outcome, fit.estimate())
+}
+
 /// `samples` of `sig` (no rotor momentum) in a fresh `FlightTensorFit` set up for its rate
 /// (untimed), then one timed `close_normalized(&[init], false)`: the fit of `J / trace J` the
 /// pipeline runs at the end of a flight without rotor momentum. Not inlined, for the same
@@ -766,6 +806,31 @@ fn main() -> ! {
         "tensor-fit-close-throw-mismatch",
         ticks,
         "Cortex-M4F QEMU -icount; the same throw with the rotor momentum given 20 % low until the spin-up's half-peak speed, one FlightTensorFit::close_without_bias(Some(init)): the whole flight does not fit to the noise, so the fit from the spin-up, the residual's sandwich (F10) and the multiple-shooting fit (F11) follow (the path of the real thrown-FC logs)",
+    );
+    // The satellite's window path: a walking gyro bias found and fitted. Checked as the
+    // throw's fit (5 % of trace/3: the walk costs the fit precision) and for the walk found.
+    let (ticks, outcome, fitted) = tensor_flight_close_walk(&mut syst, init);
+    check_tensor_fit(
+        "tensor-fit-close-throw-walk",
+        outcome,
+        fitted,
+        truth,
+        0.05,
+        19,
+    );
+    let walk = fitted.map_or(0.0, |e| e.bias_walk);
+    println!(
+        "# check tensor-fit-close-throw-walk: bias walk found {} rad/s per sample (added {})",
+        walk, WALK_STEP_RAD_S
+    );
+    if !(walk > 0.3 * WALK_STEP_RAD_S && walk < 3.0 * WALK_STEP_RAD_S) {
+        println!("# check tensor-fit-close-throw-walk FAILED: the walk was not found");
+        semihosting::process::exit(20);
+    }
+    report_long(
+        "tensor-fit-close-throw-walk",
+        ticks,
+        "Cortex-M4F QEMU -icount; the same throw's gyro with a constant bias and a bias random walk (steps of 1e-4 rad/s per sample) added, one FlightTensorFit::close_with_bias(Some(init)), the path of a satellite's window: the bias model checked, the walk looked for by its restricted likelihood and the window refitted with it ((F12), (F13))",
     );
     // The fit up to scale (no rotor momentum) that the pipeline runs at the end of a
     // gyro-only flight, from a first guess 2 % off (what the ratio fit's moments are not far
