@@ -365,7 +365,7 @@ const WALK_STEP_RAD_S: f32 = 1e-4;
 /// [`WALK_STEP_RAD_S`], uniform from a linear congruential generator) added to the gyro, and
 /// closed as the pipeline closes a window of a long flight without an accelerometer,
 /// `close_with_bias`: the bias model checked, the walk looked for by its restricted likelihood
-/// over eleven candidates, twice, and the window refitted with it ((F12), (F13) of the tensor
+/// over thirteen candidates, twice, and the window refitted with it ((F12), (F13) of the tensor
 /// fit): the satellite image's end-of-window path.
 #[inline(never)]
 fn tensor_flight_close_walk(

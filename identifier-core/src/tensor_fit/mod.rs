@@ -462,10 +462,11 @@ fn fit_model<
         None
     };
     let mut alt = None;
-    if let Some((t1, cost1, f1)) = with_bias {
+    if let Some(mut fit1) = with_bias {
+        let (t1, cost1, f1) = (&fit1.0, fit1.1, &fit1.2);
         let moved = || {
             let s2 = (cost1 / dof1).max(noise_floor * noise_floor);
-            let c1 = scaled_inverse(&f1);
+            let c1 = scaled_inverse(f1);
             (0..M).any(|i| {
                 let d = t1.get(i).copied().unwrap_or(0.0) - th.get(i).copied().unwrap_or(0.0);
                 let diag = |c: &Sym<PB>| c.get(i).and_then(|r| r.get(i)).copied();
@@ -477,30 +478,33 @@ fn fit_model<
         };
         let found = bias_found(cost0, cost1, dof1, noise_floor);
         if !found && bias == BiasModel::Checked {
-            alt = scaled_inverse(&f1).map(|c1| Alternative {
-                p: leading(&t1),
+            alt = scaled_inverse(f1).map(|c1| Alternative {
+                p: leading(t1),
                 cov: leading_block(&c1),
                 cost: cost1,
                 params: PB,
             });
         }
         if found || (bias == BiasModel::Checked && moved()) {
-            if *cells != Cells::NONE && !cells.plausible(&t1) {
+            if *cells != Cells::NONE && !cells.plausible(t1) {
                 return None;
             }
             // A long flight whose gyro bias nothing measures: the bias may walk ((F12),
-            // (F13)).
-            let ((t1, cost1, f1), rule) = if bias == BiasModel::Checked {
-                walked(blocks, &rule, (t1, cost1, f1), trace, cells, dof1)
+            // (F13)). The fit is changed in place: a copy of its normal matrix would stay in
+            // this frame, which the flight's fits share the stack with.
+            let mut rule = rule;
+            let raw = if bias == BiasModel::Checked {
+                walked(blocks, &mut rule, &mut fit1, trace, cells, dof1)
             } else {
-                ((t1, cost1, f1), rule)
+                None
             };
-            if let Some(c1) = scaled_inverse(&f1) {
+            let (t1, cost1, f1) = (&fit1.0, fit1.1, &fit1.2);
+            if let Some(c1) = scaled_inverse(f1) {
                 let g = |i: usize| t1.get(i).copied().unwrap_or(0.0);
                 let (inflation, lag1, col) = residual_inflation(
                     blocks,
                     &rule,
-                    &t1,
+                    t1,
                     trace,
                     cells,
                     &c1,
@@ -519,9 +523,9 @@ fn fit_model<
                 });
                 let (torque, scale) =
                     tests_found::<PTB, PTBS>(blocks, &rule, &th_t, trace, cost1, dof1, noise_floor);
-                let input = input_cov(blocks, &rule, &t1, cells, res, &f1);
+                let input = input_cov(blocks, &rule, t1, cells, res, f1);
                 return Some(StretchResult {
-                    p: leading(&t1),
+                    p: leading(t1),
                     cov: inflated(&leading_block(&c1), &inflation),
                     input: input.map(|(c, e)| (leading_block(&c), e)),
                     cost: cost1,
@@ -535,13 +539,7 @@ fn fit_model<
                     torque,
                     scale,
                     alt: None,
-                    walk: (rule.walk > 0.0).then(|| {
-                        let plain = rule.with_walk(0.0);
-                        let raw =
-                            visit_fit::<PB, 0>(blocks, &plain, total, &t1, trace, cells, &mut ())
-                                .map_or(f32::INFINITY, |(c, _, _)| c);
-                        (rule.walk * cost1 / dof1, raw)
-                    }),
+                    walk: raw.map(|r| (rule.walk * cost1 / dof1, r)),
                 });
             }
         }
@@ -612,19 +610,25 @@ fn walk_restricted<const P: usize>(
 /// are when no walk is found. The walk of largest restricted likelihood at the constant bias's
 /// parameters ([`walk_restricted`]) is fitted, found again at the parameters that fit gives,
 /// and taken when its likelihood ratio there passes [`walk::WALK_LR`] (fitted again if it
-/// moved by more than a quarter).
-#[allow(clippy::type_complexity)]
+/// moved by more than a quarter). `fit` and `rule` are replaced by the walk's, and the taken
+/// fit's cost without the whitening returned (`sum_b n_b |r_b|^2`, [`StretchResult::walk`]);
+/// `None`, both left as they are, when no walk is taken.
+///
+/// Never inlined, and the fit updated in place: its frames (the candidates' normal equations,
+/// the refits') then live only while it runs, not in every caller's (the sample loop's fits
+/// run on the same stack).
 #[inline(never)]
 fn walked<const P: usize>(
     blocks: &[Block<6>],
-    rule: &StepRule,
-    fit: ([f32; P], f32, Sym<P>),
+    rule: &mut StepRule,
+    fit: &mut ([f32; P], f32, Sym<P>),
     trace: f32,
     cells: &Cells,
     dof: f32,
-) -> (([f32; P], f32, Sym<P>), StepRule) {
+) -> Option<f32> {
+    let plain = *rule;
     let refit = |theta: &[f32; P], lambda: f32| {
-        let whitened = rule.with_walk(lambda);
+        let whitened = plain.with_walk(lambda);
         levenberg(
             |p| normal(blocks, &whitened, blocks.len(), p, trace, cells),
             *theta,
@@ -633,25 +637,34 @@ fn walked<const P: usize>(
             TOLERANCE,
             Start::Warm,
         )
-        .map(|f| (f, whitened))
     };
-    let Some((first, _)) = walk_restricted(blocks, rule, &fit.0, trace, cells, dof) else {
-        return (fit, *rule);
-    };
-    let Some((once, whitened)) = refit(&fit.0, first) else {
-        return (fit, *rule);
-    };
-    let Some((lambda, ratio)) = walk_restricted(blocks, rule, &once.0, trace, cells, dof) else {
-        return (fit, *rule);
-    };
+    let (first, _) = walk_restricted(blocks, &plain, &fit.0, trace, cells, dof)?;
+    let once = refit(&fit.0, first)?;
+    let (lambda, ratio) = walk_restricted(blocks, &plain, &once.0, trace, cells, dof)?;
     if !(ratio > walk::WALK_LR) {
-        return (fit, *rule);
+        return None;
     }
     let settled = lambda < 1.25 * first && lambda > 0.8 * first;
-    if settled {
-        return (once, whitened);
-    }
-    refit(&once.0, lambda).unwrap_or((once, whitened))
+    let (taken, walk) = match settled {
+        true => (once, first),
+        false => match refit(&once.0, lambda) {
+            Some(again) => (again, lambda),
+            None => (once, first),
+        },
+    };
+    let raw = visit_fit::<P, 0>(
+        blocks,
+        &plain,
+        blocks.len(),
+        &taken.0,
+        trace,
+        cells,
+        &mut (),
+    )
+    .map_or(f32::INFINITY, |(c, _, _)| c);
+    *fit = taken;
+    *rule = plain.with_walk(walk);
+    Some(raw)
 }
 
 /// The score tests at a fitted model's optimum, from one evaluation: `theta` that model's

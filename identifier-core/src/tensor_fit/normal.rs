@@ -393,9 +393,9 @@ pub(super) fn normal_visit<const P: usize, const C: usize>(
                 }
             }
             // (F12): the residual and its row as the walk's innovations.
-            let (r, row) = match filtered.get_mut(i) {
-                Some(f) if walking => f.innovate(gain, r, &row),
-                _ => (r, row),
+            let r = match filtered.get_mut(i) {
+                Some(f) if walking => f.innovate(gain, r, &mut row),
+                _ => r,
             };
             seen.residual(i, r);
             if C == 0 {
