@@ -284,6 +284,11 @@ pub struct VehicleAnalysis {
     pub on_board_tensor_kg_m2: Option<[[f32; 3]; 3]>,
     /// Its status.
     pub on_board_status: String,
+    /// Each gyro axis's LSB, rad/s, where `identify` took the readings as truncated toward zero
+    /// and moved them to their counts' centres ((Q1) of [`crate::grid`]): the fits here take
+    /// them so too. Absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gyro_centred_lsb_rad_s: Option<[f32; 3]>,
     /// The base model (the tensor alone).
     pub before: VehicleFitReport,
     /// The selection rounds.
@@ -711,8 +716,14 @@ pub fn analyse_vehicle(
             v.momentum(&speeds).map(f64::from)
         })
         .collect();
-    let g: Vec<V3> = rec
-        .gyro
+    // The readings as `identify` fitted them: moved to their counts' centres where it found
+    // them truncated toward zero.
+    let centred = id.gyro_grid.as_ref().filter(|g| g.centred).map(|g| g.lsb_rad_s);
+    let mut gyro = rec.gyro.clone();
+    if let Some(lsb) = centred {
+        crate::grid::centre_readings(&mut gyro, lsb);
+    }
+    let g: Vec<V3> = gyro
         .iter()
         .map(|w| [0, 1, 2].map(|k| f64::from(w[k]) - bias[k]))
         .collect();
@@ -868,6 +879,7 @@ pub fn analyse_vehicle(
         unavailable,
         on_board_tensor_kg_m2: id.pooled.tensor_kg_m2,
         on_board_status: id.pooled.status.clone(),
+        gyro_centred_lsb_rad_s: centred,
         before,
         rounds,
         effects,
