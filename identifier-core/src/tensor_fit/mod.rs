@@ -979,7 +979,8 @@ fn fit_stretch(
         // Offsets that are no quantisation's ([`Cells::plausible`]: `None`): the plain fit.
         with.or_else(plain)
     };
-    let (mut r, (whole_tensor, whole_lag1)) = fit_stretch_from(blocks, init, noise_floor, &from)?;
+    let (mut r, (whole_tensor, whole_lag1), used) =
+        fit_stretch_from(blocks, init, noise_floor, &from)?;
     // (F8): the reading's errors, in the covariance's units (it is scaled by the residual's
     // variance per degree of freedom when pooled); the residual's variance that scales the
     // rest is taken without what those errors are expected to leave in it (counted once, not
@@ -1003,6 +1004,17 @@ fn fit_stretch(
                 *c = *c * scale + xc / s2;
             }
         }
+    }
+    // (F14): where the flight does not fit to the noise, the variance no estimator can beat
+    // under the residual's own error model (white noise and a walk of the output, (F12)), a
+    // floor on the reported one. Not on a checked bias's stretch: its fit has the walk already.
+    // Over the blocks the single trajectory was fitted to (from the spin-up, where it was).
+    let misfit = unexplained > 4.0 * noise_floor * noise_floor || r.coloured;
+    if misfit && bias != BiasModel::Checked {
+        let floor = blocks
+            .get(used..)
+            .and_then(|b| walk_floor(b, &r.p, res, noise_floor));
+        floored(&mut r, floor, blocks.len());
     }
     // A model error the single trajectory does not explain (nor the reading's known errors):
     // multiple shooting ((F11)) over the same blocks, from its tensor, in segments of its
@@ -1035,6 +1047,86 @@ fn fit_stretch(
     Some(r)
 }
 
+/// (F14): the variances of the six entries under the walk's generalised least squares
+/// ((F12), (F13)), in (kg m^2)^2: the plain model refitted from the entries `p` and the first
+/// block's rate, then with the walk its residuals show; `None` when no walk is taken or a fit
+/// fails. The walk model describes a slow error of the output whatever its cause (a torque the
+/// model lacks, a drifting gyro): under it, no linear unbiased estimate of `J` from these
+/// blocks has a smaller variance than the walk's generalised least squares, so it is a floor
+/// on the variance reported for any of them.
+///
+/// Never inlined: called after the stretch's fits have returned, its frames (the walk's search
+/// and refits) do not add to theirs on the stack the flight's fits share.
+#[inline(never)]
+fn walk_floor(
+    blocks: &[Block<6>],
+    p: &[f32; 6],
+    res: Resolution,
+    noise_floor: f32,
+) -> Option<[f32; 6]> {
+    let w0 = rate_of(blocks.first()?);
+    let th: [f32; P0] = [p[0], p[1], p[2], p[3], p[4], p[5], w0[0], w0[1], w0[2]];
+    // The rotor telemetry's offsets of (F7) where the stretch's fit had them: the same model.
+    let resolution = res.quantum;
+    let cells = (resolution > 0.0)
+        .then(|| steady_cells(blocks, resolution))
+        .flatten()
+        .map(|c| Cells {
+            prior: noise_floor * noise_floor * 12.0 / (resolution * resolution),
+            ..c
+        });
+    match cells {
+        Some(c) => walk_floor_of::<{ P0 + CELLS }>(blocks, leading(&th), p, res, &c),
+        None => walk_floor_of::<P0>(blocks, th, p, res, &Cells::NONE),
+    }
+}
+
+/// [`walk_floor`] with `P` parameters from `th` (the plain model, with the offsets of (F7)
+/// over `cells` when `P` holds them).
+fn walk_floor_of<const P: usize>(
+    blocks: &[Block<6>],
+    th: [f32; P],
+    p: &[f32; 6],
+    res: Resolution,
+    cells: &Cells,
+) -> Option<[f32; 6]> {
+    let mut rule = StepRule::new(&tensor_of(p)).with_gyro_spread(res.gyro_spread);
+    let total = blocks.len();
+    let dof = (3 * total) as f32 - P as f32;
+    let plain = |q: &[f32; P]| normal(blocks, &rule, total, q, 0.0, cells);
+    let mut fit = levenberg(plain, th, 30, dof, TOLERANCE, Start::Warm)?;
+    walked(blocks, &mut rule, &mut fit, 0.0, cells, dof)?;
+    let c = scaled_inverse(&fit.2)?;
+    let s2 = fit.1 / dof;
+    Some(core::array::from_fn(|i| {
+        s2 * c.get(i).and_then(|row| row.get(i)).copied().unwrap_or(0.0)
+    }))
+}
+
+/// (F14): `r`'s covariance widened, entry by entry, to the walk's variances `floor` where it
+/// states less (its own scale being `r`'s cost per degree of freedom over `n` blocks).
+fn floored(r: &mut StretchResult<6>, floor: Option<[f32; 6]>, n: usize) {
+    let Some(v) = floor else {
+        return;
+    };
+    let s2 = per_dof(r, n);
+    let mut k = [1.0f32; 6];
+    for (i, ki) in k.iter_mut().enumerate() {
+        let stated = r
+            .cov
+            .get(i)
+            .and_then(|row| row.get(i))
+            .copied()
+            .unwrap_or(0.0)
+            * s2;
+        let want = v.get(i).copied().unwrap_or(0.0);
+        if stated > 0.0 && want > stated && want.is_finite() {
+            *ki = want / stated;
+        }
+    }
+    r.cov = inflated(&r.cov, &k);
+}
+
 /// The likelihood-ratio test of the multiple-shooting fit `ms` against the single trajectory
 /// `single` of the same `n` blocks (both costs over the whole stretch's degrees of freedom):
 /// true when the fall of the cost over `ms`'s residual variance exceeds the chi-square bound
@@ -1056,16 +1148,16 @@ fn fit_stretch_from(
     init: &Mat3,
     noise_floor: f32,
     from: &dyn Fn(&[Block<6>], &Mat3) -> Option<StretchResult<6>>,
-) -> Option<(StretchResult<6>, (Mat3, f32))> {
+) -> Option<(StretchResult<6>, (Mat3, f32), usize)> {
     let whole = from(blocks, init)?;
     let start = tensor_of(&whole.p);
     let of_whole = (start, whole.lag1);
     let whole_noise = per_dof(&whole, blocks.len());
     if whole_noise <= 4.0 * noise_floor * noise_floor {
-        return Some((whole, of_whole));
+        return Some((whole, of_whole, 0));
     }
-    let Some(later) = spin_up(blocks).and_then(|s| blocks.get(s..)) else {
-        return Some((whole, of_whole));
+    let Some((first, later)) = spin_up(blocks).and_then(|s| Some((s, blocks.get(s..)?))) else {
+        return Some((whole, of_whole, 0));
     };
     match from(later, &start) {
         Some(mut r) if per_dof(&r, later.len()) < whole_noise => {
@@ -1073,9 +1165,9 @@ fn fit_stretch_from(
             // (status `ModelMismatch`, the covariance scaled to it), as the cost over the
             // whole stretch's degrees of freedom, which the pooling divides by.
             r.cost = whole_noise * ((3 * blocks.len()) as f32 - r.params as f32);
-            Some((r, of_whole))
+            Some((r, of_whole, first))
         }
-        _ => Some((whole, of_whole)),
+        _ => Some((whole, of_whole, 0)),
     }
 }
 

@@ -718,7 +718,11 @@ pub fn analyse_vehicle(
         .collect();
     // The readings as `identify` fitted them: moved to their counts' centres where it found
     // them truncated toward zero.
-    let centred = id.gyro_grid.as_ref().filter(|g| g.centred).map(|g| g.lsb_rad_s);
+    let centred = id
+        .gyro_grid
+        .as_ref()
+        .filter(|g| g.centred)
+        .map(|g| g.lsb_rad_s);
     let mut gyro = rec.gyro.clone();
     if let Some(lsb) = centred {
         crate::grid::centre_readings(&mut gyro, lsb);
