@@ -170,6 +170,21 @@
 //! segments' sandwich sees the residual within one flight, not what moves a whole flight's
 //! answer). `scripts/bench-objects.sh` measures both fits on thrown objects of known inertia.
 //!
+//! Neither the sandwich nor the segments see an error that the whole flight shares, and on a
+//! thrown body the slow residual can move every throw alike. Where the flight does not fit to
+//! the noise (its residual beyond twice the noise's, or coloured), the slow error is described
+//! as a walk of the output ((F12), its size by (F13)) over the blocks the single trajectory was
+//! fitted to, and the reported variance of each entry is never below that model's generalised
+//! least squares, which no linear unbiased estimate from the same blocks beats under it:
+//!
+//! ```text
+//! var_i >= s_w^2 (F_w^-1)_ii                                                          (F14)
+//! ```
+//!
+//! (`F_w` the whitened normal matrix of the bias model refitted with the walk, `s_w^2` its
+//! whitened cost per degree of freedom). The estimate is unchanged; `scripts/bench-objects.sh`
+//! measures the calibration of the reported standard deviation with and against it.
+//!
 //! # A gyro bias that walks
 //!
 //! A satellite's MEMS gyro drifts over its long, slow flight: its bias is a random walk, not
@@ -1048,8 +1063,8 @@ fn fit_stretch(
 }
 
 /// (F14): the variances of the six entries under the walk's generalised least squares
-/// ((F12), (F13)), in (kg m^2)^2: the plain model refitted from the entries `p` and the first
-/// block's rate, then with the walk its residuals show; `None` when no walk is taken or a fit
+/// ((F12), (F13)), in (kg m^2)^2: the bias model refitted from the entries `p`, the first
+/// block's rate and no bias, then with the walk its residuals show; `None` when no walk is taken or a fit
 /// fails. The walk model describes a slow error of the output whatever its cause (a torque the
 /// model lacks, a drifting gyro): under it, no linear unbiased estimate of `J` from these
 /// blocks has a smaller variance than the walk's generalised least squares, so it is a floor
@@ -1065,7 +1080,11 @@ fn walk_floor(
     noise_floor: f32,
 ) -> Option<[f32; 6]> {
     let w0 = rate_of(blocks.first()?);
-    let th: [f32; P0] = [p[0], p[1], p[2], p[3], p[4], p[5], w0[0], w0[1], w0[2]];
+    // The bias model's layout (a free constant beside the walk, as the checked bias's fit:
+    // the same functions, no more code on board), from no bias.
+    let th: [f32; P1] = [
+        p[0], p[1], p[2], p[3], p[4], p[5], w0[0], w0[1], w0[2], 0.0, 0.0, 0.0,
+    ];
     // The rotor telemetry's offsets of (F7) where the stretch's fit had them: the same model.
     let resolution = res.quantum;
     let cells = (resolution > 0.0)
@@ -1076,13 +1095,13 @@ fn walk_floor(
             ..c
         });
     match cells {
-        Some(c) => walk_floor_of::<{ P0 + CELLS }>(blocks, leading(&th), p, res, &c),
-        None => walk_floor_of::<P0>(blocks, th, p, res, &Cells::NONE),
+        Some(c) => walk_floor_of::<{ P1 + CELLS }>(blocks, leading(&th), p, res, &c),
+        None => walk_floor_of::<P1>(blocks, th, p, res, &Cells::NONE),
     }
 }
 
-/// [`walk_floor`] with `P` parameters from `th` (the plain model, with the offsets of (F7)
-/// over `cells` when `P` holds them).
+/// [`walk_floor`] with `P` parameters from `th` (the bias model, with the offsets of (F7) over
+/// `cells` when `P` holds them).
 fn walk_floor_of<const P: usize>(
     blocks: &[Block<6>],
     th: [f32; P],
