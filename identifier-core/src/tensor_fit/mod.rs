@@ -205,10 +205,11 @@
 //! maximum of the restricted likelihood of the fit ((F13) of `walk`) over candidates four times
 //! apart about the walk that equals one block's white variance over the whole stretch, refined
 //! by a parabola, at the constant bias's parameters, then once more at the parameters the walk
-//! gives. It is taken when its likelihood ratio against no walk exceeds 3.84 (chi-square, one
-//! degree of freedom, 5 %): a walk missed leaves a covariance too small, a small one taken in
-//! vain one a little larger. A stretch fitted with a walk counts as coloured ((F10')): the
-//! tensor is at most `ModelMismatch`, usable with its stated standard deviation. Its residual
+//! gives. It is taken when its likelihood ratio against no walk exceeds 10.83 (chi-square, one
+//! degree of freedom, 0.1 %; see `walk::WALK_LR` for the balance of the two errors). A stretch whose walk states a variance of some entry more than
+//! 1.44 times the white fit's counts as coloured ((F10')): the tensor is at most
+//! `ModelMismatch`, usable with its stated standard deviation (a small walk taken on a white
+//! gyro leaves the status as it was). Its residual
 //! level ([`TensorFitEstimate::residual`]) is the residual not whitened, the walk's error in it,
 //! which the choices between models (the gravity gradient folded in or not, readings centred
 //! or as read) compare: the walk would take up a torque the model lacks as well. `scripts/bench-spacecraft.sh` measures the errors against the bound of the MEMS
@@ -547,14 +548,15 @@ fn fit_model<
                     params: PB,
                     bias: Some([g(M + 3), g(M + 4), g(M + 5)]),
                     lag1,
-                    // A walking bias ((F12)) is fitted as a model of the gyro's error, not of
-                    // the noise: what it takes up the white noise does not hold, and the
-                    // tensor says so as a coloured residual's does ((F10')).
-                    coloured: col || rule.walk > 0.0,
+                    // A walking bias ((F12)) that widens the tensor's variance is a model of
+                    // the gyro's error, not of the noise: what it takes up the white noise
+                    // does not hold, and the tensor says so as a coloured residual's does
+                    // ((F10')).
+                    coloured: col || raw.is_some_and(|(_, matters)| matters),
                     torque,
                     scale,
                     alt: None,
-                    walk: raw.map(|r| (rule.walk * cost1 / dof1, r)),
+                    walk: raw.map(|(r, _)| (rule.walk * cost1 / dof1, r)),
                 });
             }
         }
@@ -640,7 +642,7 @@ fn walked<const P: usize>(
     trace: f32,
     cells: &Cells,
     dof: f32,
-) -> Option<f32> {
+) -> Option<(f32, bool)> {
     let plain = *rule;
     let refit = |theta: &[f32; P], lambda: f32| {
         let whitened = plain.with_walk(lambda);
@@ -677,10 +679,35 @@ fn walked<const P: usize>(
         &mut (),
     )
     .map_or(f32::INFINITY, |(c, _, _)| c);
+    let matters = walk_matters(fit, &taken, dof);
     *fit = taken;
     *rule = plain.with_walk(walk);
-    Some(raw)
+    Some((raw, matters))
 }
+
+/// Whether the walk's fit `walked` states a variance of one of the six entries more than
+/// [`WALK_MATTERS`] times the white fit's `white` (each its cost per degree of freedom times
+/// its inverse normal matrix): where it does not, the white noise's model told the flight's
+/// information on `J` nearly as well, and a walk taken by the 5 % test on a white gyro (one
+/// window in forty) leaves the tensor's status as it was.
+fn walk_matters<const P: usize>(
+    white: &([f32; P], f32, Sym<P>),
+    walked: &([f32; P], f32, Sym<P>),
+    dof: f32,
+) -> bool {
+    let (Some(cw), Some(cv)) = (scaled_inverse(&white.2), scaled_inverse(&walked.2)) else {
+        return true;
+    };
+    (0..6).any(|i| {
+        let d = |c: &Sym<P>| c.get(i).and_then(|r| r.get(i)).copied().unwrap_or(0.0);
+        let (vw, vv) = (white.1 / dof * d(&cw), walked.1 / dof * d(&cv));
+        !(vv <= WALK_MATTERS * vw)
+    })
+}
+
+/// The variance ratio, walk over white on some entry, beyond which a walk is the gyro's error
+/// model and not a detail of its noise ([`walk_matters`]): a standard deviation a fifth larger.
+const WALK_MATTERS: f32 = 1.44;
 
 /// The score tests at a fitted model's optimum, from one evaluation: `theta` that model's
 /// parameters with a zero torque inserted after the initial rate (`PT` of them; `PS = PT + 3`

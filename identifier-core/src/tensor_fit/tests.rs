@@ -469,8 +469,8 @@ fn walk_window(step: f64, seed: u64) -> (f32, f64) {
 
 /// (F12), (F13): a gyro bias that walks is found on (nearly) every window, its step within a
 /// factor of two of the truth, and the tensor within four of its stated standard deviations;
-/// a gyro whose bias is constant gets a walk on few windows (the 5 % test, taken at the
-/// boundary of the walk's range, expects one or two in forty).
+/// a gyro whose bias is constant gets a walk on few windows (the 0.1 % test, taken at the
+/// boundary of the walk's range, expects none in forty).
 #[test]
 fn a_walking_bias_is_found_and_a_constant_one_is_not() {
     let step = 5e-5;
