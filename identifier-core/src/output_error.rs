@@ -337,6 +337,19 @@ impl<const N: usize, const K: usize> BlockBuffer<N, K> {
 /// `F^-1` via the Jacobi-scaled Cholesky factor (unscaled back); `None` when `F` is not
 /// numerically positive definite.
 pub(crate) fn scaled_inverse<const P: usize>(f: &Sym<P>) -> Option<Sym<P>> {
+    let (d, l) = scaled_cholesky(f)?;
+    let mut inv = cholesky_inverse(&l);
+    for i in 0..P {
+        for j in 0..P {
+            inv[i][j] *= d[i] * d[j];
+        }
+    }
+    Some(inv)
+}
+
+/// The Jacobi-scaled Cholesky factor of `F`: `D = diag(1 / sqrt(F_ii))` and `L` with
+/// `D F D = L L^T`; `None` when `F` is not numerically positive definite.
+pub(crate) fn scaled_cholesky<const P: usize>(f: &Sym<P>) -> Option<([f32; P], Sym<P>)> {
     let mut d = [0.0f32; P];
     for i in 0..P {
         if !(f[i][i] > 0.0) {
@@ -350,14 +363,7 @@ pub(crate) fn scaled_inverse<const P: usize>(f: &Sym<P>) -> Option<Sym<P>> {
             m[i][j] *= d[i] * d[j];
         }
     }
-    let l = cholesky_rel(&m, 1e-6)?;
-    let mut inv = cholesky_inverse(&l);
-    for i in 0..P {
-        for j in 0..P {
-            inv[i][j] *= d[i] * d[j];
-        }
-    }
-    Some(inv)
+    Some((d, cholesky_rel(&m, 1e-6)?))
 }
 
 /// What the fits know of how each gyro reading spreads over time ((B0), (B0')): the time

@@ -981,7 +981,6 @@ fn fit_stretch(
     res: Resolution,
     shooting: bool,
 ) -> Option<StretchResult<6>> {
-    let resolution = res.quantum;
     let from = |blocks: &[Block<6>], init: &Mat3| {
         let w0 = rate_of(blocks.first()?);
         let th = [
@@ -999,14 +998,7 @@ fn fit_stretch(
                 res,
             )
         };
-        let cells = (resolution > 0.0)
-            .then(|| steady_cells(blocks, resolution))
-            .flatten()
-            .map(|c| Cells {
-                prior: noise_floor * noise_floor * 12.0 / (resolution * resolution),
-                ..c
-            });
-        let Some(cells) = cells else {
+        let Some(cells) = cells_for(blocks, res, noise_floor) else {
             return plain();
         };
         let with = fit_model::<
@@ -1051,8 +1043,8 @@ fn fit_stretch(
     // under the residual's own error model (white noise and a walk of the output, (F12)), a
     // floor on the reported one. Not on a checked bias's stretch: its fit has the walk already.
     // Over the blocks the single trajectory was fitted to (from the spin-up, where it was).
-    let misfit = unexplained > 4.0 * noise_floor * noise_floor || r.coloured;
-    if misfit && bias != BiasModel::Checked {
+    let beyond_noise = unexplained > 4.0 * noise_floor * noise_floor;
+    if (beyond_noise || r.coloured) && bias != BiasModel::Checked {
         let floor = blocks
             .get(used..)
             .and_then(|b| walk_floor(b, &r.p, res, noise_floor));
@@ -1061,7 +1053,7 @@ fn fit_stretch(
     // A model error the single trajectory does not explain (nor the reading's known errors):
     // multiple shooting ((F11)) over the same blocks, from its tensor, in segments of its
     // residual's correlation length.
-    if shooting && unexplained > 4.0 * noise_floor * noise_floor {
+    if shooting && beyond_noise {
         // From the single trajectory's tensor (of the whole flight or from the spin-up), over
         // every block: restarting the trajectory is what keeps a model error of the idle
         // phase from accumulating.
@@ -1113,15 +1105,7 @@ fn walk_floor(
         p[0], p[1], p[2], p[3], p[4], p[5], w0[0], w0[1], w0[2], 0.0, 0.0, 0.0,
     ];
     // The rotor telemetry's offsets of (F7) where the stretch's fit had them: the same model.
-    let resolution = res.quantum;
-    let cells = (resolution > 0.0)
-        .then(|| steady_cells(blocks, resolution))
-        .flatten()
-        .map(|c| Cells {
-            prior: noise_floor * noise_floor * 12.0 / (resolution * resolution),
-            ..c
-        });
-    match cells {
+    match cells_for(blocks, res, noise_floor) {
         Some(c) => walk_floor_of::<{ P1 + CELLS }>(blocks, leading(&th), p, res, &c),
         None => walk_floor_of::<P1>(blocks, th, p, res, &Cells::NONE),
     }

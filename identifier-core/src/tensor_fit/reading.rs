@@ -249,6 +249,20 @@ pub(super) fn dot_n<const P: usize>(a: &[f32; P], b: &[f32; P]) -> f32 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
+/// [`steady_cells`] for the fits of a rotor read at `res`'s quantum (none when it is exact),
+/// with the offsets' prior of (F7): a quantum's uniform variance in units of the gyro's noise
+/// variance, `noise_floor^2 / (q^2 / 12)`.
+pub(super) fn cells_for(blocks: &[Block<6>], res: Resolution, noise_floor: f32) -> Option<Cells> {
+    let q = res.quantum;
+    (q > 0.0)
+        .then(|| steady_cells(blocks, q))
+        .flatten()
+        .map(|c| Cells {
+            prior: noise_floor * noise_floor * 12.0 / (q * q),
+            ..c
+        })
+}
+
 /// The rotor's steady stretches for (F7): the direction `u` of the largest block-mean rotor
 /// momentum, and the [`CELLS`] longest runs of at least three consecutive blocks over which
 /// the momentum along `u` stays within one `quantum` of the run's first block (`None` without

@@ -105,26 +105,16 @@ const FIRST_POWER: i32 = -4;
 /// windows (`scripts/bench-spacecraft.sh` and its notes in BENCHMARKS).
 pub(super) const WALK_LR: f32 = 10.83;
 
-/// `lambda_ref = 1 / (nbar^2 B)` of `B` blocks of `samples` samples in all (`nbar` per block):
-/// the walk whose variance over the whole stretch equals one mean block's white variance.
-fn reference_of(blocks: usize, samples: f32) -> f32 {
-    let b = (blocks.max(1)) as f32;
-    let nbar = (samples / b).max(1.0);
-    1.0 / (nbar * nbar * b)
-}
-
-/// [`reference_of`] `blocks`.
-pub(super) fn reference(blocks: &[crate::output_error::Block<6>]) -> f32 {
-    reference_of(blocks.len(), samples_of(blocks))
-}
-
-/// The samples in `blocks`.
-pub(super) fn samples_of(blocks: &[crate::output_error::Block<6>]) -> f32 {
+/// `lambda_ref = 1 / (nbar^2 B)` of `B` blocks of `nbar` samples each on average: the walk
+/// whose variance over the whole stretch equals one mean block's white variance.
+fn reference(blocks: &[crate::output_error::Block<6>]) -> f32 {
     let mut samples = 0.0f32;
     for b in blocks {
         samples += b.n;
     }
-    samples
+    let b = (blocks.len().max(1)) as f32;
+    let nbar = (samples / b).max(1.0);
+    1.0 / (nbar * nbar * b)
 }
 
 /// `sum_b 3 ln(n_b V_b)` over `blocks` under a walk of step variance `lambda` per sample
@@ -183,24 +173,12 @@ pub(super) fn restricted_deviance<const P: usize>(
     (cost, f, g): (f32, &[[f32; P]; P], &[f32; P]),
     dof: f32,
 ) -> Option<f32> {
-    // Jacobi-scaled Cholesky: `F = D^-1 L L^T D^-1`, `D = diag(1 / sqrt(F_ii))`.
-    let mut d = [0.0f32; P];
+    // `F = D^-1 L L^T D^-1`: `ln det F = sum ln F_ii + 2 sum ln L_ii`.
+    let (d, l) = crate::output_error::scaled_cholesky(f)?;
     let mut logdet = 0.0f32;
-    for (i, di) in d.iter_mut().enumerate() {
-        let fii = f.get(i).and_then(|r| r.get(i)).copied().unwrap_or(0.0);
-        if !(fii > 0.0) {
-            return None;
-        }
-        *di = 1.0 / crate::symmetric::sqrt(fii);
-        logdet += ln(fii);
+    for (i, row) in f.iter().enumerate() {
+        logdet += ln(row.get(i).copied().unwrap_or(0.0));
     }
-    let mut m = *f;
-    for (row, di) in m.iter_mut().zip(d) {
-        for (x, dj) in row.iter_mut().zip(d) {
-            *x *= di * dj;
-        }
-    }
-    let l = crate::symmetric::cholesky_rel(&m, 1e-6)?;
     // `z = L^-1 D g`: `g^T F^-1 g = |z|^2`.
     let mut z = [0.0f32; P];
     let mut gain = 0.0f32;

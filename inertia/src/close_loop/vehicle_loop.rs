@@ -723,11 +723,14 @@ pub fn analyse_vehicle(
         .as_ref()
         .filter(|g| g.centred)
         .map(|g| g.lsb_rad_s);
-    let mut gyro = rec.gyro.clone();
-    if let Some(lsb) = centred {
+    let moved = centred.map(|lsb| {
+        let mut gyro = rec.gyro.clone();
         crate::grid::centre_readings(&mut gyro, lsb);
-    }
-    let g: Vec<V3> = gyro
+        gyro
+    });
+    let g: Vec<V3> = moved
+        .as_deref()
+        .unwrap_or(&rec.gyro)
         .iter()
         .map(|w| [0, 1, 2].map(|k| f64::from(w[k]) - bias[k]))
         .collect();
