@@ -310,24 +310,36 @@ fn tensor_fit_steps() -> (f32, u32) {
     (ticks as f32 / Throw::SAMPLES as f32, worst)
 }
 
-/// The board throw's free flight in a fresh pipeline-configured `FlightTensorFit` (untimed),
-/// then one timed `close(Some(init))` from the first guess `init`: its ticks, the outcome and
-/// the estimate. Not inlined, for the same reason as `tensor_fit_steps`.
+/// The board throw's free flight in `fit` (untimed), each sample as `reading` gives it from
+/// its index, time step, rate and rotor momentum, then one timed `close`: its ticks, the
+/// outcome and the estimate. Not inlined, for the same reason as `tensor_fit_steps`.
 #[inline(never)]
+fn throw_then_close(
+    syst: &mut SYST,
+    mut fit: FlightTensorFit,
+    mut reading: impl FnMut(u32, f32, [f32; 3], [f32; 3]) -> ([f32; 3], [f32; 3]),
+    close: impl FnOnce(&mut FlightTensorFit) -> StretchOutcome,
+) -> (u64, StretchOutcome, Option<TensorFitEstimate>) {
+    let mut sig = Throw::board();
+    let dt = sig.dt();
+    for k in 0..Throw::SAMPLES {
+        let (w, h) = sig.next_sample();
+        let (w, h) = reading(k, dt, w, h);
+        fit.step(w, h, dt);
+    }
+    let (ticks, outcome) = measure_long(syst, || close(core::hint::black_box(&mut fit)));
+    (ticks, outcome, fit.estimate())
+}
+
+/// The board throw as read, then one timed `close(Some(init))` from the first guess `init`
+/// ([`throw_then_close`]).
 fn tensor_flight_close(
     syst: &mut SYST,
     init: [[f32; 3]; 3],
     momentum_quantum: f32,
 ) -> (u64, StretchOutcome, Option<TensorFitEstimate>) {
-    let mut sig = Throw::board();
-    let dt = sig.dt();
-    let mut fit = pipeline_tensor_fit().with_momentum_resolution(momentum_quantum);
-    for _ in 0..Throw::SAMPLES {
-        let (w, h) = sig.next_sample();
-        fit.step(w, h, dt);
-    }
-    let (ticks, outcome) = measure_long(syst, || core::hint::black_box(&mut fit).close(Some(init)));
-    (ticks, outcome, fit.estimate())
+    let fit = pipeline_tensor_fit().with_momentum_resolution(momentum_quantum);
+    throw_then_close(syst, fit, |_, _, w, h| (w, h), |f| f.close(Some(init)))
 }
 
 /// As [`tensor_flight_close`], but the rotor momentum the fit is given reads 20 % low until
@@ -336,26 +348,19 @@ fn tensor_flight_close(
 /// `close_without_bias`: the whole flight does not fit to the noise, so the fit is repeated
 /// from the spin-up, the residual's correlation measured and the flight fitted again by
 /// multiple shooting (the real-data path's cost).
-#[inline(never)]
 fn tensor_flight_close_mismatch(
     syst: &mut SYST,
     init: [[f32; 3]; 3],
 ) -> (u64, StretchOutcome, Option<TensorFitEstimate>) {
-    let mut sig = Throw::board();
-    let dt = sig.dt();
-    let mut fit = pipeline_tensor_fit();
     let half_peak = 0.5 * Throw::rotor_speed(1.0);
     let mut spun_up = false;
-    for k in 0..Throw::SAMPLES {
-        let (w, h) = sig.next_sample();
+    let reading = |k: u32, dt: f32, w, h: [f32; 3]| {
         spun_up |= Throw::rotor_speed(k as f32 * dt) >= half_peak;
-        let h = if spun_up { h } else { h.map(|x| 0.8 * x) };
-        fit.step(w, h, dt);
-    }
-    let (ticks, outcome) = measure_long(syst, || {
-        core::hint::black_box(&mut fit).close_without_bias(Some(init))
-    });
-    (ticks, outcome, fit.estimate())
+        (w, if spun_up { h } else { h.map(|x| 0.8 * x) })
+    };
+    throw_then_close(syst, pipeline_tensor_fit(), reading, |f| {
+        f.close_without_bias(Some(init))
+    })
 }
 
 /// The gyro bias walk's step std per sample added by [`tensor_flight_close_walk`], rad/s.
@@ -367,19 +372,14 @@ const WALK_STEP_RAD_S: f32 = 1e-4;
 /// `close_with_bias`: the bias model checked, the walk looked for by its restricted likelihood
 /// over thirteen candidates, twice, and the window refitted with it ((F12), (F13) of the tensor
 /// fit): the satellite image's end-of-window path.
-#[inline(never)]
 fn tensor_flight_close_walk(
     syst: &mut SYST,
     init: [[f32; 3]; 3],
 ) -> (u64, StretchOutcome, Option<TensorFitEstimate>) {
-    let mut sig = Throw::board();
-    let dt = sig.dt();
-    let mut fit = pipeline_tensor_fit();
     let mut seed = 7u32;
     let mut walk = [0.0f32; 3];
     let bias = [2e-3f32, -1e-3, 1e-3];
-    for _ in 0..Throw::SAMPLES {
-        let (w, h) = sig.next_sample();
+    let reading = |_, _, w: [f32; 3], h| {
         for x in walk.iter_mut() {
             seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
             let u = (seed >> 8) as f32 / 16_777_216.0 - 0.5;
@@ -390,12 +390,11 @@ fn tensor_flight_close_walk(
             w[1] + bias[1] + walk[1],
             w[2] + bias[2] + walk[2],
         ];
-        fit.step(w, h, dt);
-    }
-    let (ticks, outcome) = measure_long(syst, || {
-        core::hint::black_box(&mut fit).close_with_bias(Some(init))
-    });
-    (ticks, outcome, fit.estimate())
+        (w, h)
+    };
+    throw_then_close(syst, pipeline_tensor_fit(), reading, |f| {
+        f.close_with_bias(Some(init))
+    })
 }
 
 /// `samples` of `sig` (no rotor momentum) in a fresh `FlightTensorFit` set up for its rate
