@@ -688,8 +688,8 @@ fn walked<const P: usize>(
 /// Whether the walk's fit `walked` states a variance of one of the six entries more than
 /// [`WALK_MATTERS`] times the white fit's `white` (each its cost per degree of freedom times
 /// its inverse normal matrix): where it does not, the white noise's model told the flight's
-/// information on `J` nearly as well, and a walk taken by the 5 % test on a white gyro (one
-/// window in forty) leaves the tensor's status as it was.
+/// information on `J` nearly as well, and a small walk taken in vain on a white gyro
+/// ([`walk::WALK_LR`]) leaves the tensor's status as it was.
 fn walk_matters<const P: usize>(
     white: &([f32; P], f32, Sym<P>),
     walked: &([f32; P], f32, Sym<P>),
