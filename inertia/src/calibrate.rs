@@ -908,6 +908,14 @@ pub struct ObjectThrow {
     pub tensor_kg_m2: M3,
     /// Standard deviation of each entry, kg m^2.
     pub tensor_std_kg_m2: M3,
+    /// Its principal moments, ascending, kg m^2.
+    pub principal_moments_kg_m2: [f64; 3],
+    /// Their standard deviations, kg m^2.
+    pub principal_moments_std_kg_m2: [f64; 3],
+    /// The throw's tensor status (`Converged` when its fit explains the flight to the gyro's
+    /// noise).
+    #[serde(skip)]
+    pub tensor_status: String,
 }
 
 /// Each object throw by difference as if given alone ([`ObjectThrow`]), and the spread ratio
@@ -933,6 +941,9 @@ fn object_throws(
                 source: o.source.clone(),
                 tensor_kg_m2: tensor,
                 tensor_std_kg_m2: u.object.map(|r| r.map(f64::sqrt)),
+                principal_moments_kg_m2: eigen(&tensor).0,
+                principal_moments_std_kg_m2: u.moments.map(f64::sqrt),
+                tensor_status: o.tensor_status.clone(),
             })
         })
         .collect();
@@ -949,6 +960,50 @@ fn object_throws(
     }
     let ratio = (z2 / (3 * n) as f64 * n as f64 / (n - 1) as f64).sqrt();
     (each, ratio.is_finite().then_some(ratio))
+}
+
+/// The object's variance from several throws, never below what their error shares.
+///
+/// Where a throw's fit does not explain its flight to the gyro's noise (its tensor status is
+/// not `Converged`), its standard deviation comes from the residual it leaves, and part of that
+/// error can be common to every throw of the object (a torque the model lacks acts alike on
+/// each; the calibration's own error is common too). The throws' scatter `s^2` (per entry,
+/// `n - 1` in the denominator) measures only the part that differs from throw to throw; with
+/// `v` the mean of the throws' own variances, the rest, `v - s^2`, does not average out:
+///
+/// ```text
+/// var_pooled >= max(0, v - s^2) + s^2 / n                                              (C1)
+/// ```
+///
+/// per entry and per principal moment. Throws that all fit to the noise keep the jackknife's
+/// variance: their errors are the gyro's noise, independent from throw to throw.
+fn common_error_floor(mut u: Uncertainty, each: &[ObjectThrow]) -> Uncertainty {
+    let n = each.len();
+    if n < 2 || each.iter().all(|t| t.tensor_status == "Converged") {
+        return u;
+    }
+    let floor = |value: &dyn Fn(&ObjectThrow) -> f64, std: &dyn Fn(&ObjectThrow) -> f64| {
+        let nf = n as f64;
+        let mean = each.iter().map(value).sum::<f64>() / nf;
+        let s2 = each.iter().map(|t| (value(t) - mean).powi(2)).sum::<f64>() / (nf - 1.0);
+        let v = each.iter().map(|t| std(t).powi(2)).sum::<f64>() / nf;
+        (v - s2).max(0.0) + s2 / nf
+    };
+    for r in 0..3 {
+        for c in 0..3 {
+            let f = floor(&|t| t.tensor_kg_m2[r][c], &|t| t.tensor_std_kg_m2[r][c]);
+            if f.is_finite() && f > u.object[r][c] {
+                u.object[r][c] = f;
+            }
+        }
+        let f = floor(&|t| t.principal_moments_kg_m2[r], &|t| {
+            t.principal_moments_std_kg_m2[r]
+        });
+        if f.is_finite() && f > u.moments[r] {
+            u.moments[r] = f;
+        }
+    }
+    u
 }
 
 /// The rotors each throw is identified with and how to read the logs: from `--rotor-axis` and
@@ -1141,6 +1196,7 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
     });
     let u = uncertainty([&board, &assembly, &objects], &known, m, &full);
     let (per_object, object_spread_ratio) = object_throws(&board, &assembly, &objects, &known, m);
+    let u = common_error_floor(u, &per_object);
     let sd = |v: &M3| v.map(|r| r.map(f64::sqrt));
     let eig = full.object.map(|o| eigen(&o));
     let j_std = Some(u.j.sqrt());
@@ -1171,4 +1227,51 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
         object_throws: per_object,
         object_spread_ratio,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn throw(value: f64, std: f64, status: &str) -> ObjectThrow {
+        let m = [
+            [value, 0.0, 0.0],
+            [0.0, 2.0 * value, 0.0],
+            [0.0, 0.0, 3.0 * value],
+        ];
+        let s = [[std; 3]; 3];
+        ObjectThrow {
+            source: String::new(),
+            tensor_kg_m2: m,
+            tensor_std_kg_m2: s,
+            principal_moments_kg_m2: [value, 2.0 * value, 3.0 * value],
+            principal_moments_std_kg_m2: [std; 3],
+            tensor_status: status.into(),
+        }
+    }
+
+    /// (C1): object throws that agree exactly while each claims `std` (a model error they
+    /// share) give the pooled object that variance, not a fifth of it; throws that all fit to
+    /// the noise keep the jackknife's.
+    #[test]
+    fn an_error_the_object_throws_share_is_not_averaged_away() {
+        let std = 2.0e-6;
+        let jack = std * std / 5.0;
+        let u = Uncertainty {
+            j: 0.0,
+            board: [[0.0; 3]; 3],
+            object: [[jack; 3]; 3],
+            moments: [jack; 3],
+        };
+        let shared: Vec<ObjectThrow> = (0..5).map(|_| throw(1e-4, std, "ModelMismatch")).collect();
+        let w = common_error_floor(u, &shared);
+        for r in 0..3 {
+            assert!((w.object[r][r] / (std * std) - 1.0).abs() < 1e-12);
+            assert!((w.moments[r] / (std * std) - 1.0).abs() < 1e-12);
+        }
+        let clean: Vec<ObjectThrow> = (0..5).map(|_| throw(1e-4, std, "Converged")).collect();
+        let w = common_error_floor(u, &clean);
+        assert_eq!(w.object, u.object);
+        assert_eq!(w.moments, u.moments);
+    }
 }

@@ -275,7 +275,9 @@ fn several_object_throws_are_reported_each_and_their_spread_checked() {
     let ratio = rep.object_spread_ratio.expect("a spread ratio");
     println!("object spread over its std: {ratio:.2}");
     assert!(ratio.is_finite() && ratio > 0.0);
-    // The pooled object is more precise than either throw alone.
+    // These throws do not fit to the gyro's noise (`ModelMismatch`), so the pooled object keeps
+    // the part of their own variance that does not scatter between them ((C1)): never below
+    // that floor, and, as they agree (spread ratio below 1), never above their mean variance.
     let pooled = rep.object_tensor_std_kg_m2.unwrap();
     for t in &rep.object_throws {
         println!(
@@ -283,10 +285,28 @@ fn several_object_throws_are_reported_each_and_their_spread_checked() {
             t.source,
             [0, 1, 2].map(|i| t.tensor_std_kg_m2[i][i])
         );
-        for (i, row) in pooled.iter().enumerate() {
-            assert!(t.tensor_std_kg_m2[i][i] > 0.0);
-            assert!(row[i] <= t.tensor_std_kg_m2[i][i], "entry {i}");
-        }
+        assert!((0..3).all(|i| t.tensor_std_kg_m2[i][i] > 0.0));
+    }
+    let n = rep.object_throws.len() as f64;
+    for (i, row) in pooled.iter().enumerate() {
+        let values: Vec<f64> = rep
+            .object_throws
+            .iter()
+            .map(|t| t.tensor_kg_m2[i][i])
+            .collect();
+        let mean = values.iter().sum::<f64>() / n;
+        let s2 = values.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        let v = rep
+            .object_throws
+            .iter()
+            .map(|t| t.tensor_std_kg_m2[i][i].powi(2))
+            .sum::<f64>()
+            / n;
+        let floor = (v - s2).max(0.0) + s2 / n;
+        let var = row[i] * row[i];
+        println!("entry {i}: pooled var {var:.3e}, floor {floor:.3e}, mean own var {v:.3e}");
+        assert!(var >= floor * (1.0 - 1e-9), "entry {i}: below the floor");
+        assert!(var <= v * (1.0 + 1e-9), "entry {i}: above the throws' own");
     }
 }
 
