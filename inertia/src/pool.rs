@@ -14,6 +14,22 @@
 //! deviations say (`chi2 / dof > 1`), the pooled covariance is scaled by the ratio (the
 //! Birge ratio): the spread seen between throws is the uncertainty, not the claims of each.
 //! This is how a user gets below one throw's error: throw several times.
+//!
+//! That holds for errors that differ from throw to throw. Where a log's fit does not explain
+//! its flight to the gyro's noise (its tensor status is not `Converged`), its covariance comes
+//! from the residual it leaves, and part of that error can be common to every log of the body
+//! (a torque the model lacks acts alike on each throw): the spread between the logs does not
+//! see it, and pooling does not remove it. Per entry `k`, with `v_k` the mean of the logs' own
+//! variances and `s_k^2` the variance of their values (`n - 1` in the denominator), the part
+//! `v_k - s_k^2` that does not scatter is taken as common:
+//!
+//! ```text
+//! var_k >= max(0, v_k - s_k^2) + s_k^2 / n                                             (P4)
+//! ```
+//!
+//! and the covariance of (P3) is scaled by `D C D`, `D = diag(sqrt(max(1, floor_k / C_kk)))`,
+//! keeping its correlations. Logs that all fit to the noise keep (P3): their errors are the
+//! gyro's noise, independent from log to log.
 // Loops over the six entries read as the equations.
 #![allow(clippy::needless_range_loop)]
 
@@ -113,6 +129,7 @@ pub fn pool(reports: Vec<Report>) -> Result<PooledReport, String> {
     let mut info = [[0.0f64; 6]; 6];
     let mut info_j = [0.0f64; 6];
     let mut each = Vec::new();
+    let mut own_var: Vec<[f64; 6]> = Vec::new();
     for r in &reports {
         let (Some(t), Some(c)) = (r.pooled.tensor_kg_m2, r.pooled.tensor_cov_kg2_m4) else {
             return Err(format!(
@@ -133,6 +150,7 @@ pub fn pool(reports: Vec<Report>) -> Result<PooledReport, String> {
             }
         }
         each.push((j, ci));
+        own_var.push(std::array::from_fn::<f64, 6, _>(|k| c[k][k]));
     }
     let cov = inverse_pd(&info).ok_or("the pooled information is not positive")?;
     let j = mat_vec(&cov, &info_j);
@@ -155,6 +173,15 @@ pub fn pool(reports: Vec<Report>) -> Result<PooledReport, String> {
     };
     let scale = ratio.max(1.0);
     let cov = cov.map(|row| row.map(|x| x * scale));
+    let all_fit = reports
+        .iter()
+        .all(|r| r.pooled.tensor_status == "Converged");
+    let cov = if all_fit {
+        cov
+    } else {
+        let values: Vec<[f64; 6]> = each.iter().map(|(ji, _)| *ji).collect();
+        common_error_floor(&cov, &values, &own_var)
+    };
     let mut warnings = Vec::new();
     for r in &reports {
         warnings.extend(r.warnings.iter().map(|w| format!("{}: {w}", r.input)));
@@ -176,6 +203,30 @@ pub fn pool(reports: Vec<Report>) -> Result<PooledReport, String> {
         warnings,
         logs: reports,
     })
+}
+
+/// `cov` widened by (P4): per entry, at least the logs' variance that does not scatter between
+/// them plus the scatter's share of the mean, `values` and `own_var` each log's entries and
+/// their own variances.
+fn common_error_floor(
+    cov: &[[f64; 6]; 6],
+    values: &[[f64; 6]],
+    own_var: &[[f64; 6]],
+) -> [[f64; 6]; 6] {
+    let n = values.len() as f64;
+    let d: [f64; 6] = std::array::from_fn(|k| {
+        let mean = values.iter().map(|v| v[k]).sum::<f64>() / n;
+        let s2 = values.iter().map(|v| (v[k] - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        let v = own_var.iter().map(|v| v[k]).sum::<f64>() / n;
+        let floor = (v - s2).max(0.0) + s2 / n;
+        let r = floor / cov[k][k];
+        if r.is_finite() && r > 1.0 {
+            r.sqrt()
+        } else {
+            1.0
+        }
+    });
+    std::array::from_fn(|i| std::array::from_fn(|k| d[i] * cov[i][k] * d[k]))
 }
 
 /// The pooled estimate as JSON: the tensor, its covariance and what follows from them; the
@@ -258,5 +309,49 @@ mod tests {
         }
         m[2][2] = -1.0;
         assert!(inverse_pd(&m).is_none());
+    }
+
+    /// (P4): logs that agree to the last digit while each claims a variance `v` share an
+    /// error that pooling cannot remove (the floor is `v`, not `v / n`); logs that scatter as
+    /// their variances say keep (P3)'s `v / n`.
+    #[test]
+    fn an_error_the_logs_share_is_not_averaged_away() {
+        let v = 4.0e-12;
+        let n = 5usize;
+        let own = vec![[v; 6]; n];
+        let mut p3 = [[0.0f64; 6]; 6];
+        for k in 0..6 {
+            p3[k][k] = v / n as f64;
+        }
+        p3[0][1] = 0.5 * v / n as f64;
+        p3[1][0] = p3[0][1];
+        let agreeing = vec![[1.0e-4; 6]; n];
+        let c = common_error_floor(&p3, &agreeing, &own);
+        for k in 0..6 {
+            assert!((c[k][k] / v - 1.0).abs() < 1e-12, "entry {k}: {}", c[k][k]);
+        }
+        // The correlation of entries 0 and 1 is kept.
+        assert!((c[0][1] / (c[0][0] * c[1][1]).sqrt() - 0.5).abs() < 1e-12);
+        // Values of sample variance exactly v: +-sqrt(v (n - 1) / 2) on two logs, the rest at
+        // the mean.
+        let a = (v * (n as f64 - 1.0) / 2.0).sqrt();
+        let scattering: Vec<[f64; 6]> = (0..n)
+            .map(|i| {
+                let d = match i {
+                    0 => a,
+                    1 => -a,
+                    _ => 0.0,
+                };
+                [1.0e-4 + d; 6]
+            })
+            .collect();
+        let c = common_error_floor(&p3, &scattering, &own);
+        for k in 0..6 {
+            assert!(
+                (c[k][k] / p3[k][k] - 1.0).abs() < 1e-9,
+                "entry {k}: {}",
+                c[k][k]
+            );
+        }
     }
 }
