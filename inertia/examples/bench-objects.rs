@@ -2,7 +2,8 @@
 //! (`../shared/data/thrown-fc/objects/`), each throw run through `inertia calibrate` exactly as
 //! the command line does (`--board` the five board throws, `--assembly` the five proof-body
 //! throws, `--object` one throw), then all of an object's throws pooled (`--object` every
-//! throw). Prints, per object, the errors against the truth with the anchor's own metric (the
+//! throw), and the assembly through `inertia identify` per throw and pooled (`--input` every
+//! throw, `inertia::pool`). Prints, per object, the errors against the truth with the anchor's own metric (the
 //! principal moments' error `|lambda - lambda_true| / |lambda_true|`, moments in ascending
 //! order, and the angle of the rotation between the two sets of principal axes, both as the
 //! anchor's `computeError` defines them), the whole tensor's Frobenius error (which also holds
@@ -14,6 +15,7 @@
 use std::path::{Path, PathBuf};
 
 use inertia::calibrate::{axis_angle_deg, eigen, rel_frobenius, run, unit_throw, CalibrateArgs};
+use inertia::identify::{identify, IdentifyOptions, Rotor, RotorHold};
 
 type M3 = [[f64; 3]; 3];
 
@@ -264,6 +266,44 @@ fn assembly_row(path: &Path, poles: u32, truth: &M3) -> Result<Row, String> {
     })
 }
 
+/// Every throw of the assembly through `inertia identify --input A --input B ...` (the anchor's
+/// rotor inertia), the logs pooled by `inertia::pool`, against the assembly's truth.
+fn assembly_pooled(paths: &[PathBuf], poles: u32, truth: &M3) -> Result<Row, String> {
+    let opts = IdentifyOptions {
+        rotor: Some(Rotor {
+            inertia: ROTOR_ANCHOR_KG_M2 as f32,
+            axis: [0.0, 0.0, -1.0],
+            poles: Some(poles),
+        }),
+        vehicle: None,
+        segments: None,
+        noise_std: None,
+        rotor_hold: RotorHold::Auto,
+        trace: false,
+    };
+    let reports = paths
+        .iter()
+        .map(|p| {
+            let rec = inertia::read(p, &Default::default()).map_err(|e| e.to_string())?;
+            identify(&rec, &opts).map_err(|e| e.to_string())
+        })
+        .collect::<Result<Vec<_>, String>>()?;
+    let pooled = inertia::pool::pool(reports)?.pooled;
+    let f = |m: [[f32; 3]; 3]| m.map(|r| r.map(f64::from));
+    let got = f(pooled.tensor_kg_m2.ok_or("no pooled tensor")?);
+    let std = f(pooled.tensor_std_kg_m2.ok_or("no pooled std")?);
+    Ok(Row {
+        name: "pooled".into(),
+        frob: rel_frobenius(&got, truth),
+        axes: axis_error(&got, truth),
+        moments: moment_error(&got, truth),
+        rotation: rotation_error(&got, truth),
+        z: z_scores(&got, &std, truth),
+        zm: Vec::new(),
+        rel: relative(&got, &std, truth),
+    })
+}
+
 /// RMS of the first three of every six (the diagonal entries' z).
 fn rms_diag(rows: &[&Row]) -> f64 {
     let d: Vec<f64> = rows
@@ -328,8 +368,18 @@ fn main() {
         }
         let asm_refs: Vec<&Row> = asm.iter().collect();
         let asm_len = asm.len();
+        let pooled = match assembly_pooled(&throws, poles, &asm_truth) {
+            Ok(p) => format!(
+                "{:.2} % | {:.2} % | {:.2}, {:.2}",
+                p.moments * 100.0,
+                p.frob * 100.0,
+                rms(&p.z),
+                rms_diag(&[&p])
+            ),
+            Err(e) => format!("failed: {e} | | "),
+        };
         assembly_lines.push(format!(
-            "| {name} | {}/{} | {} | {} | {} | {:.2}, {:.2} |",
+            "| {name} | {}/{} | {} | {} | {} | {:.2}, {:.2} | {pooled} |",
             asm_len,
             throws.len(),
             mean_max(asm.iter().map(|r| r.moments * 100.0), "%"),
@@ -407,8 +457,8 @@ fn main() {
     }
     println!();
     println!("assembly per throw (inertia identify, the anchor's rotor inertia) against the anchor's board plus the object");
-    println!("| object | throws | moments mean / max | rotation mean / max | Frobenius mean / max | RMS(error/std): entries, diagonal |");
-    println!("|---|---|---|---|---|---|");
+    println!("| object | throws | moments mean / max | rotation mean / max | Frobenius mean / max | RMS(error/std): entries, diagonal | pooled (`--input` every throw): moments | Frobenius | RMS(error/std): entries, diagonal |");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for l in assembly_lines {
         println!("{l}");
     }
