@@ -983,11 +983,7 @@ fn common_error_floor(mut u: Uncertainty, each: &[ObjectThrow]) -> Uncertainty {
         return u;
     }
     let floor = |value: &dyn Fn(&ObjectThrow) -> f64, std: &dyn Fn(&ObjectThrow) -> f64| {
-        let nf = n as f64;
-        let mean = each.iter().map(value).sum::<f64>() / nf;
-        let s2 = each.iter().map(|t| (value(t) - mean).powi(2)).sum::<f64>() / (nf - 1.0);
-        let v = each.iter().map(|t| std(t).powi(2)).sum::<f64>() / nf;
-        (v - s2).max(0.0) + s2 / nf
+        crate::pool::shared_floor(each.iter().map(|t| (value(t), std(t).powi(2))))
     };
     for r in 0..3 {
         for c in 0..3 {

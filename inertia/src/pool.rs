@@ -205,6 +205,16 @@ pub fn pool(reports: Vec<Report>) -> Result<PooledReport, String> {
     })
 }
 
+/// The right side of (P4) for one quantity from `(value, own variance)` of each of `n >= 2`
+/// throws or logs: `max(0, v - s^2) + s^2 / n`.
+pub fn shared_floor(each: impl Iterator<Item = (f64, f64)> + Clone) -> f64 {
+    let n = each.clone().count() as f64;
+    let mean = each.clone().map(|(x, _)| x).sum::<f64>() / n;
+    let s2 = each.clone().map(|(x, _)| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    let v = each.map(|(_, var)| var).sum::<f64>() / n;
+    (v - s2).max(0.0) + s2 / n
+}
+
 /// `cov` widened by (P4): per entry, at least the logs' variance that does not scatter between
 /// them plus the scatter's share of the mean, `values` and `own_var` each log's entries and
 /// their own variances.
@@ -213,12 +223,13 @@ fn common_error_floor(
     values: &[[f64; 6]],
     own_var: &[[f64; 6]],
 ) -> [[f64; 6]; 6] {
-    let n = values.len() as f64;
     let d: [f64; 6] = std::array::from_fn(|k| {
-        let mean = values.iter().map(|v| v[k]).sum::<f64>() / n;
-        let s2 = values.iter().map(|v| (v[k] - mean).powi(2)).sum::<f64>() / (n - 1.0);
-        let v = own_var.iter().map(|v| v[k]).sum::<f64>() / n;
-        let floor = (v - s2).max(0.0) + s2 / n;
+        let floor = shared_floor(
+            values
+                .iter()
+                .map(|v| v[k])
+                .zip(own_var.iter().map(|v| v[k])),
+        );
         let r = floor / cov[k][k];
         if r.is_finite() && r > 1.0 {
             r.sqrt()
