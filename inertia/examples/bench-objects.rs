@@ -125,6 +125,21 @@ struct Row {
 }
 
 impl Row {
+    /// A tensor `got` with its entries' standard deviations `std` against `truth` (no
+    /// principal moments' standard deviations: those only `calibrate` reports).
+    fn of_tensor(name: String, got: &M3, std: &M3, truth: &M3) -> Row {
+        Row {
+            name,
+            frob: rel_frobenius(got, truth),
+            axes: axis_error(got, truth),
+            moments: moment_error(got, truth),
+            rotation: rotation_error(got, truth),
+            z: z_scores(got, std, truth),
+            zm: Vec::new(),
+            rel: relative(got, std, truth),
+        }
+    }
+
     /// The throw's line: its errors and each entry's error over its std.
     fn line(&self) -> String {
         let f = |v: &[f64]| -> String {
@@ -250,20 +265,8 @@ fn assembly_row(path: &Path, poles: u32, truth: &M3) -> Result<Row, String> {
     let j = ROTOR_ANCHOR_KG_M2;
     let got = t.j1.map(|r| r.map(|x| x * j));
     let std = t.j1_std.ok_or("no std")?.map(|r| r.map(|x| x * j));
-    Ok(Row {
-        name: path
-            .file_name()
-            .unwrap_or_default()
-            .to_string_lossy()
-            .into(),
-        frob: rel_frobenius(&got, truth),
-        axes: axis_error(&got, truth),
-        moments: moment_error(&got, truth),
-        rotation: rotation_error(&got, truth),
-        z: z_scores(&got, &std, truth),
-        zm: Vec::new(),
-        rel: relative(&got, &std, truth),
-    })
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    Ok(Row::of_tensor(name.into(), &got, &std, truth))
 }
 
 /// Every throw of the assembly through `inertia identify --input A --input B ...` (the anchor's
@@ -292,16 +295,7 @@ fn assembly_pooled(paths: &[PathBuf], poles: u32, truth: &M3) -> Result<Row, Str
     let f = |m: [[f32; 3]; 3]| m.map(|r| r.map(f64::from));
     let got = f(pooled.tensor_kg_m2.ok_or("no pooled tensor")?);
     let std = f(pooled.tensor_std_kg_m2.ok_or("no pooled std")?);
-    Ok(Row {
-        name: "pooled".into(),
-        frob: rel_frobenius(&got, truth),
-        axes: axis_error(&got, truth),
-        moments: moment_error(&got, truth),
-        rotation: rotation_error(&got, truth),
-        z: z_scores(&got, &std, truth),
-        zm: Vec::new(),
-        rel: relative(&got, &std, truth),
-    })
+    Ok(Row::of_tensor("pooled".into(), &got, &std, truth))
 }
 
 /// RMS of the first three of every six (the diagonal entries' z).
