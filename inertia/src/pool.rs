@@ -29,7 +29,9 @@
 //!
 //! and the covariance of (P3) is scaled by `D C D`, `D = diag(sqrt(max(1, floor_k / C_kk)))`,
 //! keeping its correlations. Logs that all fit to the noise keep (P3): their errors are the
-//! gyro's noise, independent from log to log.
+//! gyro's noise, independent from log to log. The rule takes the side of caution: from a few
+//! logs whose errors are in fact independent, `s_k^2` is a noisy measure and often falls below
+//! `v_k`, and the floor then keeps more of `v_k` than the pooled error holds.
 // Loops over the six entries read as the equations.
 #![allow(clippy::needless_range_loop)]
 
