@@ -182,6 +182,7 @@ fn args(object: Vec<PathBuf>, mass: f64, poles: u32) -> CalibrateArgs {
         rotor_axis: Some([0.0, 0.0, -1.0]),
         vehicle: None,
         rotor_poles: Some(poles),
+        gyro_scale: inertia::calibrate::GyroScale::Auto,
         json: std::env::temp_dir().join("bench-objects-unused.json"),
         plots: None,
     }

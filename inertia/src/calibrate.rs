@@ -43,6 +43,14 @@
 //! What is calibrated is the scale `s = j / r_1`; each rotor's inertia `j r_i / r_1` comes
 //! with the standard deviation of `j` times the same ratio ([`VehicleCalibration`]). A file
 //! of one rotor is the case above: its inertia is not used at all.
+//!
+//! # The gyro's scale
+//!
+//! A gyro that reads a few tenths of a percent high bends every tensor's ratios and, through
+//! the rotor momentum, their scale, by a few times as much and differently for each body. By
+//! default (`--gyro-scale auto`) the scale is calibrated from the proof body's shape and every
+//! throw, the object's included, is identified with the gyro read through it ([`gyro_scale`],
+//! (G1), (G2)).
 
 // 3x3 index arithmetic mirrors the equations.
 #![allow(clippy::needless_range_loop)]
@@ -52,6 +60,9 @@ use serde::Serialize;
 use crate::identify::{identify, IdentifyOptions, Rotor};
 use crate::recording::Recording;
 use crate::vehicle::Vehicle;
+
+mod gyro_scale;
+use gyro_scale::{all_at, ScaledThrow, SCALE_STEP};
 
 /// The entries of a tensor in the order of its covariance: xx, yy, zz, xy, xz, yz.
 pub(crate) const ENTRIES: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
@@ -591,6 +602,11 @@ pub struct CalibrateArgs {
     /// `rotor_rad_s`, or the column the file names) and its inertia is not used.
     #[arg(long, conflicts_with_all = ["rotor_axis", "rotor_poles"])]
     pub vehicle: Option<std::path::PathBuf>,
+    /// The gyro's scale factor `k` (it reads `k` times the true rate): `auto` calibrates it
+    /// from the proof body's shape ((G1) of the module's "The gyro's scale"); a number takes
+    /// it as given (`1`: the gyro as read).
+    #[arg(long, default_value = "auto", value_parser = parse_gyro_scale)]
+    pub gyro_scale: GyroScale,
     /// Where to write the JSON report.
     #[arg(long)]
     pub json: std::path::PathBuf,
@@ -601,13 +617,72 @@ pub struct CalibrateArgs {
     pub plots: Option<std::path::PathBuf>,
 }
 
+/// The gyro scale of `inertia calibrate --gyro-scale`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum GyroScale {
+    /// Calibrated from the proof body ((G1)).
+    Auto,
+    /// Given: the gyro reads this many times the true rate.
+    Given(f64),
+}
+
+/// `auto`, or a scale within a half of 1.
+pub fn parse_gyro_scale(s: &str) -> Result<GyroScale, String> {
+    if s.eq_ignore_ascii_case("auto") {
+        return Ok(GyroScale::Auto);
+    }
+    match s.parse::<f64>() {
+        Ok(k) if k > 0.5 && k < 1.5 => Ok(GyroScale::Given(k)),
+        _ => Err(format!("{s}: `auto` or a scale factor between 0.5 and 1.5")),
+    }
+}
+
+/// A recording with its gyro read through the scale `k`: rates and full scale divided by it.
+pub fn gyro_scaled(rec: &Recording, k: f64) -> Recording {
+    let mut r = rec.clone();
+    let inv = (1.0 / k) as f32;
+    for w in &mut r.gyro {
+        *w = w.map(|x| x * inv);
+    }
+    r.gyro_full_scale *= inv;
+    r
+}
+
 /// What the calibration computes from its three groups of throws: the rotor inertia, the
-/// board's tensor (kg m^2) and the object's, when there are object throws.
+/// board's tensor (kg m^2) and the object's, when there are object throws, and the gyro scale
+/// they were taken at.
 #[derive(Clone, Copy, Debug)]
 struct Solved {
     j: f64,
     board: M3,
     object: Option<M3>,
+    gyro_scale: f64,
+}
+
+/// How the scale of a solve is found: calibrated by (G1) from its board and assembly throws,
+/// or fixed.
+#[derive(Clone, Copy, Debug)]
+enum Scale {
+    Calibrated,
+    Fixed(f64),
+}
+
+/// [`solve`] with the throws taken at the scale `scale` gives ((G2)); `None` when the
+/// calibration fails (no scale found is the gyro as read, `k = 1`).
+fn solve_scaled(
+    groups: [&[ScaledThrow]; 3],
+    known: &M3,
+    m: Masses,
+    scale: Scale,
+) -> Option<Solved> {
+    let k = match scale {
+        Scale::Fixed(k) => k,
+        Scale::Calibrated => gyro_scale::calibrated(groups[0], groups[1], known, m).unwrap_or(1.0),
+    };
+    let [b, a, o] = groups.map(|g| all_at(g, k));
+    let mut s = solve(&b, &a, &o, known, m)?;
+    s.gyro_scale = k;
+    Some(s)
 }
 
 /// The masses: board, proof body, object.
@@ -643,6 +718,7 @@ fn solve(
         j,
         board: jb.map(|r| r.map(|x| x * j)),
         object: object_tensor,
+        gyro_scale: 1.0,
     })
 }
 
@@ -666,13 +742,20 @@ fn solve(
 #[derive(Clone, Copy, Debug, Default)]
 struct Uncertainty {
     j: f64,
+    gyro_scale: f64,
     board: M3,
     object: M3,
     moments: [f64; 3],
 }
 
 /// Variance of `Solved` (and of the object's principal moments) by [`Uncertainty`]'s rules.
-fn uncertainty(groups: [&[UnitThrow]; 3], known: &M3, m: Masses, full: &Solved) -> Uncertainty {
+fn uncertainty(
+    groups: [&[ScaledThrow]; 3],
+    known: &M3,
+    m: Masses,
+    scale: Scale,
+    full: &Solved,
+) -> Uncertainty {
     let mut u = Uncertainty::default();
     let moments = |s: &Solved| s.object.map(|o| eigen(&o).0);
     for g in 0..3 {
@@ -682,7 +765,7 @@ fn uncertainty(groups: [&[UnitThrow]; 3], known: &M3, m: Masses, full: &Solved) 
             for i in 0..n {
                 let mut parts = groups.map(|x| x.to_vec());
                 parts[g].remove(i);
-                if let Some(s) = solve(&parts[0], &parts[1], &parts[2], known, m) {
+                if let Some(s) = solve_scaled([&parts[0], &parts[1], &parts[2]], known, m, scale) {
                     runs.push(s);
                 }
             }
@@ -696,6 +779,7 @@ fn uncertainty(groups: [&[UnitThrow]; 3], known: &M3, m: Masses, full: &Solved) 
                 k * xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>()
             };
             u.j += var(&|s| s.j);
+            u.gyro_scale += var(&|s| s.gyro_scale);
             for r in 0..3 {
                 for c in 0..3 {
                     u.board[r][c] += var(&|s| s.board[r][c]);
@@ -709,7 +793,7 @@ fn uncertainty(groups: [&[UnitThrow]; 3], known: &M3, m: Masses, full: &Solved) 
             // (both sides of a symmetric pair), combined with their correlations, `var(f) =
             // sum_ef d_e rho_ef d_f` (the tensor's and the accelerometer's errors independent
             // of each other).
-            let throw = &groups[g][0];
+            let throw = &groups[g][0].throw;
             let Some(std) = throw.j1_std else {
                 continue;
             };
@@ -731,7 +815,7 @@ fn uncertainty(groups: [&[UnitThrow]; 3], known: &M3, m: Masses, full: &Solved) 
             let deltas: Vec<[f64; 22]> = (0..9)
                 .map(|e| {
                     let mut parts = groups.map(|x| x.to_vec());
-                    let t = &mut parts[g][0];
+                    let t = &mut parts[g][0].throw;
                     if let Some(&(r0, c0)) = ENTRIES.get(e) {
                         let s = std[r0][c0];
                         t.j1[r0][c0] += s;
@@ -742,7 +826,8 @@ fn uncertainty(groups: [&[UnitThrow]; 3], known: &M3, m: Masses, full: &Solved) 
                         t.imu_from_com[e - 6] += com_std[e - 6];
                     }
                     let mut d = [0.0; 22];
-                    let Some(p) = solve(&parts[0], &parts[1], &parts[2], known, m) else {
+                    let Some(p) = solve_scaled([&parts[0], &parts[1], &parts[2]], known, m, scale)
+                    else {
                         return d;
                     };
                     d[0] = p.j - full.j;
@@ -791,6 +876,13 @@ fn uncertainty(groups: [&[UnitThrow]; 3], known: &M3, m: Masses, full: &Solved) 
 pub struct CalibrationReport {
     /// Rotor inertia, kg m^2.
     pub rotor_inertia_kg_m2: f64,
+    /// The gyro's scale factor every throw was identified with (it reads `k` times the true
+    /// rate; (G1) of the module's "The gyro's scale").
+    pub gyro_scale: f64,
+    /// Its standard deviation (the throws' jackknife) where it was calibrated.
+    pub gyro_scale_std: Option<f64>,
+    /// Where it came from: calibrated, given, or the gyro as read and why.
+    pub gyro_scale_source: String,
     /// Board tensor about its centre of mass, kg m^2 (mean of the board throws).
     pub board_tensor_kg_m2: M3,
     /// Relative Frobenius distance of each board throw from the mean.
@@ -921,12 +1013,12 @@ pub struct ObjectThrow {
 /// Each object throw by difference as if given alone ([`ObjectThrow`]), and the spread ratio
 /// of [`CalibrationReport::object_spread_ratio`]; nothing with fewer than two throws.
 fn object_throws(
-    board: &[UnitThrow],
-    assembly: &[UnitThrow],
-    objects: &[UnitThrow],
+    groups: [&[ScaledThrow]; 3],
     known: &M3,
     m: Masses,
+    scale: Scale,
 ) -> (Vec<ObjectThrow>, Option<f64>) {
+    let [board, assembly, objects] = groups;
     if objects.len() < 2 {
         return (Vec::new(), None);
     }
@@ -934,9 +1026,10 @@ fn object_throws(
         .iter()
         .filter_map(|o| {
             let one = std::slice::from_ref(o);
-            let full = solve(board, assembly, one, known, m)?;
+            let full = solve_scaled([board, assembly, one], known, m, scale)?;
             let tensor = full.object?;
-            let u = uncertainty([board, assembly, one], known, m, &full);
+            let u = uncertainty([board, assembly, one], known, m, scale, &full);
+            let o = &o.throw;
             Some(ObjectThrow {
                 source: o.source.clone(),
                 tensor_kg_m2: tensor,
@@ -1102,47 +1195,57 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
         return Err("--object needs --object-mass".into());
     }
     let RotorOf { rotors, read } = rotor_of(args)?;
+    let ident = |rec: &Recording| -> Result<UnitThrow, String> {
+        match &rotors {
+            UnitRotors::One { axis, poles, .. } => unit_throw(rec, *axis, *poles),
+            UnitRotors::Several { unit, .. } => unit_throw_vehicle(rec, unit),
+        }
+    };
+    let base = match args.gyro_scale {
+        GyroScale::Auto => 1.0,
+        GyroScale::Given(k) => k,
+    };
     // A throw that cannot be read or identified, or whose tensor is not usable, is left out
     // with its reason (a saturated or truncated log among good ones should not stop the
     // calibration); a group left without a throw is an error.
     let mut skipped = Vec::new();
-    let mut unit_all =
-        |paths: &[std::path::PathBuf], group: &'static str| -> Result<Vec<UnitThrow>, String> {
-            let mut used = Vec::new();
-            for p in paths {
-                let source = p.display().to_string();
-                let throw = crate::read(p, &read)
-                    .map_err(|e| e.to_string())
-                    .and_then(|rec| match &rotors {
-                        UnitRotors::One { axis, poles, unit } => {
-                            unit_throw(&with_named_rotor(rec, *unit), *axis, *poles)
-                        }
-                        UnitRotors::Several { unit, .. } => unit_throw_vehicle(&rec, unit),
-                    });
-                match throw {
-                    Ok(t) if usable(&t.tensor_status) => used.push(t),
-                    Ok(t) => skipped.push(SkippedThrow {
-                        source,
-                        group,
-                        reason: format!("tensor status {}", t.tensor_status),
-                    }),
-                    Err(reason) => skipped.push(SkippedThrow {
-                        source,
-                        group,
-                        reason,
-                    }),
-                }
+    let mut unit_all = |paths: &[std::path::PathBuf],
+                        group: &'static str|
+     -> Result<Vec<(Recording, UnitThrow)>, String> {
+        let mut used = Vec::new();
+        for p in paths {
+            let source = p.display().to_string();
+            let throw = crate::read(p, &read)
+                .map_err(|e| e.to_string())
+                .map(|rec| match &rotors {
+                    UnitRotors::One { unit, .. } => with_named_rotor(rec, *unit),
+                    UnitRotors::Several { .. } => rec,
+                })
+                .and_then(|rec| ident(&gyro_scaled(&rec, base)).map(|t| (rec, t)));
+            match throw {
+                Ok((rec, t)) if usable(&t.tensor_status) => used.push((rec, t)),
+                Ok((_, t)) => skipped.push(SkippedThrow {
+                    source,
+                    group,
+                    reason: format!("tensor status {}", t.tensor_status),
+                }),
+                Err(reason) => skipped.push(SkippedThrow {
+                    source,
+                    group,
+                    reason,
+                }),
             }
-            if used.is_empty() && !paths.is_empty() {
-                return Err(format!("no usable {group} throw (every one was left out)"));
-            }
-            Ok(used)
-        };
+        }
+        if used.is_empty() && !paths.is_empty() {
+            return Err(format!("no usable {group} throw (every one was left out)"));
+        }
+        Ok(used)
+    };
     let board = unit_all(&args.board, "board");
     let assembly = unit_all(&args.assembly, "assembly");
     let objects = unit_all(&args.object, "object");
-    let (board, assembly, objects) = match (board, assembly, objects) {
-        (Ok(b), Ok(a), Ok(o)) => (b, a, o),
+    let read_groups = match (board, assembly, objects) {
+        (Ok(b), Ok(a), Ok(o)) => [b, a, o],
         (b, a, o) => {
             let mut why: Vec<String> = [b.err(), a.err(), o.err()].into_iter().flatten().collect();
             why.extend(
@@ -1158,28 +1261,122 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
         proof: args.proof_mass,
         object: masses[2],
     };
-    let full = solve(&board, &assembly, &objects, &known, m)
+    // The gyro's scale ((G1), (G2)): given, or each throw identified once more at
+    // `1 + SCALE_STEP`, the scale calibrated on the linear model, and every throw identified
+    // again at it.
+    let fixed = |g: &[(Recording, UnitThrow)], k: f64| -> Vec<ScaledThrow> {
+        g.iter()
+            .map(|(_, t)| ScaledThrow {
+                throw: t.clone(),
+                at: k,
+                dj1: [[0.0; 3]; 3],
+                dcom: [0.0; 3],
+            })
+            .collect()
+    };
+    let (groups, scale, gyro_scale_source) = match args.gyro_scale {
+        GyroScale::Given(k) => (
+            read_groups.each_ref().map(|g| fixed(g, k)),
+            Scale::Fixed(k),
+            "given (--gyro-scale)".to_string(),
+        ),
+        GyroScale::Auto => {
+            let step = 1.0 + SCALE_STEP;
+            let linear: Vec<Vec<ScaledThrow>> = read_groups
+                .iter()
+                .map(|g| {
+                    g.iter()
+                        .map(|(rec, t)| {
+                            let moved = ident(&gyro_scaled(rec, step)).ok();
+                            let (dj1, dcom) = moved.map_or(([[0.0; 3]; 3], [0.0; 3]), |u| {
+                                (
+                                    add(&u.j1, &t.j1, -1.0).map(|r| r.map(|x| x / SCALE_STEP)),
+                                    [0, 1, 2].map(|i| {
+                                        (u.imu_from_com[i] - t.imu_from_com[i]) / SCALE_STEP
+                                    }),
+                                )
+                            });
+                            ScaledThrow {
+                                throw: t.clone(),
+                                at: 1.0,
+                                dj1,
+                                dcom,
+                            }
+                        })
+                        .collect()
+                })
+                .collect();
+            match gyro_scale::calibrated(&linear[0], &linear[1], &known, m) {
+                Some(k) => {
+                    let again: Vec<Vec<ScaledThrow>> = linear
+                        .iter()
+                        .zip(&read_groups)
+                        .map(|(lin, g)| {
+                            lin.iter()
+                                .zip(g)
+                                .map(|(l, (rec, _))| ScaledThrow {
+                                    throw: ident(&gyro_scaled(rec, k)).unwrap_or_else(|_| l.at(k)),
+                                    at: k,
+                                    dj1: l.dj1,
+                                    dcom: l.dcom,
+                                })
+                                .collect()
+                        })
+                        .collect();
+                    let [b, a, o]: [Vec<ScaledThrow>; 3] = again
+                        .try_into()
+                        .map_err(|_| "calibration failed: three groups expected".to_string())?;
+                    (
+                        [b, a, o],
+                        Scale::Calibrated,
+                        "calibrated from the proof body".into(),
+                    )
+                }
+                None => (
+                    read_groups.each_ref().map(|g| fixed(g, 1.0)),
+                    Scale::Fixed(1.0),
+                    format!(
+                        "as read: the proof body's shape did not fix a scale within 1 +- {}",
+                        gyro_scale::SCALE_RANGE
+                    ),
+                ),
+            }
+        }
+    };
+    let g3 = [&groups[0][..], &groups[1][..], &groups[2][..]];
+    let full = solve_scaled(g3, &known, m, scale)
         .ok_or("calibration failed: the rotor inertia came out not positive")?;
     let j = full.j;
+    let k = full.gyro_scale;
+    let [board, assembly, objects] = g3.map(|g| all_at(g, k));
     let (jb, rb) = mean(&board);
     let (jt, rt) = mean(&assembly);
     let (d, mt, _) = difference((&jb, rb), (&jt, rt), args.board_mass, args.proof_mass);
     let proof_in_sample = compare(&object(j, &d, &mt), &known);
+    // Each assembly throw against `j` (and the scale, where calibrated) from the others.
     let mut loo = Vec::new();
-    if assembly.len() >= 2 {
-        for k in 0..assembly.len() {
-            let others: Vec<UnitThrow> = assembly
+    if groups[1].len() >= 2 {
+        for i in 0..groups[1].len() {
+            let others: Vec<ScaledThrow> = groups[1]
                 .iter()
                 .enumerate()
-                .filter(|(i, _)| *i != k)
+                .filter(|(x, _)| *x != i)
                 .map(|(_, t)| t.clone())
                 .collect();
-            let (jt, rt) = mean(&others);
-            let (d, m, _) = difference((&jb, rb), (&jt, rt), args.board_mass, args.proof_mass);
-            let jk = calibrate_j(&d, &m, &known);
+            let ki = match scale {
+                Scale::Fixed(k) => k,
+                Scale::Calibrated => {
+                    gyro_scale::calibrated(&groups[0], &others, &known, m).unwrap_or(1.0)
+                }
+            };
+            let (jbi, rbi) = mean(&all_at(&groups[0], ki));
+            let (jt, rt) = mean(&all_at(&others, ki));
+            let (d, mm, _) = difference((&jbi, rbi), (&jt, rt), args.board_mass, args.proof_mass);
+            let jk = calibrate_j(&d, &mm, &known);
+            let left = groups[1][i].at(ki);
             let (dk, mk, _) = difference(
-                (&jb, rb),
-                (&assembly[k].j1, assembly[k].imu_from_com),
+                (&jbi, rbi),
+                (&left.j1, left.imu_from_com),
                 args.board_mass,
                 args.proof_mass,
             );
@@ -1190,8 +1387,8 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
         let (jo, ro) = mean(&objects);
         difference((&jb, rb), (&jo, ro), args.board_mass, masses[2]).2
     });
-    let u = uncertainty([&board, &assembly, &objects], &known, m, &full);
-    let (per_object, object_spread_ratio) = object_throws(&board, &assembly, &objects, &known, m);
+    let u = uncertainty(g3, &known, m, scale, &full);
+    let (per_object, object_spread_ratio) = object_throws(g3, &known, m, scale);
     let u = common_error_floor(u, &per_object);
     let sd = |v: &M3| v.map(|r| r.map(f64::sqrt));
     let eig = full.object.map(|o| eigen(&o));
@@ -1205,6 +1402,9 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
                 Some(VehicleCalibration::new(file, unit, j, j_std))
             }
         },
+        gyro_scale: k,
+        gyro_scale_std: matches!(scale, Scale::Calibrated).then(|| u.gyro_scale.sqrt()),
+        gyro_scale_source,
         board_tensor_kg_m2: full.board,
         board_tensor_std_kg_m2: Some(sd(&u.board)),
         board_spread: board.iter().map(|t| rel_frobenius(&t.j1, &jb)).collect(),
@@ -1255,6 +1455,7 @@ mod tests {
         let jack = std * std / 5.0;
         let u = Uncertainty {
             j: 0.0,
+            gyro_scale: 0.0,
             board: [[0.0; 3]; 3],
             object: [[jack; 3]; 3],
             moments: [jack; 3],

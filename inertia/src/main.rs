@@ -814,6 +814,16 @@ fn run_calibrate(args: inertia::calibrate::CalibrateArgs) -> Result<ExitCode, St
         rep.board_tensor_kg_m2,
         rep.board_spread
     );
+    match rep.gyro_scale_std {
+        Some(sd) => eprintln!(
+            "gyro scale {:.4} +- {:.1e} ({})",
+            rep.gyro_scale, sd, rep.gyro_scale_source
+        ),
+        None => eprintln!(
+            "gyro scale {:.4} ({})",
+            rep.gyro_scale, rep.gyro_scale_source
+        ),
+    }
     if let Some(v) = &rep.vehicle {
         eprintln!(
             "rotors' scale {:.4} +- {:.1e} over {}'s inertias:",

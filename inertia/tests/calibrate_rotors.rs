@@ -362,6 +362,7 @@ fn args(
         rotor_axis: None,
         rotor_poles: None,
         vehicle: Some(vehicle_file(dir)),
+        gyro_scale: inertia::calibrate::GyroScale::Auto,
         json: dir.join("calibration.json"),
         plots: None,
     }

@@ -163,6 +163,7 @@ fn an_object_by_difference_comes_with_an_honest_uncertainty() {
             rotor_axis: Some([0.0, 0.0, -1.0]),
             vehicle: None,
             rotor_poles: Some(14),
+            gyro_scale: inertia::calibrate::GyroScale::Auto,
             json: std::env::temp_dir().join("unused.json"),
             plots: None,
         };
@@ -216,6 +217,7 @@ fn a_bad_log_among_good_ones_is_left_out_with_its_reason() {
         rotor_axis: Some([0.0, 0.0, -1.0]),
         vehicle: None,
         rotor_poles: Some(14),
+        gyro_scale: inertia::calibrate::GyroScale::Auto,
         json: dir.join("unused.json"),
         plots: None,
     };
@@ -267,6 +269,7 @@ fn several_object_throws_are_reported_each_and_their_spread_checked() {
         rotor_axis: Some([0.0, 0.0, -1.0]),
         vehicle: None,
         rotor_poles: Some(14),
+        gyro_scale: inertia::calibrate::GyroScale::Auto,
         json: std::env::temp_dir().join("unused-several.json"),
         plots: None,
     };
@@ -329,6 +332,7 @@ fn calibration(
         rotor_axis: vehicle.is_none().then_some([0.0, 0.0, -1.0]),
         rotor_poles: vehicle.is_none().then_some(14),
         vehicle,
+        gyro_scale: inertia::calibrate::GyroScale::Auto,
         json: dir.join("unused.json"),
         plots: None,
     }
