@@ -8,13 +8,16 @@
 //! order, and the angle of the rotation between the two sets of principal axes, both as the
 //! anchor's `computeError` defines them), the whole tensor's Frobenius error (which also holds
 //! the axes' error), the errors over the reported standard deviations, and the anchor's
-//! published figures.
+//! published figures. The calibration's gyro scale is calibrated (`--gyro-scale auto`, the
+//! default); the same objects with the gyro as read (`--gyro-scale 1`) are the baseline.
 //!
 //! Usage: `cargo run --release -p inertia --example bench-objects [-- --poles 14] [--plot SVG]`
 //! (`scripts/bench-objects.sh`). Skips with a message when `../shared` is absent.
 use std::path::{Path, PathBuf};
 
-use inertia::calibrate::{axis_angle_deg, eigen, rel_frobenius, run, unit_throw, CalibrateArgs};
+use inertia::calibrate::{
+    axis_angle_deg, eigen, rel_frobenius, run, unit_throw, CalibrateArgs, GyroScale,
+};
 use inertia::identify::{identify, IdentifyOptions, Rotor, RotorHold};
 
 type M3 = [[f64; 3]; 3];
@@ -171,6 +174,11 @@ fn relative(got: &M3, std: &M3, truth: &M3) -> [(f64, f64); 3] {
 }
 
 fn args(object: Vec<PathBuf>, mass: f64, poles: u32) -> CalibrateArgs {
+    args_at(object, mass, poles, GyroScale::Auto)
+}
+
+/// [`args`] with the gyro scale `gyro_scale` (calibrated, or given).
+fn args_at(object: Vec<PathBuf>, mass: f64, poles: u32, gyro_scale: GyroScale) -> CalibrateArgs {
     CalibrateArgs {
         board: logs("device_only"),
         assembly: logs("proof_body"),
@@ -182,7 +190,7 @@ fn args(object: Vec<PathBuf>, mass: f64, poles: u32) -> CalibrateArgs {
         rotor_axis: Some([0.0, 0.0, -1.0]),
         vehicle: None,
         rotor_poles: Some(poles),
-        gyro_scale: inertia::calibrate::GyroScale::Auto,
+        gyro_scale,
         json: std::env::temp_dir().join("bench-objects-unused.json"),
         plots: None,
     }
@@ -299,6 +307,45 @@ fn assembly_pooled(paths: &[PathBuf], poles: u32, truth: &M3) -> Result<Row, Str
     Ok(Row::of_tensor("pooled".into(), &got, &std, truth))
 }
 
+/// Each throw's object by difference with the gyro scale `scale`, one throw at a time on as
+/// many threads as the machine has.
+fn object_rows(
+    throws: &[PathBuf],
+    mass: f64,
+    poles: u32,
+    scale: GyroScale,
+    truth_m: &M3,
+) -> Vec<Result<Row, String>> {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let chunks: Vec<Vec<PathBuf>> = throws
+        .chunks(throws.len().div_ceil(threads).max(1))
+        .map(|c| c.to_vec())
+        .collect();
+    std::thread::scope(|s| {
+        let hs: Vec<_> = chunks
+            .iter()
+            .map(|chunk| {
+                s.spawn(|| {
+                    chunk
+                        .iter()
+                        .map(|p| {
+                            let n = p.file_name().unwrap_or_default().to_string_lossy();
+                            row(
+                                n.into(),
+                                &args_at(vec![p.clone()], mass, poles, scale),
+                                truth_m,
+                            )
+                        })
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        hs.into_iter()
+            .flat_map(|h| h.join().unwrap_or_default())
+            .collect()
+    })
+}
+
 /// RMS of the first three of every six (the diagonal entries' z).
 fn rms_diag(rows: &[&Row]) -> f64 {
     let d: Vec<f64> = rows
@@ -331,6 +378,17 @@ fn main() {
         return;
     };
     let truth: serde_json::Value = serde_json::from_str(&truth).expect("truth.json");
+    match run(&args(Vec::new(), 1.0, poles)) {
+        Ok(c) => println!(
+            "calibration: gyro scale {:.4} +- {:.1e} ({}), rotor inertia {:.4e} +- {:.1e} kg m^2",
+            c.gyro_scale,
+            c.gyro_scale_std.unwrap_or(f64::NAN),
+            c.gyro_scale_source,
+            c.rotor_inertia_kg_m2,
+            c.rotor_inertia_std_kg_m2.unwrap_or(f64::NAN)
+        ),
+        Err(e) => println!("calibration failed: {e}"),
+    }
     println!("objects by difference, {poles}-pole rotor, per throw and pooled");
     println!(
         "| object | throws | per throw, the anchor's metric: moments mean / max | rotation mean / max | Frobenius mean / max | RMS(error/std): entries, diagonal, moments | pooled: moments | rotation | Frobenius | RMS(error/std): entries, moments | anchor per throw |"
@@ -342,6 +400,8 @@ fn main() {
         .and_then(|i| argv.get(i + 1))
         .map(PathBuf::from);
     let mut assembly_lines = Vec::new();
+    let mut baseline_lines = Vec::new();
+
     let mut plotted: Vec<(String, Vec<Row>)> = Vec::new();
     for name in ["config_empty", "config_a"] {
         let o = &truth[name];
@@ -384,31 +444,7 @@ fn main() {
             rms_diag(&asm_refs)
         ));
         plotted.push((name.to_string(), asm));
-        // One throw at a time, on as many threads as the machine has.
-        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-        let chunks: Vec<Vec<PathBuf>> = throws
-            .chunks(throws.len().div_ceil(threads).max(1))
-            .map(|c| c.to_vec())
-            .collect();
-        let rows: Vec<Result<Row, String>> = std::thread::scope(|s| {
-            let hs: Vec<_> = chunks
-                .iter()
-                .map(|chunk| {
-                    s.spawn(|| {
-                        chunk
-                            .iter()
-                            .map(|p| {
-                                let n = p.file_name().unwrap_or_default().to_string_lossy();
-                                row(n.into(), &args(vec![p.clone()], mass, poles), &truth_m)
-                            })
-                            .collect::<Vec<_>>()
-                    })
-                })
-                .collect();
-            hs.into_iter()
-                .flat_map(|h| h.join().unwrap_or_default())
-                .collect()
-        });
+        let rows = object_rows(&throws, mass, poles, GyroScale::Auto, &truth_m);
         let ok: Vec<&Row> = rows.iter().filter_map(|r| r.as_ref().ok()).collect();
         for r in &rows {
             match r {
@@ -437,6 +473,26 @@ fn main() {
                 String::new(),
             ),
         };
+        // The baseline in the same process: the gyro as read (`--gyro-scale 1`).
+        let base = object_rows(&throws, mass, poles, GyroScale::Given(1.0), &truth_m);
+        let base_ok: Vec<&Row> = base.iter().filter_map(|r| r.as_ref().ok()).collect();
+        let base_zm: Vec<f64> = base_ok.iter().flat_map(|r| r.zm.iter().copied()).collect();
+        let base_pooled = row(
+            "pooled".into(),
+            &args_at(throws.clone(), mass, poles, GyroScale::Given(1.0)),
+            &truth_m,
+        )
+        .map_or_else(
+            |e| format!("failed: {e}"),
+            |p| format!("{:.2} %", p.moments * 100.0),
+        );
+        baseline_lines.push(format!(
+            "| {name} | {}/{} | {} | {:.2} | {base_pooled} |",
+            base_ok.len(),
+            throws.len(),
+            mean_max(base_ok.iter().map(|r| r.moments * 100.0), "%"),
+            rms(&base_zm),
+        ));
         println!(
             "| {name} | {}/{} | {} | {} | {} | {:.2}, {:.2}, {:.2} | {pm} | {pr} | {pf} | {pz} | {} |",
             ok.len(),
@@ -449,6 +505,13 @@ fn main() {
             rms(&zm),
             o["anchor_object_error_per_throw"].as_str().unwrap_or("")
         );
+    }
+    println!();
+    println!("baseline: the same objects with the gyro as read (`--gyro-scale 1`)");
+    println!("| object | throws | per throw: moments mean / max | moments RMS(error/std) | pooled: moments |");
+    println!("|---|---|---|---|---|");
+    for l in baseline_lines {
+        println!("{l}");
     }
     println!();
     println!("assembly per throw (inertia identify, the anchor's rotor inertia) against the anchor's board plus the object");

@@ -235,6 +235,10 @@ pub struct Report {
     /// (`--gyro-scale-tolerance`, [`scale_systematic`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gyro_scale: Option<ScaleSystematic>,
+    /// The gyro scale factor the readings were divided by (`--gyro-scale`, from `inertia
+    /// calibrate`), when one was given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gyro_scale_factor: Option<f64>,
     /// The gyro's readings on a grid and the two fits `identify` compared ((Q1) of
     /// [`crate::grid`]). Absent when the readings are not on a grid or the first fit's residual
     /// is not within [`GRID_RESIDUAL_COUNTS`] counts.
@@ -796,6 +800,7 @@ fn identify_pass(
         fed_runs: runs.into_iter().map(|r| r.ranges).collect(),
         trace,
         gyro_scale: None,
+        gyro_scale_factor: None,
     })
 }
 

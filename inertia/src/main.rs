@@ -232,6 +232,11 @@ struct IdentifyArgs {
     /// scale-factor error, and the standard deviations are otherwise the noise's only).
     #[arg(long)]
     gyro_scale_tolerance: Option<f32>,
+    /// The gyro's scale factor `k` (it reads `k` times the true rate): `gyro_scale` of an
+    /// `inertia calibrate` report of the same gyro. The readings and the full scale are
+    /// divided by it before anything else.
+    #[arg(long, value_parser = parse_gyro_scale_factor)]
+    gyro_scale: Option<f64>,
     /// Also write the pooled tensor for a simulator or flight stack: urdf, sdf (1.9), px4
     /// (parameters `VM_*` and `SIH_*`, the SDF inertial in comments) or json (the report, as
     /// --json writes it). Refused unless the tensor is a rigid body's and `Converged` (see
@@ -450,6 +455,17 @@ impl Progress for Bar {
     }
 }
 
+/// A gyro scale factor for `identify --gyro-scale`: as `calibrate --gyro-scale` takes a
+/// given one.
+fn parse_gyro_scale_factor(s: &str) -> Result<f64, String> {
+    match inertia::calibrate::parse_gyro_scale(s)? {
+        inertia::calibrate::GyroScale::Given(k) => Ok(k),
+        inertia::calibrate::GyroScale::Auto => {
+            Err("`auto` is for calibrate; give the scale factor its report states".into())
+        }
+    }
+}
+
 fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
     if let Some(tol) = args.gyro_scale_tolerance {
         if !(tol.is_finite() && tol > 0.0 && tol < 50.0) {
@@ -481,7 +497,7 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
         [one] => one.clone(),
         many => return run_identify_many(many, &args, &opts, &iopts),
     };
-    let (src, report) = open_and_identify(&input, &opts, &iopts)?;
+    let (src, report) = open_and_identify(&input, &opts, &iopts, args.gyro_scale)?;
     let mut report = report.map_err(|e| e.to_string())?;
     if let Some(tol) = args.gyro_scale_tolerance {
         eprintln!("identifying the log three more times, one gyro axis scaled by {tol} % each");
@@ -546,17 +562,25 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
 /// A log opened for reading (any format `identify` reads).
 type LogSource = Box<dyn inertia::source::Source>;
 
-/// Opens `input` and identifies it with a progress bar: the source (for further readings) and
-/// the identification's outcome; an error when the log cannot be opened.
+/// Opens `input` (read through the gyro scale factor `gyro_scale`, when given) and identifies
+/// it with a progress bar: the source (for further readings) and the identification's
+/// outcome; an error when the log cannot be opened.
 fn open_and_identify(
     input: &std::path::Path,
     opts: &ReadOptions,
     iopts: &IdentifyOptions,
+    gyro_scale: Option<f64>,
 ) -> Result<(LogSource, Result<Report, IdentifyError>), String> {
-    let src = inertia::source::open(input, opts).map_err(|e| e.to_string())?;
+    let mut src = inertia::source::open(input, opts).map_err(|e| e.to_string())?;
+    if let Some(k) = gyro_scale {
+        src = Box::new(inertia::source::ScaledGyroSource::new(src, k as f32));
+    }
     let mut bar = Bar::new(input);
-    let report = identify_source(&*src, iopts, &mut bar);
+    let mut report = identify_source(&*src, iopts, &mut bar);
     bar.clear();
+    if let Ok(r) = &mut report {
+        r.gyro_scale_factor = gyro_scale;
+    }
     Ok((src, report))
 }
 
@@ -578,7 +602,7 @@ fn run_identify_many(
     }
     let mut reports = Vec::new();
     for input in inputs {
-        let (_, report) = open_and_identify(input, opts, iopts)?;
+        let (_, report) = open_and_identify(input, opts, iopts, args.gyro_scale)?;
         reports.push(report.map_err(|e| format!("{}: {e}", input.display()))?);
     }
     let pooled = inertia::pool::pool(reports)?;

@@ -240,5 +240,6 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
             .collect(),
         trace: None,
         gyro_scale: None,
+        gyro_scale_factor: None,
     })
 }
