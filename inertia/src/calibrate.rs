@@ -49,8 +49,8 @@
 //! A gyro that reads a few tenths of a percent high bends every tensor's ratios and, through
 //! the rotor momentum, their scale, by a few times as much and differently for each body. By
 //! default (`--gyro-scale auto`) the scale is calibrated from the proof body's shape and every
-//! throw, the object's included, is identified with the gyro read through it ([`gyro_scale`],
-//! (G1), (G2)).
+//! throw, the object's included, is identified with the gyro read through it ((G1), (G2) of
+//! `calibrate/gyro_scale.rs`).
 
 // 3x3 index arithmetic mirrors the equations.
 #![allow(clippy::needless_range_loop)]
@@ -1281,59 +1281,70 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
             "given (--gyro-scale)".to_string(),
         ),
         GyroScale::Auto => {
-            let step = 1.0 + SCALE_STEP;
-            let linear: Vec<Vec<ScaledThrow>> = read_groups
-                .iter()
-                .map(|g| {
-                    g.iter()
-                        .map(|(rec, t)| {
-                            let moved = ident(&gyro_scaled(rec, step)).ok();
-                            let (dj1, dcom) = moved.map_or(([[0.0; 3]; 3], [0.0; 3]), |u| {
-                                (
-                                    add(&u.j1, &t.j1, -1.0).map(|r| r.map(|x| x / SCALE_STEP)),
-                                    [0, 1, 2].map(|i| {
-                                        (u.imu_from_com[i] - t.imu_from_com[i]) / SCALE_STEP
-                                    }),
-                                )
-                            });
+            // A throw that cannot be identified at the second scale or at the calibrated one
+            // is left out with its reason, as at the first.
+            let names = ["board", "assembly", "object"];
+            let mut linear: [Vec<(&Recording, ScaledThrow)>; 3] = Default::default();
+            for ((g, name), lin) in read_groups.iter().zip(names).zip(&mut linear) {
+                for (rec, t) in g {
+                    match ident(&gyro_scaled(rec, 1.0 + SCALE_STEP)) {
+                        Ok(u) => lin.push((
+                            rec,
                             ScaledThrow {
                                 throw: t.clone(),
                                 at: 1.0,
-                                dj1,
-                                dcom,
-                            }
-                        })
-                        .collect()
-                })
-                .collect();
-            match gyro_scale::calibrated(&linear[0], &linear[1], &known, m) {
+                                dj1: add(&u.j1, &t.j1, -1.0).map(|r| r.map(|x| x / SCALE_STEP)),
+                                dcom: [0, 1, 2]
+                                    .map(|i| (u.imu_from_com[i] - t.imu_from_com[i]) / SCALE_STEP),
+                            },
+                        )),
+                        Err(reason) => skipped.push(SkippedThrow {
+                            source: t.source.clone(),
+                            group: name,
+                            reason: format!("at gyro scale {}: {reason}", 1.0 + SCALE_STEP),
+                        }),
+                    }
+                }
+            }
+            let plain = linear
+                .each_ref()
+                .map(|g| g.iter().map(|(_, s)| s.clone()).collect::<Vec<_>>());
+            match gyro_scale::calibrated(&plain[0], &plain[1], &known, m) {
                 Some(k) => {
-                    let again: Vec<Vec<ScaledThrow>> = linear
-                        .iter()
-                        .zip(&read_groups)
-                        .map(|(lin, g)| {
-                            lin.iter()
-                                .zip(g)
-                                .map(|(l, (rec, _))| ScaledThrow {
-                                    throw: ident(&gyro_scaled(rec, k)).unwrap_or_else(|_| l.at(k)),
+                    let mut again: [Vec<ScaledThrow>; 3] = Default::default();
+                    for ((lin, name), out) in linear.iter().zip(names).zip(&mut again) {
+                        for (rec, l) in lin {
+                            match ident(&gyro_scaled(rec, k)) {
+                                Ok(throw) => out.push(ScaledThrow {
+                                    throw,
                                     at: k,
                                     dj1: l.dj1,
                                     dcom: l.dcom,
-                                })
-                                .collect()
-                        })
-                        .collect();
-                    let [b, a, o]: [Vec<ScaledThrow>; 3] = again
-                        .try_into()
-                        .map_err(|_| "calibration failed: three groups expected".to_string())?;
+                                }),
+                                Err(reason) => skipped.push(SkippedThrow {
+                                    source: l.throw.source.clone(),
+                                    group: name,
+                                    reason: format!("at gyro scale {k:.4}: {reason}"),
+                                }),
+                            }
+                        }
+                    }
                     (
-                        [b, a, o],
+                        again,
                         Scale::Calibrated,
                         "calibrated from the proof body".into(),
                     )
                 }
                 None => (
-                    read_groups.each_ref().map(|g| fixed(g, 1.0)),
+                    plain.map(|g| {
+                        g.into_iter()
+                            .map(|t| ScaledThrow {
+                                dj1: [[0.0; 3]; 3],
+                                dcom: [0.0; 3],
+                                ..t
+                            })
+                            .collect()
+                    }),
                     Scale::Fixed(1.0),
                     format!(
                         "as read: the proof body's shape did not fix a scale within 1 +- {}",
@@ -1343,6 +1354,16 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
             }
         }
     };
+    for (g, name) in groups.iter().zip(["board", "assembly", "object"]) {
+        let given = match name {
+            "board" => args.board.len(),
+            "assembly" => args.assembly.len(),
+            _ => args.object.len(),
+        };
+        if g.is_empty() && given > 0 {
+            return Err(format!("no usable {name} throw (every one was left out)"));
+        }
+    }
     let g3 = [&groups[0][..], &groups[1][..], &groups[2][..]];
     let full = solve_scaled(g3, &known, m, scale)
         .ok_or("calibration failed: the rotor inertia came out not positive")?;
