@@ -1354,13 +1354,13 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
             }
         }
     };
-    for (g, name) in groups.iter().zip(["board", "assembly", "object"]) {
-        let given = match name {
-            "board" => args.board.len(),
-            "assembly" => args.assembly.len(),
-            _ => args.object.len(),
-        };
-        if g.is_empty() && given > 0 {
+    let given = [&args.board, &args.assembly, &args.object];
+    for ((g, name), paths) in groups
+        .iter()
+        .zip(["board", "assembly", "object"])
+        .zip(given)
+    {
+        if g.is_empty() && !paths.is_empty() {
             return Err(format!("no usable {name} throw (every one was left out)"));
         }
     }
