@@ -18,7 +18,9 @@ use host_tests::throw_sim::{
     assembly_throw_config, board_throw_config, quat_from_rotvec, quat_to_mat, simulate, CsvOptions,
     BOARD_COM_FROM_IMU, BOARD_INERTIA, BOARD_ROTOR_INERTIA,
 };
-use inertia::calibrate::{compare, eigen, rel_frobenius, run, CalibrateArgs, CalibrationReport};
+use inertia::calibrate::{
+    compare, eigen, rel_frobenius, run, CalibrateArgs, CalibrationReport, ScaleFactor, ScaleOf,
+};
 use inertia::identify::{identify, IdentifyOptions, Rotor, RotorHold};
 use std::path::{Path, PathBuf};
 
@@ -148,15 +150,17 @@ fn calibrate_args(dir: &Path, object_seed: u64, objects: u64) -> CalibrateArgs {
         rotor_axis: Some([0.0, 0.0, -1.0]),
         vehicle: None,
         rotor_poles: None,
-        gyro_scale: inertia::calibrate::GyroScale::Auto,
+        scale: inertia::calibrate::ScaleFactor::Auto,
+        scale_of: inertia::calibrate::ScaleOf::Clock,
         json: dir.join("calibration.json"),
         plots: None,
     }
 }
 
-/// Rewrites a simulated log's gyro columns (`wx, wy, wz`, the second to fourth) as a gyro that
-/// reads `k` times the true rate.
-fn scale_gyro(path: &Path, k: f64) {
+/// Rewrites a simulated log's columns `cols` (time `t` the first, the gyro's `wx, wy, wz` the
+/// second to fourth) multiplied by `k`: a gyro that reads `k` times the true rate, or a clock
+/// that runs `k` times true time.
+fn scale_columns(path: &Path, cols: std::ops::RangeInclusive<usize>, k: f64) {
     let text = std::fs::read_to_string(path).unwrap();
     let mut out = String::new();
     for (i, line) in text.lines().enumerate() {
@@ -167,9 +171,9 @@ fn scale_gyro(path: &Path, k: f64) {
             let f: Vec<String> = line
                 .split(',')
                 .enumerate()
-                .map(|(c, v)| match c {
-                    1..=3 => format!("{}", v.parse::<f64>().unwrap() * k),
-                    _ => v.to_string(),
+                .map(|(c, v)| match cols.contains(&c) {
+                    true => format!("{}", v.parse::<f64>().unwrap() * k),
+                    false => v.to_string(),
                 })
                 .collect();
             out.push_str(&f.join(","));
@@ -179,21 +183,30 @@ fn scale_gyro(path: &Path, k: f64) {
     std::fs::write(path, out).unwrap();
 }
 
-/// The same throws read by a gyro 1 % high (a MEMS gyro's sensitivity tolerance): taken as
-/// read, the object by difference moves by a few times that; with the scale calibrated from
-/// the proof body's shape ((G1) of `inertia::calibrate`), the scale comes out within its
-/// reported uncertainty of the truth, and the object back within the noise's reach.
-#[test]
-fn a_gyro_that_reads_high_is_calibrated_from_the_proof_body() {
-    let dir = std::env::temp_dir().join(format!("calibrate-sim-scale-{}", std::process::id()));
+/// The throws read 1 % off in `of` (a gyro 1 % high: a MEMS gyro's sensitivity tolerance; a
+/// clock 1 % fast: an uncalibrated oscillator's), calibrated as that: taken as read, the object
+/// by difference moves by a few times that; with the scale calibrated from the proof body's
+/// shape ((G1) of `inertia::calibrate`), the scale comes out within its reported uncertainty of
+/// the truth, and the object back within the noise's reach.
+fn read_off_by_one_percent_is_calibrated(of: ScaleOf, seed: u64) {
+    let dir = std::env::temp_dir().join(format!(
+        "calibrate-sim-scale-{}-{}",
+        of.name(),
+        std::process::id()
+    ));
     std::fs::create_dir_all(&dir).unwrap();
     let k_true = 1.01;
-    let mut args = calibrate_args(&dir, 21, 1);
+    let mut args = calibrate_args(&dir, seed, 1);
+    args.scale_of = of;
+    let cols = match of {
+        ScaleOf::Gyro => 1..=3,
+        ScaleOf::Clock => 0..=0,
+    };
     for p in args.board.iter().chain(&args.assembly).chain(&args.object) {
-        scale_gyro(p, k_true);
+        scale_columns(p, cols.clone(), k_true);
     }
     let auto = run(&args).expect("the calibration runs");
-    args.gyro_scale = inertia::calibrate::GyroScale::Given(1.0);
+    args.scale = ScaleFactor::Given(1.0);
     let as_read = run(&args).expect("the calibration runs");
     std::fs::remove_dir_all(&dir).ok();
     let (object, _) = object_body();
@@ -203,21 +216,23 @@ fn a_gyro_that_reads_high_is_calibrated_from_the_proof_body() {
             .iter()
             .fold(0.0f64, |a, e| a.max(e.abs()))
     };
-    let k_std = auto.gyro_scale_std.unwrap();
+    let k_std = auto.scale_std.unwrap();
     println!(
-        "gyro scale {:.5} +- {:.1e} (truth {k_true}); object's worst moment: {:.3} % calibrated, {:.3} % as read",
-        auto.gyro_scale,
+        "{} scale {:.5} +- {:.1e} (truth {k_true}); object's worst moment: {:.3} % calibrated, {:.3} % as read",
+        auto.scale_of,
+        auto.scale,
         k_std,
         100.0 * worst(&auto),
         100.0 * worst(&as_read)
     );
-    assert_eq!(as_read.gyro_scale, 1.0);
-    assert!(as_read.gyro_scale_std.is_none());
+    assert_eq!(auto.scale_of, of.name());
+    assert_eq!(as_read.scale, 1.0);
+    assert!(as_read.scale_std.is_none());
     // 4 std, and no wider than a third of the error itself: an honest calibration of 1 %.
     assert!(
-        (auto.gyro_scale - k_true).abs() < (4.0 * k_std).min(0.0033),
-        "gyro scale {} +- {k_std}",
-        auto.gyro_scale
+        (auto.scale - k_true).abs() < (4.0 * k_std).min(0.0033),
+        "scale {} +- {k_std}",
+        auto.scale
     );
     // The object: as read it carries the scale's error several times over; calibrated, a
     // third of that at most (the noise's share of a single object throw is a fraction of a
@@ -229,6 +244,16 @@ fn a_gyro_that_reads_high_is_calibrated_from_the_proof_body() {
         worst(&auto),
         worst(&as_read)
     );
+}
+
+#[test]
+fn a_gyro_that_reads_high_is_calibrated_from_the_proof_body() {
+    read_off_by_one_percent_is_calibrated(ScaleOf::Gyro, 21);
+}
+
+#[test]
+fn a_clock_that_runs_fast_is_calibrated_from_the_proof_body() {
+    read_off_by_one_percent_is_calibrated(ScaleOf::Clock, 21);
 }
 
 #[test]

@@ -8,15 +8,17 @@
 //! order, and the angle of the rotation between the two sets of principal axes, both as the
 //! anchor's `computeError` defines them), the whole tensor's Frobenius error (which also holds
 //! the axes' error), the errors over the reported standard deviations, and the anchor's
-//! published figures. The calibration's gyro scale is calibrated (`--gyro-scale auto`, the
-//! default); the same objects with the gyro as read (`--gyro-scale 1`) are the baseline.
+//! published figures. The calibration's scale is calibrated as a clock's (`--scale auto
+//! --scale-of clock`, the default); the baselines, in the same process, are the same objects
+//! with the scale calibrated as a gyro's (`--scale-of gyro`) and with the log as read
+//! (`--scale 1`).
 //!
 //! Usage: `cargo run --release -p inertia --example bench-objects [-- --poles 14] [--plot SVG]`
 //! (`scripts/bench-objects.sh`). Skips with a message when `../shared` is absent.
 use std::path::{Path, PathBuf};
 
 use inertia::calibrate::{
-    axis_angle_deg, eigen, rel_frobenius, run, unit_throw, CalibrateArgs, GyroScale,
+    axis_angle_deg, eigen, rel_frobenius, run, unit_throw, CalibrateArgs, ScaleFactor, ScaleOf,
 };
 use inertia::identify::{identify, IdentifyOptions, Rotor, RotorHold};
 
@@ -173,12 +175,32 @@ fn relative(got: &M3, std: &M3, truth: &M3) -> [(f64, f64); 3] {
     [0, 1, 2].map(|i| (got[i][i] / truth[i][i] - 1.0, std[i][i] / truth[i][i]))
 }
 
+/// The baselines: the scale calibrated as a gyro's, and the log as read.
+const BASELINES: [(&str, (ScaleFactor, ScaleOf)); 2] = [
+    (
+        "with the scale calibrated as a gyro's (`--scale-of gyro`)",
+        (ScaleFactor::Auto, ScaleOf::Gyro),
+    ),
+    (
+        "with the log as read (`--scale 1`)",
+        (ScaleFactor::Given(1.0), ScaleOf::Clock),
+    ),
+];
+
+/// The product's default: the scale calibrated as a clock's.
+const DEFAULT: (ScaleFactor, ScaleOf) = (ScaleFactor::Auto, ScaleOf::Clock);
+
 fn args(object: Vec<PathBuf>, mass: f64, poles: u32) -> CalibrateArgs {
-    args_at(object, mass, poles, GyroScale::Auto)
+    args_at(object, mass, poles, DEFAULT)
 }
 
-/// [`args`] with the gyro scale `gyro_scale` (calibrated, or given).
-fn args_at(object: Vec<PathBuf>, mass: f64, poles: u32, gyro_scale: GyroScale) -> CalibrateArgs {
+/// [`args`] with the scale `scale` (calibrated, or given) taken as `of`'s.
+fn args_at(
+    object: Vec<PathBuf>,
+    mass: f64,
+    poles: u32,
+    (scale, of): (ScaleFactor, ScaleOf),
+) -> CalibrateArgs {
     CalibrateArgs {
         board: logs("device_only"),
         assembly: logs("proof_body"),
@@ -190,7 +212,8 @@ fn args_at(object: Vec<PathBuf>, mass: f64, poles: u32, gyro_scale: GyroScale) -
         rotor_axis: Some([0.0, 0.0, -1.0]),
         vehicle: None,
         rotor_poles: Some(poles),
-        gyro_scale,
+        scale,
+        scale_of: of,
         json: std::env::temp_dir().join("bench-objects-unused.json"),
         plots: None,
     }
@@ -307,13 +330,13 @@ fn assembly_pooled(paths: &[PathBuf], poles: u32, truth: &M3) -> Result<Row, Str
     Ok(Row::of_tensor("pooled".into(), &got, &std, truth))
 }
 
-/// Each throw's object by difference with the gyro scale `scale`, one throw at a time on as
-/// many threads as the machine has.
+/// Each throw's object by difference with the scale `scale`, one throw at a time on as many
+/// threads as the machine has.
 fn object_rows(
     throws: &[PathBuf],
     mass: f64,
     poles: u32,
-    scale: GyroScale,
+    scale: (ScaleFactor, ScaleOf),
     truth_m: &M3,
 ) -> Vec<Result<Row, String>> {
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -380,10 +403,11 @@ fn main() {
     let truth: serde_json::Value = serde_json::from_str(&truth).expect("truth.json");
     match run(&args(Vec::new(), 1.0, poles)) {
         Ok(c) => println!(
-            "calibration: gyro scale {:.4} +- {:.1e} ({}), rotor inertia {:.4e} +- {:.1e} kg m^2",
-            c.gyro_scale,
-            c.gyro_scale_std.unwrap_or(f64::NAN),
-            c.gyro_scale_source,
+            "calibration: {} scale {:.4} +- {:.1e} ({}), rotor inertia {:.4e} +- {:.1e} kg m^2",
+            c.scale_of,
+            c.scale,
+            c.scale_std.unwrap_or(f64::NAN),
+            c.scale_source,
             c.rotor_inertia_kg_m2,
             c.rotor_inertia_std_kg_m2.unwrap_or(f64::NAN)
         ),
@@ -400,7 +424,7 @@ fn main() {
         .and_then(|i| argv.get(i + 1))
         .map(PathBuf::from);
     let mut assembly_lines = Vec::new();
-    let mut baseline_lines = Vec::new();
+    let mut baseline_lines: [Vec<String>; 2] = Default::default();
 
     let mut plotted: Vec<(String, Vec<Row>)> = Vec::new();
     for name in ["config_empty", "config_a"] {
@@ -444,7 +468,7 @@ fn main() {
             rms_diag(&asm_refs)
         ));
         plotted.push((name.to_string(), asm));
-        let rows = object_rows(&throws, mass, poles, GyroScale::Auto, &truth_m);
+        let rows = object_rows(&throws, mass, poles, DEFAULT, &truth_m);
         let ok: Vec<&Row> = rows.iter().filter_map(|r| r.as_ref().ok()).collect();
         for r in &rows {
             match r {
@@ -473,26 +497,29 @@ fn main() {
                 String::new(),
             ),
         };
-        // The baseline in the same process: the gyro as read (`--gyro-scale 1`).
-        let base = object_rows(&throws, mass, poles, GyroScale::Given(1.0), &truth_m);
-        let base_ok: Vec<&Row> = base.iter().filter_map(|r| r.as_ref().ok()).collect();
-        let base_zm: Vec<f64> = base_ok.iter().flat_map(|r| r.zm.iter().copied()).collect();
-        let base_pooled = row(
-            "pooled".into(),
-            &args_at(throws.clone(), mass, poles, GyroScale::Given(1.0)),
-            &truth_m,
-        )
-        .map_or_else(
-            |e| format!("failed: {e}"),
-            |p| format!("{:.2} %", p.moments * 100.0),
-        );
-        baseline_lines.push(format!(
-            "| {name} | {}/{} | {} | {:.2} | {base_pooled} |",
-            base_ok.len(),
-            throws.len(),
-            mean_max(base_ok.iter().map(|r| r.moments * 100.0), "%"),
-            rms(&base_zm),
-        ));
+        // The baselines in the same process: the scale calibrated as a gyro's, and the log as
+        // read (`--scale 1`).
+        for (lines, scale) in baseline_lines.iter_mut().zip(BASELINES.map(|b| b.1)) {
+            let base = object_rows(&throws, mass, poles, scale, &truth_m);
+            let base_ok: Vec<&Row> = base.iter().filter_map(|r| r.as_ref().ok()).collect();
+            let base_zm: Vec<f64> = base_ok.iter().flat_map(|r| r.zm.iter().copied()).collect();
+            let base_pooled = row(
+                "pooled".into(),
+                &args_at(throws.clone(), mass, poles, scale),
+                &truth_m,
+            )
+            .map_or_else(
+                |e| format!("failed: {e}"),
+                |p| format!("{:.2} %", p.moments * 100.0),
+            );
+            lines.push(format!(
+                "| {name} | {}/{} | {} | {:.2} | {base_pooled} |",
+                base_ok.len(),
+                throws.len(),
+                mean_max(base_ok.iter().map(|r| r.moments * 100.0), "%"),
+                rms(&base_zm),
+            ));
+        }
         println!(
             "| {name} | {}/{} | {} | {} | {} | {:.2}, {:.2}, {:.2} | {pm} | {pr} | {pf} | {pz} | {} |",
             ok.len(),
@@ -507,13 +534,15 @@ fn main() {
         );
     }
     println!();
-    println!("baseline: the same objects with the gyro as read (`--gyro-scale 1`)");
-    println!("| object | throws | per throw: moments mean / max | moments RMS(error/std) | pooled: moments |");
-    println!("|---|---|---|---|---|");
-    for l in baseline_lines {
-        println!("{l}");
+    for ((title, _), lines) in BASELINES.iter().zip(&baseline_lines) {
+        println!("baseline: the same objects {title}");
+        println!("| object | throws | per throw: moments mean / max | moments RMS(error/std) | pooled: moments |");
+        println!("|---|---|---|---|---|");
+        for l in lines {
+            println!("{l}");
+        }
+        println!();
     }
-    println!();
     println!("assembly per throw (inertia identify, the anchor's rotor inertia) against the anchor's board plus the object");
     println!("| object | throws | moments mean / max | rotation mean / max | Frobenius mean / max | RMS(error/std): entries, diagonal | pooled (`--input` every throw): moments | Frobenius | RMS(error/std): entries, diagonal |");
     println!("|---|---|---|---|---|---|---|---|---|");

@@ -44,13 +44,14 @@
 //! with the standard deviation of `j` times the same ratio ([`VehicleCalibration`]). A file
 //! of one rotor is the case above: its inertia is not used at all.
 //!
-//! # The gyro's scale
+//! # The scale between the rates and the clock
 //!
-//! A gyro that reads a few tenths of a percent high bends every tensor's ratios and, through
-//! the rotor momentum, their scale, by a few times as much and differently for each body. By
-//! default (`--gyro-scale auto`) the scale is calibrated from the proof body's shape and every
-//! throw, the object's included, is identified with the gyro read through it ((G1), (G2) of
-//! `calibrate/gyro_scale.rs`).
+//! Rates that read a few tenths of a percent high against the log's clock (a gyro's scale
+//! error, or a clock running fast) bend every tensor's ratios and, through the rotor momentum,
+//! their scale, by a few times as much and differently for each body. By default
+//! (`--scale auto`) the scale is calibrated from the proof body's shape and every throw, the
+//! object's included, is identified through it ((G1), (G2) of `calibrate/scale.rs`), as a
+//! clock's (`--scale-of clock`) or as a gyro's (`--scale-of gyro`).
 
 // 3x3 index arithmetic mirrors the equations.
 #![allow(clippy::needless_range_loop)]
@@ -61,8 +62,8 @@ use crate::identify::{identify, IdentifyOptions, Rotor};
 use crate::recording::Recording;
 use crate::vehicle::Vehicle;
 
-mod gyro_scale;
-use gyro_scale::{all_at, ScaledThrow, SCALE_STEP};
+mod scale;
+use scale::{all_at, ScaledThrow, SCALE_STEP};
 
 /// The entries of a tensor in the order of its covariance: xx, yy, zz, xy, xz, yz.
 pub(crate) const ENTRIES: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
@@ -602,11 +603,17 @@ pub struct CalibrateArgs {
     /// `rotor_rad_s`, or the column the file names) and its inertia is not used.
     #[arg(long, conflicts_with_all = ["rotor_axis", "rotor_poles"])]
     pub vehicle: Option<std::path::PathBuf>,
-    /// The gyro's scale factor `k` (it reads `k` times the true rate): `auto` calibrates it
-    /// from the proof body's shape ((G1) of the module's "The gyro's scale"); a number takes
-    /// it as given (`1`: the gyro as read).
-    #[arg(long, default_value = "auto", value_parser = parse_gyro_scale)]
-    pub gyro_scale: GyroScale,
+    /// The scale factor `k` between the log's rates and its clock: `auto` calibrates it from
+    /// the proof body's shape ((G1) of the module's "The scale between the rates and the
+    /// clock"); a number takes it as given (`1`: the log as read).
+    #[arg(long, default_value = "auto", value_parser = parse_scale)]
+    pub scale: ScaleFactor,
+    /// What `k` is taken to be: `clock`, the log's clock running `k` times true time (its
+    /// times divided by `k`), or `gyro`, the gyro reading `k` times the true rate (its rates
+    /// divided by `k`). The two give the dynamics the same equation; they differ in the
+    /// accelerometer's centre of mass, which takes the rates squared.
+    #[arg(long, value_enum, default_value_t = ScaleOf::Clock)]
+    pub scale_of: ScaleOf,
     /// Where to write the JSON report.
     #[arg(long)]
     pub json: std::path::PathBuf,
@@ -617,22 +624,41 @@ pub struct CalibrateArgs {
     pub plots: Option<std::path::PathBuf>,
 }
 
-/// The gyro scale of `inertia calibrate --gyro-scale`.
+/// The scale of `inertia calibrate --scale`.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum GyroScale {
+pub enum ScaleFactor {
     /// Calibrated from the proof body ((G1)).
     Auto,
-    /// Given: the gyro reads this many times the true rate.
+    /// Given: the log's rates read this many times what its clock says.
     Given(f64),
 }
 
+/// What the scale factor `k` of `inertia calibrate --scale` is taken to be.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ScaleOf {
+    /// The log's clock runs `k` times true time: its times are divided by `k`.
+    Clock,
+    /// The gyro reads `k` times the true rate: its rates and full scale are divided by `k`.
+    Gyro,
+}
+
+impl ScaleOf {
+    /// The name the report gives it.
+    pub fn name(self) -> &'static str {
+        match self {
+            ScaleOf::Clock => "clock",
+            ScaleOf::Gyro => "gyro",
+        }
+    }
+}
+
 /// `auto`, or a scale within a half of 1.
-pub fn parse_gyro_scale(s: &str) -> Result<GyroScale, String> {
+pub fn parse_scale(s: &str) -> Result<ScaleFactor, String> {
     if s.eq_ignore_ascii_case("auto") {
-        return Ok(GyroScale::Auto);
+        return Ok(ScaleFactor::Auto);
     }
     match s.parse::<f64>() {
-        Ok(k) if k > 0.5 && k < 1.5 => Ok(GyroScale::Given(k)),
+        Ok(k) if k > 0.5 && k < 1.5 => Ok(ScaleFactor::Given(k)),
         _ => Err(format!("{s}: `auto` or a scale factor between 0.5 and 1.5")),
     }
 }
@@ -648,15 +674,33 @@ pub fn gyro_scaled(rec: &Recording, k: f64) -> Recording {
     r
 }
 
+/// A recording read through a clock that runs `k` times true time: its times divided by `k`
+/// (the rates, the rotor's speed from its own telemetry and the accelerometer are as read).
+pub fn clock_scaled(rec: &Recording, k: f64) -> Recording {
+    let mut r = rec.clone();
+    for t in &mut r.t {
+        *t /= k;
+    }
+    r
+}
+
+/// `rec` read through the scale `k` of `of`.
+pub fn rescaled(rec: &Recording, k: f64, of: ScaleOf) -> Recording {
+    match of {
+        ScaleOf::Clock => clock_scaled(rec, k),
+        ScaleOf::Gyro => gyro_scaled(rec, k),
+    }
+}
+
 /// What the calibration computes from its three groups of throws: the rotor inertia, the
-/// board's tensor (kg m^2) and the object's, when there are object throws, and the gyro scale
+/// board's tensor (kg m^2) and the object's, when there are object throws, and the scale
 /// they were taken at.
 #[derive(Clone, Copy, Debug)]
 struct Solved {
     j: f64,
     board: M3,
     object: Option<M3>,
-    gyro_scale: f64,
+    scale: f64,
 }
 
 /// How the scale of a solve is found: calibrated by (G1) from its board and assembly throws,
@@ -677,11 +721,11 @@ fn solve_scaled(
 ) -> Option<Solved> {
     let k = match scale {
         Scale::Fixed(k) => k,
-        Scale::Calibrated => gyro_scale::calibrated(groups[0], groups[1], known, m).unwrap_or(1.0),
+        Scale::Calibrated => scale::calibrated(groups[0], groups[1], known, m).unwrap_or(1.0),
     };
     let [b, a, o] = groups.map(|g| all_at(g, k));
     let mut s = solve(&b, &a, &o, known, m)?;
-    s.gyro_scale = k;
+    s.scale = k;
     Some(s)
 }
 
@@ -718,7 +762,7 @@ fn solve(
         j,
         board: jb.map(|r| r.map(|x| x * j)),
         object: object_tensor,
-        gyro_scale: 1.0,
+        scale: 1.0,
     })
 }
 
@@ -742,7 +786,7 @@ fn solve(
 #[derive(Clone, Copy, Debug, Default)]
 struct Uncertainty {
     j: f64,
-    gyro_scale: f64,
+    scale: f64,
     board: M3,
     object: M3,
     moments: [f64; 3],
@@ -779,7 +823,7 @@ fn uncertainty(
                 k * xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>()
             };
             u.j += var(&|s| s.j);
-            u.gyro_scale += var(&|s| s.gyro_scale);
+            u.scale += var(&|s| s.scale);
             for r in 0..3 {
                 for c in 0..3 {
                     u.board[r][c] += var(&|s| s.board[r][c]);
@@ -876,13 +920,15 @@ fn uncertainty(
 pub struct CalibrationReport {
     /// Rotor inertia, kg m^2.
     pub rotor_inertia_kg_m2: f64,
-    /// The gyro's scale factor every throw was identified with (it reads `k` times the true
-    /// rate; (G1) of the module's "The gyro's scale").
-    pub gyro_scale: f64,
+    /// The scale factor `k` every throw was identified with: the log's rates read `k` times
+    /// what its clock says ((G1) of the module's "The scale between the rates and the clock").
+    pub scale: f64,
+    /// What `k` was taken to be: `clock` (the log's times divided by it) or `gyro` (its rates).
+    pub scale_of: &'static str,
     /// Its standard deviation (the throws' jackknife) where it was calibrated.
-    pub gyro_scale_std: Option<f64>,
+    pub scale_std: Option<f64>,
     /// Where it came from: calibrated, given, or the gyro as read and why.
-    pub gyro_scale_source: String,
+    pub scale_source: String,
     /// Board tensor about its centre of mass, kg m^2 (mean of the board throws).
     pub board_tensor_kg_m2: M3,
     /// Relative Frobenius distance of each board throw from the mean.
@@ -1201,9 +1247,9 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
             UnitRotors::Several { unit, .. } => unit_throw_vehicle(rec, unit),
         }
     };
-    let base = match args.gyro_scale {
-        GyroScale::Auto => 1.0,
-        GyroScale::Given(k) => k,
+    let base = match args.scale {
+        ScaleFactor::Auto => 1.0,
+        ScaleFactor::Given(k) => k,
     };
     // A throw that cannot be read or identified, or whose tensor is not usable, is left out
     // with its reason (a saturated or truncated log among good ones should not stop the
@@ -1221,7 +1267,7 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
                     UnitRotors::One { unit, .. } => with_named_rotor(rec, *unit),
                     UnitRotors::Several { .. } => rec,
                 })
-                .and_then(|rec| ident(&gyro_scaled(&rec, base)).map(|t| (rec, t)));
+                .and_then(|rec| ident(&rescaled(&rec, base, args.scale_of)).map(|t| (rec, t)));
             match throw {
                 Ok((rec, t)) if usable(&t.tensor_status) => used.push((rec, t)),
                 Ok((_, t)) => skipped.push(SkippedThrow {
@@ -1274,20 +1320,20 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
             })
             .collect()
     };
-    let (groups, scale, gyro_scale_source) = match args.gyro_scale {
-        GyroScale::Given(k) => (
+    let (groups, scale, scale_source) = match args.scale {
+        ScaleFactor::Given(k) => (
             read_groups.each_ref().map(|g| fixed(g, k)),
             Scale::Fixed(k),
-            "given (--gyro-scale)".to_string(),
+            "given (--scale)".to_string(),
         ),
-        GyroScale::Auto => {
+        ScaleFactor::Auto => {
             // A throw that cannot be identified at the second scale or at the calibrated one
             // is left out with its reason, as at the first.
             let names = ["board", "assembly", "object"];
             let mut linear: [Vec<(&Recording, ScaledThrow)>; 3] = Default::default();
             for ((g, name), lin) in read_groups.iter().zip(names).zip(&mut linear) {
                 for (rec, t) in g {
-                    match ident(&gyro_scaled(rec, 1.0 + SCALE_STEP)) {
+                    match ident(&rescaled(rec, 1.0 + SCALE_STEP, args.scale_of)) {
                         Ok(u) => lin.push((
                             rec,
                             ScaledThrow {
@@ -1301,7 +1347,7 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
                         Err(reason) => skipped.push(SkippedThrow {
                             source: t.source.clone(),
                             group: name,
-                            reason: format!("at gyro scale {}: {reason}", 1.0 + SCALE_STEP),
+                            reason: format!("at scale {}: {reason}", 1.0 + SCALE_STEP),
                         }),
                     }
                 }
@@ -1309,12 +1355,12 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
             let plain = linear
                 .each_ref()
                 .map(|g| g.iter().map(|(_, s)| s.clone()).collect::<Vec<_>>());
-            match gyro_scale::calibrated(&plain[0], &plain[1], &known, m) {
+            match scale::calibrated(&plain[0], &plain[1], &known, m) {
                 Some(k) => {
                     let mut again: [Vec<ScaledThrow>; 3] = Default::default();
                     for ((lin, name), out) in linear.iter().zip(names).zip(&mut again) {
                         for (rec, l) in lin {
-                            match ident(&gyro_scaled(rec, k)) {
+                            match ident(&rescaled(rec, k, args.scale_of)) {
                                 Ok(throw) => out.push(ScaledThrow {
                                     throw,
                                     at: k,
@@ -1324,7 +1370,7 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
                                 Err(reason) => skipped.push(SkippedThrow {
                                     source: l.throw.source.clone(),
                                     group: name,
-                                    reason: format!("at gyro scale {k:.4}: {reason}"),
+                                    reason: format!("at scale {k:.4}: {reason}"),
                                 }),
                             }
                         }
@@ -1348,7 +1394,7 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
                     Scale::Fixed(1.0),
                     format!(
                         "as read: the proof body's shape did not fix a scale within 1 +- {}",
-                        gyro_scale::SCALE_RANGE
+                        scale::SCALE_RANGE
                     ),
                 ),
             }
@@ -1368,7 +1414,7 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
     let full = solve_scaled(g3, &known, m, scale)
         .ok_or("calibration failed: the rotor inertia came out not positive")?;
     let j = full.j;
-    let k = full.gyro_scale;
+    let k = full.scale;
     let [board, assembly, objects] = g3.map(|g| all_at(g, k));
     let (jb, rb) = mean(&board);
     let (jt, rt) = mean(&assembly);
@@ -1387,7 +1433,7 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
             let ki = match scale {
                 Scale::Fixed(k) => k,
                 Scale::Calibrated => {
-                    gyro_scale::calibrated(&groups[0], &others, &known, m).unwrap_or(1.0)
+                    scale::calibrated(&groups[0], &others, &known, m).unwrap_or(1.0)
                 }
             };
             let (jbi, rbi) = mean(&all_at(&groups[0], ki));
@@ -1423,9 +1469,10 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
                 Some(VehicleCalibration::new(file, unit, j, j_std))
             }
         },
-        gyro_scale: k,
-        gyro_scale_std: matches!(scale, Scale::Calibrated).then(|| u.gyro_scale.sqrt()),
-        gyro_scale_source,
+        scale: k,
+        scale_of: args.scale_of.name(),
+        scale_std: matches!(scale, Scale::Calibrated).then(|| u.scale.sqrt()),
+        scale_source,
         board_tensor_kg_m2: full.board,
         board_tensor_std_kg_m2: Some(sd(&u.board)),
         board_spread: board.iter().map(|t| rel_frobenius(&t.j1, &jb)).collect(),
@@ -1476,7 +1523,7 @@ mod tests {
         let jack = std * std / 5.0;
         let u = Uncertainty {
             j: 0.0,
-            gyro_scale: 0.0,
+            scale: 0.0,
             board: [[0.0; 3]; 3],
             object: [[jack; 3]; 3],
             moments: [jack; 3],

@@ -239,6 +239,10 @@ pub struct Report {
     /// calibrate`), when one was given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gyro_scale_factor: Option<f64>,
+    /// The clock scale factor the log's times were divided by (`--clock-scale`, from `inertia
+    /// calibrate`), when one was given: the report's times are that clock's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub clock_scale_factor: Option<f64>,
     /// The gyro's readings on a grid and the two fits `identify` compared ((Q1) of
     /// [`crate::grid`]). Absent when the readings are not on a grid or the first fit's residual
     /// is not within [`GRID_RESIDUAL_COUNTS`] counts.
@@ -801,6 +805,7 @@ fn identify_pass(
         trace,
         gyro_scale: None,
         gyro_scale_factor: None,
+        clock_scale_factor: None,
     })
 }
 

@@ -232,11 +232,17 @@ struct IdentifyArgs {
     /// scale-factor error, and the standard deviations are otherwise the noise's only).
     #[arg(long)]
     gyro_scale_tolerance: Option<f32>,
-    /// The gyro's scale factor `k` (it reads `k` times the true rate): `gyro_scale` of an
-    /// `inertia calibrate` report of the same gyro. The readings and the full scale are
-    /// divided by it before anything else.
-    #[arg(long, value_parser = parse_gyro_scale_factor)]
+    /// The gyro's scale factor `k` (it reads `k` times the true rate): `scale` of an `inertia
+    /// calibrate --scale-of gyro` report of the same board. The readings and the full scale
+    /// are divided by it before anything else.
+    #[arg(long, value_parser = parse_scale_factor)]
     gyro_scale: Option<f64>,
+    /// The log's clock scale factor `k` (it runs `k` times true time): `scale` of an `inertia
+    /// calibrate` report (`scale_of` clock) of the same board. The log's times, and those of
+    /// --segments, are divided by it before anything else; the report's times are that
+    /// clock's.
+    #[arg(long, value_parser = parse_scale_factor)]
+    clock_scale: Option<f64>,
     /// Also write the pooled tensor for a simulator or flight stack: urdf, sdf (1.9), px4
     /// (parameters `VM_*` and `SIH_*`, the SDF inertial in comments) or json (the report, as
     /// --json writes it). Refused unless the tensor is a rigid body's and `Converged` (see
@@ -455,12 +461,12 @@ impl Progress for Bar {
     }
 }
 
-/// A gyro scale factor for `identify --gyro-scale`: as `calibrate --gyro-scale` takes a
-/// given one.
-fn parse_gyro_scale_factor(s: &str) -> Result<f64, String> {
-    match inertia::calibrate::parse_gyro_scale(s)? {
-        inertia::calibrate::GyroScale::Given(k) => Ok(k),
-        inertia::calibrate::GyroScale::Auto => {
+/// A scale factor for `identify --gyro-scale` and `--clock-scale`: as `calibrate --scale`
+/// takes a given one.
+fn parse_scale_factor(s: &str) -> Result<f64, String> {
+    match inertia::calibrate::parse_scale(s)? {
+        inertia::calibrate::ScaleFactor::Given(k) => Ok(k),
+        inertia::calibrate::ScaleFactor::Auto => {
             Err("`auto` is for calibrate; give the scale factor its report states".into())
         }
     }
@@ -477,7 +483,13 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
     let rotor = rotor_and_noise(&args.rotor, args.noise_std)?;
     let vehicle = args.rotor.vehicle()?;
     let export = export_options(&args, rotor.is_some() || vehicle.is_some())?;
-    let segments = args.segments.as_ref().map(parse_segments).transpose()?;
+    let clock = args.clock_scale.unwrap_or(1.0);
+    let segments = args
+        .segments
+        .as_ref()
+        .map(parse_segments)
+        .transpose()?
+        .map(|s| s.into_iter().map(|(a, b)| (a / clock, b / clock)).collect());
     let opts = ReadOptions {
         gyro_unit: args.gyro_unit,
         time_unit: args.time_unit,
@@ -497,7 +509,7 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
         [one] => one.clone(),
         many => return run_identify_many(many, &args, &opts, &iopts),
     };
-    let (src, report) = open_and_identify(&input, &opts, &iopts, args.gyro_scale)?;
+    let (src, report) = open_and_identify(&input, &opts, &iopts, rescale_of(&args))?;
     let mut report = report.map_err(|e| e.to_string())?;
     if let Some(tol) = args.gyro_scale_tolerance {
         eprintln!("identifying the log three more times, one gyro axis scaled by {tol} % each");
@@ -562,24 +574,43 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
 /// A log opened for reading (any format `identify` reads).
 type LogSource = Box<dyn inertia::source::Source>;
 
-/// Opens `input` (read through the gyro scale factor `gyro_scale`, when given) and identifies
-/// it with a progress bar: the source (for further readings) and the identification's
-/// outcome; an error when the log cannot be opened.
+/// The scale factors `identify` reads a log through: `--gyro-scale` and `--clock-scale`.
+#[derive(Clone, Copy)]
+struct Rescale {
+    gyro: Option<f64>,
+    clock: Option<f64>,
+}
+
+fn rescale_of(args: &IdentifyArgs) -> Rescale {
+    Rescale {
+        gyro: args.gyro_scale,
+        clock: args.clock_scale,
+    }
+}
+
+/// Opens `input` (read through the scale factors `rescale`, when given) and identifies it
+/// with a progress bar: the source (for further readings) and the identification's outcome;
+/// an error when the log cannot be opened.
 fn open_and_identify(
     input: &std::path::Path,
     opts: &ReadOptions,
     iopts: &IdentifyOptions,
-    gyro_scale: Option<f64>,
+    rescale: Rescale,
 ) -> Result<(LogSource, Result<Report, IdentifyError>), String> {
     let mut src = inertia::source::open(input, opts).map_err(|e| e.to_string())?;
-    if let Some(k) = gyro_scale {
-        src = Box::new(inertia::source::ScaledGyroSource::new(src, k as f32));
+    if rescale.gyro.is_some() || rescale.clock.is_some() {
+        src = Box::new(inertia::source::RescaledSource::new(
+            src,
+            rescale.gyro.unwrap_or(1.0) as f32,
+            rescale.clock.unwrap_or(1.0),
+        ));
     }
     let mut bar = Bar::new(input);
     let mut report = identify_source(&*src, iopts, &mut bar);
     bar.clear();
     if let Ok(r) = &mut report {
-        r.gyro_scale_factor = gyro_scale;
+        r.gyro_scale_factor = rescale.gyro;
+        r.clock_scale_factor = rescale.clock;
     }
     Ok((src, report))
 }
@@ -602,7 +633,7 @@ fn run_identify_many(
     }
     let mut reports = Vec::new();
     for input in inputs {
-        let (_, report) = open_and_identify(input, opts, iopts, args.gyro_scale)?;
+        let (_, report) = open_and_identify(input, opts, iopts, rescale_of(args))?;
         reports.push(report.map_err(|e| format!("{}: {e}", input.display()))?);
     }
     let pooled = inertia::pool::pool(reports)?;
@@ -838,14 +869,14 @@ fn run_calibrate(args: inertia::calibrate::CalibrateArgs) -> Result<ExitCode, St
         rep.board_tensor_kg_m2,
         rep.board_spread
     );
-    match rep.gyro_scale_std {
+    match rep.scale_std {
         Some(sd) => eprintln!(
-            "gyro scale {:.4} +- {:.1e} ({})",
-            rep.gyro_scale, sd, rep.gyro_scale_source
+            "{} scale {:.4} +- {:.1e} ({})",
+            rep.scale_of, rep.scale, sd, rep.scale_source
         ),
         None => eprintln!(
-            "gyro scale {:.4} ({})",
-            rep.gyro_scale, rep.gyro_scale_source
+            "{} scale {:.4} ({})",
+            rep.scale_of, rep.scale, rep.scale_source
         ),
     }
     if let Some(v) = &rep.vehicle {

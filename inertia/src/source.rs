@@ -236,22 +236,25 @@ impl Source for MappedSource<'_> {
     }
 }
 
-/// Another [`Source`] read through a calibrated gyro scale factor `k` (the gyro reads `k`
-/// times the true rate, `inertia calibrate`'s `gyro_scale`): every reading and the full scale
-/// divided by `k`, so that saturation is still found where the gyro clipped.
-pub struct ScaledGyroSource {
+/// Another [`Source`] read through the scale factors `inertia calibrate` gives (its `scale`,
+/// as a gyro's or as a clock's): every reading and the full scale divided by the gyro's `k`,
+/// so that saturation is still found where the gyro clipped, and every time divided by the
+/// clock's (a clock running `k` times true time).
+pub struct RescaledSource {
     inner: Box<dyn Source>,
-    k: f32,
+    gyro: f32,
+    clock: f64,
 }
 
-impl ScaledGyroSource {
-    /// `inner` read as a gyro of scale factor `k`.
-    pub fn new(inner: Box<dyn Source>, k: f32) -> Self {
-        ScaledGyroSource { inner, k }
+impl RescaledSource {
+    /// `inner` read as a gyro of scale factor `gyro` and a clock of scale factor `clock`
+    /// (1 for either as read).
+    pub fn new(inner: Box<dyn Source>, gyro: f32, clock: f64) -> Self {
+        RescaledSource { inner, gyro, clock }
     }
 }
 
-impl Source for ScaledGyroSource {
+impl Source for RescaledSource {
     fn name(&self) -> String {
         self.inner.name()
     }
@@ -261,7 +264,7 @@ impl Source for ScaledGyroSource {
     }
 
     fn full_scale(&self) -> f32 {
-        self.inner.full_scale() / self.k
+        self.inner.full_scale() / self.gyro
     }
 
     fn gyro_averaging(&self) -> f32 {
@@ -285,10 +288,11 @@ impl Source for ScaledGyroSource {
         visit: &mut Visit<'_>,
         progress: &mut dyn FnMut(f32),
     ) -> Result<Reading, ReadError> {
-        let inv = 1.0 / self.k;
+        let inv = 1.0 / self.gyro;
         let mut scaled = |s: &Sample| {
             let mut s = *s;
             s.gyro = s.gyro.map(|g| g * inv);
+            s.t /= self.clock;
             visit(&s)
         };
         self.inner.read_all(&mut scaled, progress)

@@ -362,7 +362,8 @@ fn args(
         rotor_axis: None,
         rotor_poles: None,
         vehicle: Some(vehicle_file(dir)),
-        gyro_scale: inertia::calibrate::GyroScale::Auto,
+        scale: inertia::calibrate::ScaleFactor::Auto,
+        scale_of: inertia::calibrate::ScaleOf::Clock,
         json: dir.join("calibration.json"),
         plots: None,
     }

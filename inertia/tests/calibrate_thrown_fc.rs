@@ -163,7 +163,8 @@ fn an_object_by_difference_comes_with_an_honest_uncertainty() {
             rotor_axis: Some([0.0, 0.0, -1.0]),
             vehicle: None,
             rotor_poles: Some(14),
-            gyro_scale: inertia::calibrate::GyroScale::Auto,
+            scale: inertia::calibrate::ScaleFactor::Auto,
+            scale_of: inertia::calibrate::ScaleOf::Clock,
             json: std::env::temp_dir().join("unused.json"),
             plots: None,
         };
@@ -217,7 +218,8 @@ fn a_bad_log_among_good_ones_is_left_out_with_its_reason() {
         rotor_axis: Some([0.0, 0.0, -1.0]),
         vehicle: None,
         rotor_poles: Some(14),
-        gyro_scale: inertia::calibrate::GyroScale::Auto,
+        scale: inertia::calibrate::ScaleFactor::Auto,
+        scale_of: inertia::calibrate::ScaleOf::Clock,
         json: dir.join("unused.json"),
         plots: None,
     };
@@ -269,7 +271,8 @@ fn several_object_throws_are_reported_each_and_their_spread_checked() {
         rotor_axis: Some([0.0, 0.0, -1.0]),
         vehicle: None,
         rotor_poles: Some(14),
-        gyro_scale: inertia::calibrate::GyroScale::Auto,
+        scale: inertia::calibrate::ScaleFactor::Auto,
+        scale_of: inertia::calibrate::ScaleOf::Clock,
         json: std::env::temp_dir().join("unused-several.json"),
         plots: None,
     };
@@ -332,7 +335,8 @@ fn calibration(
         rotor_axis: vehicle.is_none().then_some([0.0, 0.0, -1.0]),
         rotor_poles: vehicle.is_none().then_some(14),
         vehicle,
-        gyro_scale: inertia::calibrate::GyroScale::Auto,
+        scale: inertia::calibrate::ScaleFactor::Auto,
+        scale_of: inertia::calibrate::ScaleOf::Clock,
         json: dir.join("unused.json"),
         plots: None,
     }

@@ -449,6 +449,47 @@ fn thrown_fc_free_flights_found_hand_and_catch_excluded() {
     }
 }
 
+/// A log whose clock runs 1 % fast: as read, every `a` comes out 1 % small (the torque-free
+/// precession is per second, the rates are not), many standard deviations off; read through
+/// `--clock-scale 1.01` (`inertia calibrate`'s `scale`, taken as a clock's) it gives the
+/// same `a` as the log with true times, and says which scale it was read through.
+#[test]
+fn a_fast_clock_is_read_through_its_calibrated_scale() {
+    let d = out_dir();
+    let rows = toss(MOM, [1.0, 1.0, 1.0], 200.0, 10.0, 2e-3, 4);
+    let (true_csv, fast_csv) = (d.join("clock-true.csv"), d.join("clock-fast.csv"));
+    write_csv(&true_csv, &rows, 1.0, 1.0);
+    write_csv(&fast_csv, &rows, 1.01, 1.0);
+    let a_of_run = |csv: &Path, extra: &[&str], name: &str| {
+        let mut args = vec!["--input", csv.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let (code, v, err) = run(&args, &d.join(name));
+        assert_eq!(code, 0, "{err}");
+        let (a, s) = a_of(&v).unwrap();
+        (a, s, v)
+    };
+    let (a_true, s_true, _) = a_of_run(&true_csv, &[], "clock-true.json");
+    let (a_read, _, _) = a_of_run(&fast_csv, &[], "clock-fast.json");
+    let (a_fixed, _, v) = a_of_run(&fast_csv, &["--clock-scale", "1.01"], "clock-fixed.json");
+    for i in 0..3 {
+        let (z_read, z_fixed) = (
+            (a_read[i] - a_true[i]) / s_true[i],
+            (a_fixed[i] - a_true[i]) / s_true[i],
+        );
+        println!(
+            "a{}: as read {z_read:+.1} std, through the scale {z_fixed:+.3} std",
+            i + 1
+        );
+        assert!(
+            z_read.abs() > 5.0,
+            "a{}: as read only {z_read} std off",
+            i + 1
+        );
+        assert!(z_fixed.abs() < 0.05, "a{}: {z_fixed} std off", i + 1);
+    }
+    assert_eq!(v["clock_scale_factor"].as_f64(), Some(1.01));
+}
+
 /// A gyro whose x and y axes read 0.2 % high and low: the fit cannot see it, its `std_a` (the
 /// noise's) is far too small for the error it leaves, and `--gyro-scale-tolerance 0.2` puts the
 /// scale factors' share into `gyro_scale.total_std_a`, which covers the error.

@@ -50,6 +50,7 @@ fn report(tensor: Option<[[f32; 3]; 3]>, status: &str) -> Report {
         trace: None,
         gyro_scale: None,
         gyro_scale_factor: None,
+        clock_scale_factor: None,
         gyro_grid: None,
         gyro_lsb: None,
         gyro_bias_walk_rad_s_per_sqrt_s: None,

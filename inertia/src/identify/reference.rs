@@ -241,5 +241,6 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
         trace: None,
         gyro_scale: None,
         gyro_scale_factor: None,
+        clock_scale_factor: None,
     })
 }

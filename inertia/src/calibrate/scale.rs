@@ -1,17 +1,28 @@
-//! The gyro's scale factor, calibrated from the proof body's shape.
+//! The scale factor between the log's rates and its clock, calibrated from the proof body's
+//! shape.
 //!
-//! A MEMS gyro reads `w_m = k w` with `k` within its sensitivity tolerance of 1 (a few tenths
-//! of a percent to a few percent). The clock is exact, so `k` is not a unit but a model
-//! error: in the torque-free part of Euler's equation `w'` is linear in the rate and `w x J w`
-//! quadratic, so a body precessing at `lambda w` (`lambda` a function of the moments' ratios)
-//! is read as one precessing at `lambda w_m / k`, and the fit bends the ratios by about
-//! `1 - k`. The rotor momentum, read from its own telemetry, then fixes the scale, so `J` moves
-//! by a few times the gyro's error (on the thrown flight controller, `J` moves about three
-//! times as much as `k`), differently for each body.
+//! Euler's equation `J w' + w x (J w + h) + h' = 0` holds in true rates and true time. The
+//! log can be off in either: a MEMS gyro reads `w_m = k w` with `k` within its sensitivity
+//! tolerance of 1, and a board's clock (the log's times) can run `k` times true time, `t_m = k
+//! t`, when its oscillator is off. `w'` is linear in the rate and `w x J w` quadratic, and
+//! `w'` is per second while `w` is not, so either way a body precessing at `lambda w`
+//! (`lambda` a function of the moments' ratios) is read as one precessing at `lambda w_m / k`
+//! and the fit bends the ratios by about `1 - k`. The rotor momentum, read from its own
+//! telemetry, then fixes the scale, so `J` moves by a few times `k - 1` (on the thrown flight
+//! controller about three times as much), differently for each body.
+//!
+//! With the rotor's inertia calibrated alongside (it absorbs a common factor of `k`), the two
+//! readings give the dynamics the same equation. They differ where the accelerometer gives the
+//! centre of mass, `f = w x (w x r) + w' x r` ([`super::fit_offset`]): a gyro's `k` divides
+//! the rates, so `r` moves by `k^2`; a clock's multiplies `w'` only, and the centripetal term,
+//! most of `f` in a tumble, keeps `r` where the rates as read put it. `--scale-of clock` (the
+//! default) reads the log's times divided by `k` ([`super::clock_scaled`]); `--scale-of gyro`
+//! its rates and full scale ([`super::gyro_scaled`]). Why the clock is the default, and what
+//! each gives on the measured objects, is in `docs/calibration.md`.
 //!
 //! The proof body's known inertia pins it: `j` fixes the proof body's scale (the calibration
 //! of `j`), and its shape, the ratios of its principal moments, is what `k` moves. With every
-//! throw identified with the gyro read as `w_m / k`, the calibrated scale minimises the proof
+//! throw identified through `k`, the calibrated scale minimises the proof
 //! body's shape error
 //!
 //! ```text
@@ -31,7 +42,7 @@
 //! the delete-one jackknife of the calibration recomputes for each replicate, so the scale's
 //! own uncertainty enters `j`, the board and the object. A search that ends at an edge of the
 //! range (the proof body does not fix the scale, or something else bends its shape) keeps the
-//! gyro as read, `k = 1`, and says so.
+//! log as read, `k = 1`, and says so.
 
 use super::{calibrate_j, compare, difference, mean, object, Masses, UnitThrow, M3};
 
@@ -47,7 +58,7 @@ const SEARCH_STEPS: usize = 60;
 /// A searched minimum closer than this to an edge of the range is taken as not found.
 const EDGE: f64 = 1e-3;
 
-/// A throw identified at the gyro scale `at`, with how its unit tensor and centre of mass move
+/// A throw identified at the scale `at`, with how its unit tensor and centre of mass move
 /// with the scale ((G2); zero when the scale was given, not calibrated).
 #[derive(Clone, Debug)]
 pub(super) struct ScaledThrow {
