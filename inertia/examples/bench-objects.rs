@@ -18,7 +18,8 @@
 use std::path::{Path, PathBuf};
 
 use inertia::calibrate::{
-    axis_angle_deg, eigen, rel_frobenius, run, unit_throw, CalibrateArgs, ScaleFactor, ScaleOf,
+    axis_angle_deg, clock_scaled, eigen, rel_frobenius, run, unit_throw, CalibrateArgs,
+    ScaleFactor, ScaleOf,
 };
 use inertia::identify::{identify, IdentifyOptions, Rotor, RotorHold};
 
@@ -289,12 +290,27 @@ fn assembly_truth(object: &M3, m_o: f64, com_o_anchor_mm: [f64; 3]) -> M3 {
     })
 }
 
-/// One throw of the assembly through `inertia identify` (the anchor's rotor inertia) against
-/// the assembly's truth.
-fn assembly_row(path: &Path, poles: u32, truth: &M3) -> Result<Row, String> {
+/// The rotor inertia and the clock scale an assembly throw is identified with: the anchor's
+/// `j` and the log as read, or the calibration's (`identify --rotor-inertia J --clock-scale K`).
+#[derive(Clone, Copy)]
+struct Through {
+    j: f64,
+    clock: f64,
+}
+
+/// The anchor's rotor inertia, the log as read.
+const ANCHOR: Through = Through {
+    j: ROTOR_ANCHOR_KG_M2,
+    clock: 1.0,
+};
+
+/// One throw of the assembly through `inertia identify` (the rotor inertia and clock scale of
+/// `through`) against the assembly's truth.
+fn assembly_row(path: &Path, poles: u32, truth: &M3, through: Through) -> Result<Row, String> {
     let rec = inertia::read(path, &Default::default()).map_err(|e| e.to_string())?;
+    let rec = clock_scaled(&rec, through.clock);
     let t = unit_throw(&rec, [0.0, 0.0, -1.0], Some(poles))?;
-    let j = ROTOR_ANCHOR_KG_M2;
+    let j = through.j;
     let got = t.j1.map(|r| r.map(|x| x * j));
     let std = t.j1_std.ok_or("no std")?.map(|r| r.map(|x| x * j));
     let name = path.file_name().unwrap_or_default().to_string_lossy();
@@ -401,18 +417,27 @@ fn main() {
         return;
     };
     let truth: serde_json::Value = serde_json::from_str(&truth).expect("truth.json");
-    match run(&args(Vec::new(), 1.0, poles)) {
-        Ok(c) => println!(
-            "calibration: {} scale {:.4} +- {:.1e} ({}), rotor inertia {:.4e} +- {:.1e} kg m^2",
-            c.scale_of,
-            c.scale,
-            c.scale_std.unwrap_or(f64::NAN),
-            c.scale_source,
-            c.rotor_inertia_kg_m2,
-            c.rotor_inertia_std_kg_m2.unwrap_or(f64::NAN)
-        ),
-        Err(e) => println!("calibration failed: {e}"),
-    }
+    let calibrated = match run(&args(Vec::new(), 1.0, poles)) {
+        Ok(c) => {
+            println!(
+                "calibration: {} scale {:.4} +- {:.1e} ({}), rotor inertia {:.4e} +- {:.1e} kg m^2",
+                c.scale_of,
+                c.scale,
+                c.scale_std.unwrap_or(f64::NAN),
+                c.scale_source,
+                c.rotor_inertia_kg_m2,
+                c.rotor_inertia_std_kg_m2.unwrap_or(f64::NAN)
+            );
+            (c.scale_of == "clock").then_some(Through {
+                j: c.rotor_inertia_kg_m2,
+                clock: c.scale,
+            })
+        }
+        Err(e) => {
+            println!("calibration failed: {e}");
+            None
+        }
+    };
     println!("objects by difference, {poles}-pole rotor, per throw and pooled");
     println!(
         "| object | throws | per throw, the anchor's metric: moments mean / max | rotation mean / max | Frobenius mean / max | RMS(error/std): entries, diagonal, moments | pooled: moments | rotation | Frobenius | RMS(error/std): entries, moments | anchor per throw |"
@@ -424,6 +449,7 @@ fn main() {
         .and_then(|i| argv.get(i + 1))
         .map(PathBuf::from);
     let mut assembly_lines = Vec::new();
+    let mut calibrated_lines = Vec::new();
     let mut baseline_lines: [Vec<String>; 2] = Default::default();
 
     let mut plotted: Vec<(String, Vec<Row>)> = Vec::new();
@@ -439,8 +465,24 @@ fn main() {
         let asm_truth = assembly_truth(&truth_m, mass, com);
         let asm: Vec<Row> = throws
             .iter()
-            .filter_map(|p| assembly_row(p, poles, &asm_truth).ok())
+            .filter_map(|p| assembly_row(p, poles, &asm_truth, ANCHOR).ok())
             .collect();
+        // The path a user takes: calibrate once, then identify with its `j` and clock scale.
+        if let Some(c) = calibrated {
+            let rows: Vec<Row> = throws
+                .iter()
+                .filter_map(|p| assembly_row(p, poles, &asm_truth, c).ok())
+                .collect();
+            let refs: Vec<&Row> = rows.iter().collect();
+            calibrated_lines.push(format!(
+                "| {name} | {}/{} | {} | {} | {:.2} |",
+                rows.len(),
+                throws.len(),
+                mean_max(rows.iter().map(|r| r.moments * 100.0), "%"),
+                mean_max(rows.iter().map(|r| r.rotation), "deg"),
+                rms_diag(&refs)
+            ));
+        }
         let z: Vec<f64> = asm.iter().flat_map(|r| r.z.iter().copied()).collect();
         for r in &asm {
             println!("  assembly {name} {}", r.line());
@@ -548,6 +590,18 @@ fn main() {
     println!("|---|---|---|---|---|---|---|---|---|");
     for l in assembly_lines {
         println!("{l}");
+    }
+    if let Some(c) = calibrated {
+        println!();
+        println!(
+            "assembly per throw through the calibration (inertia identify --rotor-inertia {:.4e} --clock-scale {:.4})",
+            c.j, c.clock
+        );
+        println!("| object | throws | moments mean / max | rotation mean / max | RMS(error/std): diagonal |");
+        println!("|---|---|---|---|---|");
+        for l in calibrated_lines {
+            println!("{l}");
+        }
     }
     if let Some(path) = plot {
         match draw(&path, &plotted) {
