@@ -219,13 +219,13 @@ fn read_off_by_one_percent_is_calibrated(of: ScaleOf, seed: u64) {
     let k_std = auto.scale_std.unwrap();
     println!(
         "{} scale {:.5} +- {:.1e} (truth {k_true}); object's worst moment: {:.3} % calibrated, {:.3} % as read",
-        auto.scale_of,
+        auto.scale_of.name(),
         auto.scale,
         k_std,
         100.0 * worst(&auto),
         100.0 * worst(&as_read)
     );
-    assert_eq!(auto.scale_of, of.name());
+    assert_eq!(auto.scale_of, of);
     assert_eq!(as_read.scale, 1.0);
     assert!(as_read.scale_std.is_none());
     // 4 std, and no wider than a third of the error itself: an honest calibration of 1 %.

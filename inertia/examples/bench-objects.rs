@@ -421,14 +421,14 @@ fn main() {
         Ok(c) => {
             println!(
                 "calibration: {} scale {:.4} +- {:.1e} ({}), rotor inertia {:.4e} +- {:.1e} kg m^2",
-                c.scale_of,
+                c.scale_of.name(),
                 c.scale,
                 c.scale_std.unwrap_or(f64::NAN),
                 c.scale_source,
                 c.rotor_inertia_kg_m2,
                 c.rotor_inertia_std_kg_m2.unwrap_or(f64::NAN)
             );
-            (c.scale_of == "clock").then_some(Through {
+            (c.scale_of == ScaleOf::Clock).then_some(Through {
                 j: c.rotor_inertia_kg_m2,
                 clock: c.scale,
             })

@@ -633,8 +633,10 @@ pub enum ScaleFactor {
     Given(f64),
 }
 
-/// What the scale factor `k` of `inertia calibrate --scale` is taken to be.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+/// What the scale factor `k` of `inertia calibrate --scale` is taken to be (`clock` or
+/// `gyro` in the report).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
 pub enum ScaleOf {
     /// The log's clock runs `k` times true time: its times are divided by `k`.
     Clock,
@@ -643,7 +645,7 @@ pub enum ScaleOf {
 }
 
 impl ScaleOf {
-    /// The name the report gives it.
+    /// Its name, as the command line and the report spell it.
     pub fn name(self) -> &'static str {
         match self {
             ScaleOf::Clock => "clock",
@@ -924,7 +926,7 @@ pub struct CalibrationReport {
     /// what its clock says ((G1) of the module's "The scale between the rates and the clock").
     pub scale: f64,
     /// What `k` was taken to be: `clock` (the log's times divided by it) or `gyro` (its rates).
-    pub scale_of: &'static str,
+    pub scale_of: ScaleOf,
     /// Its standard deviation (the throws' jackknife) where it was calibrated.
     pub scale_std: Option<f64>,
     /// Where it came from: calibrated, given, or the gyro as read and why.
@@ -1470,7 +1472,7 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
             }
         },
         scale: k,
-        scale_of: args.scale_of.name(),
+        scale_of: args.scale_of,
         scale_std: matches!(scale, Scale::Calibrated).then(|| u.scale.sqrt()),
         scale_source,
         board_tensor_kg_m2: full.board,

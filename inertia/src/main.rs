@@ -509,7 +509,7 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
         [one] => one.clone(),
         many => return run_identify_many(many, &args, &opts, &iopts),
     };
-    let (src, report) = open_and_identify(&input, &opts, &iopts, rescale_of(&args))?;
+    let (src, report) = open_and_identify(&input, &opts, &iopts, &args)?;
     let mut report = report.map_err(|e| e.to_string())?;
     if let Some(tol) = args.gyro_scale_tolerance {
         eprintln!("identifying the log three more times, one gyro axis scaled by {tol} % each");
@@ -574,43 +574,29 @@ fn run_identify(args: IdentifyArgs) -> Result<ExitCode, String> {
 /// A log opened for reading (any format `identify` reads).
 type LogSource = Box<dyn inertia::source::Source>;
 
-/// The scale factors `identify` reads a log through: `--gyro-scale` and `--clock-scale`.
-#[derive(Clone, Copy)]
-struct Rescale {
-    gyro: Option<f64>,
-    clock: Option<f64>,
-}
-
-fn rescale_of(args: &IdentifyArgs) -> Rescale {
-    Rescale {
-        gyro: args.gyro_scale,
-        clock: args.clock_scale,
-    }
-}
-
-/// Opens `input` (read through the scale factors `rescale`, when given) and identifies it
-/// with a progress bar: the source (for further readings) and the identification's outcome;
-/// an error when the log cannot be opened.
+/// Opens `input` (read through `args`' `--gyro-scale` and `--clock-scale`, when given) and
+/// identifies it with a progress bar: the source (for further readings) and the
+/// identification's outcome; an error when the log cannot be opened.
 fn open_and_identify(
     input: &std::path::Path,
     opts: &ReadOptions,
     iopts: &IdentifyOptions,
-    rescale: Rescale,
+    args: &IdentifyArgs,
 ) -> Result<(LogSource, Result<Report, IdentifyError>), String> {
     let mut src = inertia::source::open(input, opts).map_err(|e| e.to_string())?;
-    if rescale.gyro.is_some() || rescale.clock.is_some() {
+    if args.gyro_scale.is_some() || args.clock_scale.is_some() {
         src = Box::new(inertia::source::RescaledSource::new(
             src,
-            rescale.gyro.unwrap_or(1.0) as f32,
-            rescale.clock.unwrap_or(1.0),
+            args.gyro_scale.unwrap_or(1.0) as f32,
+            args.clock_scale.unwrap_or(1.0),
         ));
     }
     let mut bar = Bar::new(input);
     let mut report = identify_source(&*src, iopts, &mut bar);
     bar.clear();
     if let Ok(r) = &mut report {
-        r.gyro_scale_factor = rescale.gyro;
-        r.clock_scale_factor = rescale.clock;
+        r.gyro_scale_factor = args.gyro_scale;
+        r.clock_scale_factor = args.clock_scale;
     }
     Ok((src, report))
 }
@@ -633,7 +619,7 @@ fn run_identify_many(
     }
     let mut reports = Vec::new();
     for input in inputs {
-        let (_, report) = open_and_identify(input, opts, iopts, rescale_of(args))?;
+        let (_, report) = open_and_identify(input, opts, iopts, args)?;
         reports.push(report.map_err(|e| format!("{}: {e}", input.display()))?);
     }
     let pooled = inertia::pool::pool(reports)?;
@@ -872,11 +858,16 @@ fn run_calibrate(args: inertia::calibrate::CalibrateArgs) -> Result<ExitCode, St
     match rep.scale_std {
         Some(sd) => eprintln!(
             "{} scale {:.4} +- {:.1e} ({})",
-            rep.scale_of, rep.scale, sd, rep.scale_source
+            rep.scale_of.name(),
+            rep.scale,
+            sd,
+            rep.scale_source
         ),
         None => eprintln!(
             "{} scale {:.4} ({})",
-            rep.scale_of, rep.scale, rep.scale_source
+            rep.scale_of.name(),
+            rep.scale,
+            rep.scale_source
         ),
     }
     if let Some(v) = &rep.vehicle {
