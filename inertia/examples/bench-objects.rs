@@ -10,8 +10,9 @@
 //! the axes' error), the errors over the reported standard deviations, and the anchor's
 //! published figures. The calibration's scale is calibrated as a clock's (`--scale auto
 //! --scale-of clock`, the default); the baselines, in the same process, are the same objects
-//! with the scale calibrated as a gyro's (`--scale-of gyro`) and with the log as read
-//! (`--scale 1`).
+//! with the scale calibrated as a gyro's (`--scale-of gyro`), with the log as read
+//! (`--scale 1`), and with the accelerometer read through its reading at rest (`--accel-scale`
+//! the calibration throws' median `accel_at_rest_g`).
 //!
 //! Usage: `cargo run --release -p inertia --example bench-objects [-- --poles 14] [--plot SVG]`
 //! (`scripts/bench-objects.sh`). Skips with a message when `../shared` is absent.
@@ -176,32 +177,61 @@ fn relative(got: &M3, std: &M3, truth: &M3) -> [(f64, f64); 3] {
     [0, 1, 2].map(|i| (got[i][i] / truth[i][i] - 1.0, std[i][i] / truth[i][i]))
 }
 
-/// The baselines: the scale calibrated as a gyro's, and the log as read.
-const BASELINES: [(&str, (ScaleFactor, ScaleOf)); 2] = [
-    (
-        "with the scale calibrated as a gyro's (`--scale-of gyro`)",
-        (ScaleFactor::Auto, ScaleOf::Gyro),
-    ),
-    (
-        "with the log as read (`--scale 1`)",
-        (ScaleFactor::Given(1.0), ScaleOf::Clock),
-    ),
-];
+/// How the throws are read: the scale between the rates and the clock (`--scale`,
+/// `--scale-of`) and the accelerometer's (`--accel-scale`).
+#[derive(Clone, Copy, Debug)]
+struct Reading {
+    scale: ScaleFactor,
+    of: ScaleOf,
+    accel: f64,
+}
 
-/// The product's default: the scale calibrated as a clock's.
-const DEFAULT: (ScaleFactor, ScaleOf) = (ScaleFactor::Auto, ScaleOf::Clock);
+/// The product's default: the scale calibrated as a clock's, the accelerometer as read.
+const DEFAULT: Reading = Reading {
+    scale: ScaleFactor::Auto,
+    of: ScaleOf::Clock,
+    accel: 1.0,
+};
+
+/// The baselines: the scale calibrated as a gyro's; the log as read; the accelerometer read
+/// through its reading at rest `at_rest` (the calibration throws' median, in g), the scale
+/// calibrated as a clock's.
+fn baselines(at_rest: f64) -> Vec<(String, Reading)> {
+    vec![
+        (
+            "with the scale calibrated as a gyro's (`--scale-of gyro`)".into(),
+            Reading {
+                of: ScaleOf::Gyro,
+                ..DEFAULT
+            },
+        ),
+        (
+            "with the log as read (`--scale 1`)".into(),
+            Reading {
+                scale: ScaleFactor::Given(1.0),
+                ..DEFAULT
+            },
+        ),
+        (
+            format!(
+                "with the accelerometer read through its reading at rest (`--accel-scale \
+                 {at_rest:.4}`, the calibration throws' median) and the scale calibrated as a \
+                 clock's"
+            ),
+            Reading {
+                accel: at_rest,
+                ..DEFAULT
+            },
+        ),
+    ]
+}
 
 fn args(object: Vec<PathBuf>, mass: f64, poles: u32) -> CalibrateArgs {
     args_at(object, mass, poles, DEFAULT)
 }
 
-/// [`args`] with the scale `scale` (calibrated, or given) taken as `of`'s.
-fn args_at(
-    object: Vec<PathBuf>,
-    mass: f64,
-    poles: u32,
-    (scale, of): (ScaleFactor, ScaleOf),
-) -> CalibrateArgs {
+/// [`args`] with the throws read as `reading` says.
+fn args_at(object: Vec<PathBuf>, mass: f64, poles: u32, reading: Reading) -> CalibrateArgs {
     CalibrateArgs {
         board: logs("device_only"),
         assembly: logs("proof_body"),
@@ -213,8 +243,9 @@ fn args_at(
         rotor_axis: Some([0.0, 0.0, -1.0]),
         vehicle: None,
         rotor_poles: Some(poles),
-        scale,
-        scale_of: of,
+        scale: reading.scale,
+        scale_of: reading.of,
+        accel_scale: reading.accel,
         json: std::env::temp_dir().join("bench-objects-unused.json"),
         plots: None,
     }
@@ -346,13 +377,13 @@ fn assembly_pooled(paths: &[PathBuf], poles: u32, truth: &M3) -> Result<Row, Str
     Ok(Row::of_tensor("pooled".into(), &got, &std, truth))
 }
 
-/// Each throw's object by difference with the scale `scale`, one throw at a time on as many
-/// threads as the machine has.
+/// Each throw's object by difference with the throws read as `reading` says, one throw at a
+/// time on as many threads as the machine has.
 fn object_rows(
     throws: &[PathBuf],
     mass: f64,
     poles: u32,
-    scale: (ScaleFactor, ScaleOf),
+    reading: Reading,
     truth_m: &M3,
 ) -> Vec<Result<Row, String>> {
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -371,7 +402,7 @@ fn object_rows(
                             let n = p.file_name().unwrap_or_default().to_string_lossy();
                             row(
                                 n.into(),
-                                &args_at(vec![p.clone()], mass, poles, scale),
+                                &args_at(vec![p.clone()], mass, poles, reading),
                                 truth_m,
                             )
                         })
@@ -428,16 +459,25 @@ fn main() {
                 c.rotor_inertia_kg_m2,
                 c.rotor_inertia_std_kg_m2.unwrap_or(f64::NAN)
             );
-            (c.scale_of == ScaleOf::Clock).then_some(Through {
-                j: c.rotor_inertia_kg_m2,
-                clock: c.scale,
-            })
+            let mut at_rest: Vec<f64> = c.throws.iter().filter_map(|t| t.accel_at_rest_g).collect();
+            at_rest.sort_by(f64::total_cmp);
+            let at_rest = at_rest.get(at_rest.len() / 2).copied().unwrap_or(1.0);
+            println!("accelerometer at rest over the calibration throws: median {at_rest:.4} g");
+            (
+                (c.scale_of == ScaleOf::Clock).then_some(Through {
+                    j: c.rotor_inertia_kg_m2,
+                    clock: c.scale,
+                }),
+                at_rest,
+            )
         }
         Err(e) => {
             println!("calibration failed: {e}");
-            None
+            (None, 1.0)
         }
     };
+    let (calibrated, at_rest) = calibrated;
+    let baselines = baselines(at_rest);
     println!("objects by difference, {poles}-pole rotor, per throw and pooled");
     println!(
         "| object | throws | per throw, the anchor's metric: moments mean / max | rotation mean / max | Frobenius mean / max | RMS(error/std): entries, diagonal, moments | pooled: moments | rotation | Frobenius | RMS(error/std): entries, moments | anchor per throw |"
@@ -450,7 +490,7 @@ fn main() {
         .map(PathBuf::from);
     let mut assembly_lines = Vec::new();
     let mut calibrated_lines = Vec::new();
-    let mut baseline_lines: [Vec<String>; 2] = Default::default();
+    let mut baseline_lines: Vec<Vec<String>> = vec![Vec::new(); baselines.len()];
 
     let mut plotted: Vec<(String, Vec<Row>)> = Vec::new();
     for name in ["config_empty", "config_a"] {
@@ -539,15 +579,15 @@ fn main() {
                 String::new(),
             ),
         };
-        // The baselines in the same process: the scale calibrated as a gyro's, and the log as
-        // read (`--scale 1`).
-        for (lines, scale) in baseline_lines.iter_mut().zip(BASELINES.map(|b| b.1)) {
-            let base = object_rows(&throws, mass, poles, scale, &truth_m);
+        // The baselines in the same process ([`baselines`]).
+        for (lines, (_, reading)) in baseline_lines.iter_mut().zip(&baselines) {
+            let reading = *reading;
+            let base = object_rows(&throws, mass, poles, reading, &truth_m);
             let base_ok: Vec<&Row> = base.iter().filter_map(|r| r.as_ref().ok()).collect();
             let base_zm: Vec<f64> = base_ok.iter().flat_map(|r| r.zm.iter().copied()).collect();
             let base_pooled = row(
                 "pooled".into(),
-                &args_at(throws.clone(), mass, poles, scale),
+                &args_at(throws.clone(), mass, poles, reading),
                 &truth_m,
             )
             .map_or_else(
@@ -576,7 +616,7 @@ fn main() {
         );
     }
     println!();
-    for ((title, _), lines) in BASELINES.iter().zip(&baseline_lines) {
+    for ((title, _), lines) in baselines.iter().zip(&baseline_lines) {
         println!("baseline: the same objects {title}");
         println!("| object | throws | per throw: moments mean / max | moments RMS(error/std) | pooled: moments |");
         println!("|---|---|---|---|---|");

@@ -95,6 +95,9 @@ pub struct UnitThrow {
     pub imu_from_com_cov: Option<M3>,
     /// RMS residual of the offset fit, m/s^2.
     pub offset_fit_rms: f64,
+    /// The accelerometer's mean magnitude while the gyro is still, over standard gravity, as
+    /// the centres of mass took it (after `--accel-scale`; [`Recording::accel_at_rest_g`]).
+    pub accel_at_rest_g: Option<f64>,
     /// Status of the ratios (`pooled.status` of `inertia identify`).
     pub status: String,
     /// Status of the tensor estimate (`pooled.tensor_status`): what decides whether the
@@ -214,6 +217,7 @@ fn unit_throw_with(
         imu_from_com_cov: offset.cov,
         imu_from_com,
         offset_fit_rms: rms,
+        accel_at_rest_g: rec.accel_at_rest_g(),
         status: rep.pooled.status,
         tensor_status: rep.pooled.tensor_status,
         samples: rep.pooled.samples,
@@ -614,6 +618,13 @@ pub struct CalibrateArgs {
     /// accelerometer's centre of mass, which takes the rates squared.
     #[arg(long, value_enum, default_value_t = ScaleOf::Clock)]
     pub scale_of: ScaleOf,
+    /// The accelerometer's scale factor: it reads this many times the true specific force,
+    /// and its readings are divided by it before the free flights and the centres of mass
+    /// are found (`1`: as read). Take it from a calibration of the accelerometer (a
+    /// six-position test, say): the report's `accel_at_rest_g` alone cannot tell a scale
+    /// from a bias along gravity.
+    #[arg(long, default_value_t = 1.0, value_parser = parse_accel_scale)]
+    pub accel_scale: f64,
     /// Where to write the JSON report.
     #[arg(long)]
     pub json: std::path::PathBuf,
@@ -663,6 +674,32 @@ pub fn parse_scale(s: &str) -> Result<ScaleFactor, String> {
         Ok(k) if k > 0.5 && k < 1.5 => Ok(ScaleFactor::Given(k)),
         _ => Err(format!("{s}: `auto` or a scale factor between 0.5 and 1.5")),
     }
+}
+
+/// `--accel-scale`: a factor within a half of 1.
+pub fn parse_accel_scale(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(k) if (0.5..=1.5).contains(&k) => Ok(k),
+        _ => Err(format!(
+            "{s}: an accelerometer scale factor between 0.5 and 1.5"
+        )),
+    }
+}
+
+/// A recording with its accelerometer read through the scale `k`: the specific force
+/// divided by it (the rates and the clock as read).
+pub fn accel_scaled(rec: Recording, k: f64) -> Recording {
+    if k == 1.0 {
+        return rec;
+    }
+    let mut r = rec;
+    let inv = 1.0 / k;
+    if let Some(acc) = &mut r.accel {
+        for f in acc {
+            *f = f.map(|x| (f64::from(x) * inv) as f32);
+        }
+    }
+    r
 }
 
 /// A recording with its gyro read through the scale `k`: rates and full scale divided by it.
@@ -978,6 +1015,11 @@ pub struct CalibrationReport {
     /// deviations (each of which also counts the calibration's error, common to all).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub object_spread_ratio: Option<f64>,
+    /// The accelerometer's scale factor the throws were read through (`--accel-scale`).
+    pub accel_scale: f64,
+    /// What the report's figures should be read with: throws whose accelerometer reads more
+    /// than [`ACCEL_AT_REST_TOLERANCE`] from one `g` at rest.
+    pub warnings: Vec<String>,
 }
 
 /// The rotors of a vehicle file of several, calibrated (the module's "Several rotors").
@@ -1269,6 +1311,7 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
                     UnitRotors::One { unit, .. } => with_named_rotor(rec, *unit),
                     UnitRotors::Several { .. } => rec,
                 })
+                .map(|rec| accel_scaled(rec, args.accel_scale))
                 .and_then(|rec| ident(&rescaled(&rec, base, args.scale_of)).map(|t| (rec, t)));
             match throw {
                 Ok((rec, t)) if usable(&t.tensor_status) => used.push((rec, t)),
@@ -1304,6 +1347,11 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
             return Err(why.join("; "));
         }
     };
+    let warnings: Vec<String> = read_groups
+        .iter()
+        .flatten()
+        .filter_map(|(_, t)| accel_at_rest_warning(t))
+        .collect();
     let m = Masses {
         board: args.board_mass,
         proof: args.proof_mass,
@@ -1492,6 +1540,27 @@ pub fn run(args: &CalibrateArgs) -> Result<CalibrationReport, String> {
         skipped,
         object_throws: per_object,
         object_spread_ratio,
+        accel_scale: args.accel_scale,
+        warnings,
+    })
+}
+
+/// Largest distance of [`UnitThrow::accel_at_rest_g`] from 1 without a warning: MEMS
+/// accelerometers are specified to a few percent in scale and tens of milli-g in bias.
+pub const ACCEL_AT_REST_TOLERANCE: f64 = 0.02;
+
+/// The warning for a throw whose accelerometer reads more than [`ACCEL_AT_REST_TOLERANCE`]
+/// from one `g` at rest.
+fn accel_at_rest_warning(t: &UnitThrow) -> Option<String> {
+    let g = t.accel_at_rest_g?;
+    ((g - 1.0).abs() > ACCEL_AT_REST_TOLERANCE).then(|| {
+        format!(
+            "{}: the accelerometer reads {g:.4} g while the gyro is still ({:+.1} % from 1 g): \
+             a scale that far off moves every centre of mass by as much, and the parallel-axis \
+             terms by twice that (--accel-scale takes a calibrated scale)",
+            t.source,
+            100.0 * (g - 1.0)
+        )
     })
 }
 

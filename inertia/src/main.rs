@@ -843,6 +843,9 @@ fn run_calibrate(args: inertia::calibrate::CalibrateArgs) -> Result<ExitCode, St
     for s in &rep.skipped {
         eprintln!("warning: {} ({}) left out: {}", s.source, s.group, s.reason);
     }
+    for w in &rep.warnings {
+        eprintln!("warning: {w}");
+    }
     if let Some(dir) = &args.plots {
         inertia::plots::calibrate_plot(&rep, dir).map_err(|e| e.to_string())?;
     }
@@ -869,6 +872,21 @@ fn run_calibrate(args: inertia::calibrate::CalibrateArgs) -> Result<ExitCode, St
             rep.scale,
             rep.scale_source
         ),
+    }
+    let at_rest: Vec<f64> = rep
+        .throws
+        .iter()
+        .filter_map(|t| t.accel_at_rest_g)
+        .collect();
+    if let (Some(lo), Some(hi)) = (
+        at_rest.iter().copied().reduce(f64::min),
+        at_rest.iter().copied().reduce(f64::max),
+    ) {
+        eprintln!(
+            "accelerometer at rest {lo:.4}-{hi:.4} g over {} throws (--accel-scale {})",
+            at_rest.len(),
+            rep.accel_scale
+        );
     }
     if let Some(v) = &rep.vehicle {
         eprintln!(

@@ -18,6 +18,44 @@ impl Recording {
             .as_ref()
             .map_or(0.0, |f| f.smoothing(median_dt(&self.t)) as f32)
     }
+
+    /// The accelerometer at rest: its median magnitude over the longest run of samples whose
+    /// every rate is below the gate's
+    /// [`STILL_RATE`](identifier_core::free_flight::STILL_RATE) (the bench, as for the gyro's
+    /// bias), over standard gravity. The median, because such a run ends where a hand lifts
+    /// the body before it turns it: tens of milliseconds at well over 1 g. At rest `|f|` is one `g` in any orientation, so this is 1
+    /// for an accelerometer true in m/s^2; one orientation cannot tell a scale error from a
+    /// bias along gravity. `None` without an accelerometer or a still sample.
+    pub fn accel_at_rest_g(&self) -> Option<f64> {
+        let acc = self.accel.as_ref()?;
+        let still = identifier_core::free_flight::STILL_RATE;
+        let is_still = |i: usize| self.gyro[i].iter().all(|x| x.abs() < still);
+        let n = self.gyro.len().min(acc.len());
+        let (mut best, mut start) = (0..0, None);
+        for i in 0..=n {
+            match (i < n && is_still(i), start) {
+                (true, None) => start = Some(i),
+                (false, Some(s)) => {
+                    if i - s > best.len() {
+                        best = s..i;
+                    }
+                    start = None;
+                }
+                _ => {}
+            }
+        }
+        let mut m: Vec<f64> = acc[best]
+            .iter()
+            .map(|f| f.iter().map(|&x| f64::from(x).powi(2)).sum::<f64>().sqrt())
+            .filter(|m| m.is_finite())
+            .collect();
+        if m.is_empty() {
+            return None;
+        }
+        let mid = m.len() / 2;
+        let median = *m.select_nth_unstable_by(mid, f64::total_cmp).1;
+        Some(median / f64::from(identifier_core::free_flight::G))
+    }
 }
 
 /// Median time step of the recording, s.

@@ -364,6 +364,7 @@ fn args(
         vehicle: Some(vehicle_file(dir)),
         scale: inertia::calibrate::ScaleFactor::Auto,
         scale_of: inertia::calibrate::ScaleOf::Clock,
+        accel_scale: 1.0,
         json: dir.join("calibration.json"),
         plots: None,
     }

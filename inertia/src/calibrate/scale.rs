@@ -156,6 +156,7 @@ mod tests {
             imu_from_com: com,
             imu_from_com_cov: None,
             offset_fit_rms: 0.0,
+            accel_at_rest_g: None,
             status: "Converged".into(),
             tensor_status: "Converged".into(),
             samples: 0,
