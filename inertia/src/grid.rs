@@ -195,7 +195,7 @@ pub fn centre_readings(gyro: &mut [[f32; 3]], lsb: [f32; 3]) {
 
 /// `inner` with every gyro reading moved to its count's centre under truncation toward zero
 /// ((Q1), per axis LSB `lsb`).
-pub fn centred<'a>(inner: &'a dyn Source, lsb: [f32; 3]) -> MappedSource<'a> {
+pub fn centred(inner: &dyn Source, lsb: [f32; 3]) -> MappedSource<&dyn Source> {
     MappedSource::new(inner, centre, lsb, true)
 }
 

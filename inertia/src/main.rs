@@ -585,7 +585,7 @@ fn open_and_identify(
 ) -> Result<(LogSource, Result<Report, IdentifyError>), String> {
     let mut src = inertia::source::open(input, opts).map_err(|e| e.to_string())?;
     if args.gyro_scale.is_some() || args.clock_scale.is_some() {
-        src = Box::new(inertia::source::RescaledSource::new(
+        src = Box::new(inertia::source::MappedSource::rescaled(
             src,
             args.gyro_scale.unwrap_or(1.0) as f32,
             args.clock_scale.unwrap_or(1.0),

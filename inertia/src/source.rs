@@ -152,41 +152,66 @@ impl Source for RecordingSource<'_> {
 }
 
 /// Another [`Source`] with each gyro axis's reading `g` replaced by `map(g, k)` (`k` that
-/// axis's constant): the same log as another gyro would have written it. Two are made:
-/// [`MappedSource::scaled`] (`g k`: other scale factors, what `inertia identify
-/// --gyro-scale-tolerance` re-identifies to see how far a scale-factor error moves the
-/// estimate) and `crate::grid::centred` (readings moved to their counts' centres, (Q1)).
-pub struct MappedSource<'a> {
-    inner: &'a dyn Source,
+/// axis's constant), and its full scale and times divided by constants: the same log as
+/// another gyro and clock would have written it. `I` is how the inner source is held (`&dyn
+/// Source` or `Box<dyn Source>`). Three are made: [`MappedSource::scaled`] (`g k`: other
+/// scale factors, what `inertia identify --gyro-scale-tolerance` re-identifies to see how far
+/// a scale-factor error moves the estimate), [`MappedSource::rescaled`] (the scale factors
+/// `inertia calibrate` gives) and `crate::grid::centred` (readings moved to their counts'
+/// centres, (Q1)).
+pub struct MappedSource<I> {
+    inner: I,
     map: fn(f32, f32) -> f32,
     k: [f32; 3],
     centred: bool,
+    full_scale_divisor: f32,
+    clock: f64,
 }
 
-impl<'a> MappedSource<'a> {
+impl<I> MappedSource<I>
+where
+    I: std::ops::Deref,
+    I::Target: Source,
+{
     /// `inner` read with each axis's reading `g` as `map(g, k[axis])`; `centred` says the
     /// readings come moved to their counts' centres ([`Source::gyro_centred`]).
-    pub fn new(
-        inner: &'a dyn Source,
-        map: fn(f32, f32) -> f32,
-        k: [f32; 3],
-        centred: bool,
-    ) -> Self {
+    pub fn new(inner: I, map: fn(f32, f32) -> f32, k: [f32; 3], centred: bool) -> Self {
         MappedSource {
             inner,
             map,
             k,
             centred,
+            full_scale_divisor: 1.0,
+            clock: 1.0,
         }
     }
 
     /// `inner` read with its gyro axes multiplied by `scale`.
-    pub fn scaled(inner: &'a dyn Source, scale: [f32; 3]) -> Self {
-        MappedSource::new(inner, |g, k| g * k, scale, inner.gyro_centred())
+    pub fn scaled(inner: I, scale: [f32; 3]) -> Self {
+        let centred = inner.gyro_centred();
+        MappedSource::new(inner, |g, k| g * k, scale, centred)
+    }
+
+    /// `inner` read through the scale factors `inertia calibrate` gives (its `scale`, as a
+    /// gyro's or as a clock's): every reading and the full scale divided by the gyro's
+    /// `gyro`, so that saturation is still found where the gyro clipped, and every time
+    /// divided by the clock's `clock` (a clock running `clock` times true time); 1 for either
+    /// as read.
+    pub fn rescaled(inner: I, gyro: f32, clock: f64) -> Self {
+        let inv = 1.0 / gyro;
+        MappedSource {
+            full_scale_divisor: gyro,
+            clock,
+            ..MappedSource::scaled(inner, [inv; 3])
+        }
     }
 }
 
-impl Source for MappedSource<'_> {
+impl<I> Source for MappedSource<I>
+where
+    I: std::ops::Deref + Sync,
+    I::Target: Source,
+{
     fn name(&self) -> String {
         self.inner.name()
     }
@@ -196,7 +221,7 @@ impl Source for MappedSource<'_> {
     }
 
     fn full_scale(&self) -> f32 {
-        self.inner.full_scale()
+        self.inner.full_scale() / self.full_scale_divisor
     }
 
     fn gyro_averaging(&self) -> f32 {
@@ -220,82 +245,16 @@ impl Source for MappedSource<'_> {
         visit: &mut Visit<'_>,
         progress: &mut dyn FnMut(f32),
     ) -> Result<Reading, ReadError> {
-        let (map, k) = (self.map, self.k);
+        let (map, k, clock) = (self.map, self.k, self.clock);
         let mut mapped = |s: &Sample| {
             let mut s = *s;
             for (g, k) in s.gyro.iter_mut().zip(k) {
                 *g = map(*g, k);
             }
+            s.t /= clock;
             visit(&s)
         };
         self.inner.read_all(&mut mapped, progress)
-    }
-
-    fn warnings(&self, found: Vec<String>) -> Vec<String> {
-        self.inner.warnings(found)
-    }
-}
-
-/// Another [`Source`] read through the scale factors `inertia calibrate` gives (its `scale`,
-/// as a gyro's or as a clock's): every reading and the full scale divided by the gyro's `k`,
-/// so that saturation is still found where the gyro clipped, and every time divided by the
-/// clock's (a clock running `k` times true time).
-pub struct RescaledSource {
-    inner: Box<dyn Source>,
-    gyro: f32,
-    clock: f64,
-}
-
-impl RescaledSource {
-    /// `inner` read as a gyro of scale factor `gyro` and a clock of scale factor `clock`
-    /// (1 for either as read).
-    pub fn new(inner: Box<dyn Source>, gyro: f32, clock: f64) -> Self {
-        RescaledSource { inner, gyro, clock }
-    }
-}
-
-impl Source for RescaledSource {
-    fn name(&self) -> String {
-        self.inner.name()
-    }
-
-    fn channels(&self) -> Channels {
-        self.inner.channels()
-    }
-
-    fn full_scale(&self) -> f32 {
-        self.inner.full_scale() / self.gyro
-    }
-
-    fn gyro_averaging(&self) -> f32 {
-        self.inner.gyro_averaging()
-    }
-
-    fn gyro_filters(&self) -> Option<GyroFilters> {
-        self.inner.gyro_filters()
-    }
-
-    fn gyro_unit_stated(&self) -> bool {
-        self.inner.gyro_unit_stated()
-    }
-
-    fn gyro_centred(&self) -> bool {
-        self.inner.gyro_centred()
-    }
-
-    fn read_all(
-        &self,
-        visit: &mut Visit<'_>,
-        progress: &mut dyn FnMut(f32),
-    ) -> Result<Reading, ReadError> {
-        let inv = 1.0 / self.gyro;
-        let mut scaled = |s: &Sample| {
-            let mut s = *s;
-            s.gyro = s.gyro.map(|g| g * inv);
-            s.t /= self.clock;
-            visit(&s)
-        };
-        self.inner.read_all(&mut scaled, progress)
     }
 
     fn warnings(&self, found: Vec<String>) -> Vec<String> {
