@@ -746,14 +746,7 @@ fn run_close_loop_tensor(
     };
     let an = match close_loop::analyse_tensor(&rec, &opts) {
         Ok(an) => an,
-        Err(e) => {
-            eprintln!("error: {}: {e}", args.input.display());
-            let code = match e {
-                close_loop::LoopError::Input(_) => 3,
-                close_loop::LoopError::Data(_) => 4,
-            };
-            return Ok(ExitCode::from(code));
-        }
+        Err(e) => return Ok(loop_error_exit(&args.input, &e)),
     };
     write_json(&args.json, &an)?;
     let title = args.title();
@@ -764,6 +757,16 @@ fn run_close_loop_tensor(
     }
     println!("{}", close_loop::tensor_summary_line(&an));
     Ok(ExitCode::SUCCESS)
+}
+
+/// Says `close-loop`'s error on `input` and gives its exit code: 3 for unusable input, 4 when
+/// the free flights cannot determine what was asked.
+fn loop_error_exit(input: &std::path::Path, e: &close_loop::LoopError) -> ExitCode {
+    eprintln!("error: {}: {e}", input.display());
+    ExitCode::from(match e {
+        close_loop::LoopError::Input(_) => 3,
+        close_loop::LoopError::Data(_) => 4,
+    })
 }
 
 /// `summary.md` (the markdown `summary`) and the plots `plots` draws, in `dir` (created).
@@ -818,14 +821,7 @@ fn run_close_loop_vehicle(
     };
     let an = match close_loop::analyse_vehicle(&rec, &opts) {
         Ok(an) => an,
-        Err(e) => {
-            eprintln!("error: {}: {e}", args.input.display());
-            let code = match e {
-                close_loop::LoopError::Input(_) => 3,
-                close_loop::LoopError::Data(_) => 4,
-            };
-            return Ok(ExitCode::from(code));
-        }
+        Err(e) => return Ok(loop_error_exit(&args.input, &e)),
     };
     write_json(&args.json, &an)?;
     let title = args.title();
