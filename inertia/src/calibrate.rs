@@ -95,8 +95,9 @@ pub struct UnitThrow {
     pub imu_from_com_cov: Option<M3>,
     /// RMS residual of the offset fit, m/s^2.
     pub offset_fit_rms: f64,
-    /// The accelerometer's mean magnitude while the gyro is still, over standard gravity, as
-    /// the centres of mass took it (after `--accel-scale`; [`Recording::accel_at_rest_g`]).
+    /// The accelerometer at rest: its median magnitude over the bench's still run, over
+    /// standard gravity, as the centres of mass took it (after `--accel-scale`;
+    /// [`Recording::accel_at_rest_g`]).
     pub accel_at_rest_g: Option<f64>,
     /// Status of the ratios (`pooled.status` of `inertia identify`).
     pub status: String,
