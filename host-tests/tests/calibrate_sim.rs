@@ -470,6 +470,82 @@ fn calibration_recovers_a_rotated_off_axis_object_by_difference() {
     );
 }
 
+/// A heavy object (0.9 kg, four times the other's inertia) turned off every axis with its
+/// centre 50 mm from the IMU, so that the assembly's centre lies far from the board's and the
+/// object's products of inertia are large against the board's tensor: the flywheel's
+/// momentum is a smaller share of the body's, and the parallel-axis terms of the board are a
+/// larger share of the difference. Three throws of it come back to the noise's reach with
+/// standard deviations that cover their errors.
+#[test]
+fn a_heavy_object_with_large_products_of_inertia_is_recovered_by_difference() {
+    const HEAVY_MASS: f64 = 0.9;
+    let heavy = cuboid(HEAVY_MASS, [0.120, 0.090, 0.040], [0.2, 0.35, -0.5]);
+    let heavy_com = [15.0e-3, -12.0e-3, -48.0e-3];
+    let dir = std::env::temp_dir().join(format!("calibrate-sim-heavy-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut args = calibrate_args(&dir, 0, 0);
+    args.object = throws(
+        &dir,
+        "heavy",
+        51,
+        3,
+        Some(joined(heavy, heavy_com, HEAVY_MASS)),
+    );
+    args.object_mass = Some(HEAVY_MASS);
+    let rep = run(&args).expect("the simulated calibration runs");
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(
+        rep.throws_per_group,
+        [5, 5, 3],
+        "skipped: {:?}",
+        rep.skipped
+    );
+
+    let got = rep.object_tensor_kg_m2.unwrap();
+    let std = rep.object_tensor_std_kg_m2.unwrap();
+    let moments = rep.object_principal_moments_kg_m2.unwrap();
+    let moments_std = rep.object_principal_moments_std_kg_m2.unwrap();
+    let (truth_moments, _) = eigen(&heavy);
+    let cmp = compare(&got, &heavy);
+    let z_moments: [f64; 3] =
+        std::array::from_fn(|k| (moments[k] - truth_moments[k]) / moments_std[k]);
+    let products = [(0, 1), (0, 2), (1, 2)].map(|(r, c)| heavy[r][c] / heavy[r][r]);
+    let worst_entry_z = (0..3)
+        .flat_map(|r| (0..3).map(move |c| (r, c)))
+        .map(|(r, c)| (got[r][c] - heavy[r][c]).abs() / std[r][c])
+        .fold(0.0f64, f64::max);
+    println!(
+        "heavy object: products over the first moment {products:.3?}; tensor {:.3} % \
+         (Frobenius), moments {:+.3?} % (std {:.3?} %, z {:+.2?}), axes {:.2?} deg, worst \
+         entry {worst_entry_z:.2} std off",
+        100.0 * rel_frobenius(&got, &heavy),
+        cmp.moment_errors.map(|e| 100.0 * e),
+        std::array::from_fn::<f64, 3, _>(|k| 100.0 * moments_std[k] / truth_moments[k]),
+        z_moments,
+        cmp.axis_errors_deg
+    );
+    // As for the lighter object: 1 % and 1 deg are wide for the noise and narrow for a wrong
+    // parallel-axis or product term; 4 std for a handful of comparisons.
+    for k in 0..3 {
+        assert!(
+            cmp.moment_errors[k].abs() < 0.01,
+            "moment {k}: {:+.3} %",
+            100.0 * cmp.moment_errors[k]
+        );
+        assert!(
+            z_moments[k].abs() < 4.0,
+            "moment {k}: z {:+.2}",
+            z_moments[k]
+        );
+        assert!(
+            cmp.axis_errors_deg[k] < 1.0,
+            "axis {k}: {:.2} deg",
+            cmp.axis_errors_deg[k]
+        );
+    }
+    assert!(worst_entry_z < 4.0, "an entry {worst_entry_z:.2} std off");
+}
+
 /// One throw of the object, as a user would make it: its principal moments' reported
 /// standard deviations (the throw's own, to first order) must cover the errors, seed after
 /// seed.
