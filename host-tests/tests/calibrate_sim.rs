@@ -388,38 +388,14 @@ fn calibration_recovers_a_rotated_off_axis_object_by_difference() {
         );
     }
 
-    // The object by difference: every entry, the principal moments with their reported
-    // standard deviations, the axes, the centre of mass.
+    // The object's centre of mass; its tensor is judged by [`assert_object_by_difference`].
     let (object, object_com) = object_body();
-    let got = rep.object_tensor_kg_m2.unwrap();
-    let std = rep.object_tensor_std_kg_m2.unwrap();
-    let moments = rep.object_principal_moments_kg_m2.unwrap();
-    let moments_std = rep.object_principal_moments_std_kg_m2.unwrap();
-    let (truth_moments, _) = eigen(&object);
-    let cmp = compare(&got, &object);
-    let z_moments: [f64; 3] =
-        std::array::from_fn(|k| (moments[k] - truth_moments[k]) / moments_std[k]);
-    println!(
-        "object: tensor {:.3} % (Frobenius), moments {:+.3?} % (std {:.3?} %, z {:+.2?}), axes {:.2?} deg",
-        100.0 * rel_frobenius(&got, &object),
-        cmp.moment_errors.map(|e| 100.0 * e),
-        std::array::from_fn::<f64, 3, _>(|k| 100.0 * moments_std[k] / truth_moments[k]),
-        z_moments,
-        cmp.axis_errors_deg
-    );
     let oc = rep.object_com_from_imu_m.unwrap();
     let oc_err = (0..3)
         .map(|k| (oc[k] - object_com[k]).powi(2))
         .sum::<f64>()
         .sqrt();
     println!("object centre of mass {:.2} mm off", 1e3 * oc_err);
-    let mut worst_entry_z: f64 = 0.0;
-    for r in 0..3 {
-        for col in 0..3 {
-            worst_entry_z = worst_entry_z.max((got[r][col] - object[r][col]).abs() / std[r][col]);
-        }
-    }
-    println!("object entries: worst |error| / reported std {worst_entry_z:.2}");
 
     // Tolerances from physics, not from this run: the noise of a simulated throw puts each
     // tensor within a fraction of a percent (white gyro noise and the logged resolution only;
@@ -427,6 +403,7 @@ fn calibration_recovers_a_rotated_off_axis_object_by_difference() {
     // (a product term with the wrong sign moves this object by tens of percent, a transposed
     // parallel-axis term by several). The reported standard deviations must cover the errors
     // (4 std: a handful of comparisons, each a 1e-4 event for an honest Gaussian).
+    assert_object_by_difference(&rep, &object, "object");
     assert!(j_err.abs() < 0.01, "rotor inertia {:+.3} %", 100.0 * j_err);
     assert!(
         (j - BOARD_ROTOR_INERTIA).abs() < 4.0 * j_std,
@@ -447,26 +424,54 @@ fn calibration_recovers_a_rotated_off_axis_object_by_difference() {
         "object centre of mass {:.2} mm off",
         1e3 * oc_err
     );
+}
+
+/// The object by difference in `rep` against its truth `truth` (named `what`), printed and
+/// judged: each principal moment within 1 % and 4 reported standard deviations, each axis
+/// within 1 deg, every entry within 4 reported standard deviations (the tolerances of
+/// [`calibration_recovers_a_rotated_off_axis_object_by_difference`]).
+fn assert_object_by_difference(rep: &CalibrationReport, truth: &M3, what: &str) {
+    let got = rep.object_tensor_kg_m2.unwrap();
+    let std = rep.object_tensor_std_kg_m2.unwrap();
+    let moments = rep.object_principal_moments_kg_m2.unwrap();
+    let moments_std = rep.object_principal_moments_std_kg_m2.unwrap();
+    let (truth_moments, _) = eigen(truth);
+    let cmp = compare(&got, truth);
+    let z_moments: [f64; 3] =
+        std::array::from_fn(|k| (moments[k] - truth_moments[k]) / moments_std[k]);
+    let worst_entry_z = (0..3)
+        .flat_map(|r| (0..3).map(move |c| (r, c)))
+        .map(|(r, c)| (got[r][c] - truth[r][c]).abs() / std[r][c])
+        .fold(0.0f64, f64::max);
+    println!(
+        "{what}: tensor {:.3} % (Frobenius), moments {:+.3?} % (std {:.3?} %, z {:+.2?}), axes \
+         {:.2?} deg, entries: worst |error| / reported std {worst_entry_z:.2}",
+        100.0 * rel_frobenius(&got, truth),
+        cmp.moment_errors.map(|e| 100.0 * e),
+        std::array::from_fn::<f64, 3, _>(|k| 100.0 * moments_std[k] / truth_moments[k]),
+        z_moments,
+        cmp.axis_errors_deg
+    );
     for k in 0..3 {
         assert!(
             cmp.moment_errors[k].abs() < 0.01,
-            "object moment {k}: {:+.3} %",
+            "{what} moment {k}: {:+.3} %",
             100.0 * cmp.moment_errors[k]
         );
         assert!(
             z_moments[k].abs() < 4.0,
-            "object moment {k}: z {:+.2}",
+            "{what} moment {k}: z {:+.2}",
             z_moments[k]
         );
         assert!(
             cmp.axis_errors_deg[k] < 1.0,
-            "object axis {k}: {:.2} deg",
+            "{what} axis {k}: {:.2} deg",
             cmp.axis_errors_deg[k]
         );
     }
     assert!(
         worst_entry_z < 4.0,
-        "an object entry {worst_entry_z:.2} std off"
+        "{what}: an entry {worst_entry_z:.2} std off"
     );
 }
 
@@ -501,49 +506,9 @@ fn a_heavy_object_with_large_products_of_inertia_is_recovered_by_difference() {
         rep.skipped
     );
 
-    let got = rep.object_tensor_kg_m2.unwrap();
-    let std = rep.object_tensor_std_kg_m2.unwrap();
-    let moments = rep.object_principal_moments_kg_m2.unwrap();
-    let moments_std = rep.object_principal_moments_std_kg_m2.unwrap();
-    let (truth_moments, _) = eigen(&heavy);
-    let cmp = compare(&got, &heavy);
-    let z_moments: [f64; 3] =
-        std::array::from_fn(|k| (moments[k] - truth_moments[k]) / moments_std[k]);
     let products = [(0, 1), (0, 2), (1, 2)].map(|(r, c)| heavy[r][c] / heavy[r][r]);
-    let worst_entry_z = (0..3)
-        .flat_map(|r| (0..3).map(move |c| (r, c)))
-        .map(|(r, c)| (got[r][c] - heavy[r][c]).abs() / std[r][c])
-        .fold(0.0f64, f64::max);
-    println!(
-        "heavy object: products over the first moment {products:.3?}; tensor {:.3} % \
-         (Frobenius), moments {:+.3?} % (std {:.3?} %, z {:+.2?}), axes {:.2?} deg, worst \
-         entry {worst_entry_z:.2} std off",
-        100.0 * rel_frobenius(&got, &heavy),
-        cmp.moment_errors.map(|e| 100.0 * e),
-        std::array::from_fn::<f64, 3, _>(|k| 100.0 * moments_std[k] / truth_moments[k]),
-        z_moments,
-        cmp.axis_errors_deg
-    );
-    // As for the lighter object: 1 % and 1 deg are wide for the noise and narrow for a wrong
-    // parallel-axis or product term; 4 std for a handful of comparisons.
-    for k in 0..3 {
-        assert!(
-            cmp.moment_errors[k].abs() < 0.01,
-            "moment {k}: {:+.3} %",
-            100.0 * cmp.moment_errors[k]
-        );
-        assert!(
-            z_moments[k].abs() < 4.0,
-            "moment {k}: z {:+.2}",
-            z_moments[k]
-        );
-        assert!(
-            cmp.axis_errors_deg[k] < 1.0,
-            "axis {k}: {:.2} deg",
-            cmp.axis_errors_deg[k]
-        );
-    }
-    assert!(worst_entry_z < 4.0, "an entry {worst_entry_z:.2} std off");
+    println!("heavy object: products over the first moment {products:.3?}");
+    assert_object_by_difference(&rep, &heavy, "heavy object");
 }
 
 /// One throw of the object, as a user would make it: its principal moments' reported
