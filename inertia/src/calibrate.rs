@@ -671,20 +671,20 @@ pub fn parse_scale(s: &str) -> Result<ScaleFactor, String> {
     if s.eq_ignore_ascii_case("auto") {
         return Ok(ScaleFactor::Auto);
     }
-    match s.parse::<f64>() {
-        Ok(k) if k > 0.5 && k < 1.5 => Ok(ScaleFactor::Given(k)),
-        _ => Err(format!("{s}: `auto` or a scale factor between 0.5 and 1.5")),
-    }
+    factor_near_one(s)
+        .map(ScaleFactor::Given)
+        .ok_or_else(|| format!("{s}: `auto` or a scale factor between 0.5 and 1.5"))
+}
+
+/// A scale factor strictly within a half of 1, or `None`.
+fn factor_near_one(s: &str) -> Option<f64> {
+    s.parse::<f64>().ok().filter(|k| *k > 0.5 && *k < 1.5)
 }
 
 /// `--accel-scale`: a factor within a half of 1.
 pub fn parse_accel_scale(s: &str) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(k) if (0.5..=1.5).contains(&k) => Ok(k),
-        _ => Err(format!(
-            "{s}: an accelerometer scale factor between 0.5 and 1.5"
-        )),
-    }
+    factor_near_one(s)
+        .ok_or_else(|| format!("{s}: an accelerometer scale factor between 0.5 and 1.5"))
 }
 
 /// A recording with its accelerometer read through the scale `k`: the specific force
