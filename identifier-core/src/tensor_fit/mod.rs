@@ -168,7 +168,12 @@
 //! over the segments. It is kept when its likelihood-ratio test against the single trajectory
 //! passes (`shooting_found`), with a covariance never below the single trajectory's (the
 //! segments' sandwich sees the residual within one flight, not what moves a whole flight's
-//! answer). `scripts/bench-objects.sh` measures both fits on thrown objects of known inertia.
+//! answer). Where the single trajectory's own error is large that floor errs on the large
+//! side. Holding the segments' covariance at the floor of (F14), below, instead is not enough:
+//! a product of inertia of the proof body then claims more than its five throws' scatter
+//! allows (the test `thrown_fc_free_flights_found_hand_and_catch_excluded` of
+//! `inertia/tests/identify.rs`). `scripts/bench-objects.sh` measures both fits on thrown
+//! objects of known inertia.
 //!
 //! Neither the sandwich nor the segments see an error that the whole flight shares, and on a
 //! thrown body the slow residual can move every throw alike. Where the flight does not fit to
