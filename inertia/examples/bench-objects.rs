@@ -12,7 +12,10 @@
 //! --scale-of clock`, the default); the baselines, in the same process, are the same objects
 //! with the scale calibrated as a gyro's (`--scale-of gyro`), with the log as read
 //! (`--scale 1`), and with the accelerometer read through its reading at rest (`--accel-scale`
-//! the calibration throws' median `accel_at_rest_g`).
+//! the calibration throws' median `accel_at_rest_g`). Last, the calibration's geometry against
+//! the anchor's: the board's and each object's centre of mass from the IMU, the board's tensor
+//! diagonal, and what the difference in that diagonal is as a share of each object's (an object
+//! by difference takes the board's error whole).
 //!
 //! Usage: `cargo run --release -p inertia --example bench-objects [-- --poles 14] [--plot SVG]`
 //! (`scripts/bench-objects.sh`). Skips with a message when `../shared` is absent.
@@ -129,6 +132,8 @@ struct Row {
     zm: Vec<f64>,
     /// Each diagonal entry's relative error and relative std.
     rel: [(f64, f64); 3],
+    /// The object's centre of mass from the IMU, m, log frame (object by difference only).
+    com: Option<[f64; 3]>,
 }
 
 impl Row {
@@ -144,6 +149,7 @@ impl Row {
             z: z_scores(got, std, truth),
             zm: Vec::new(),
             rel: relative(got, std, truth),
+            com: None,
         }
     }
 
@@ -272,6 +278,7 @@ fn row(name: String, a: &CalibrateArgs, truth: &M3) -> Result<Row, String> {
         z: z_scores(&got, &std, truth),
         zm,
         rel: relative(&got, &std, truth),
+        com: rep.object_com_from_imu_m,
     })
 }
 
@@ -433,6 +440,28 @@ fn mean_max(v: impl Iterator<Item = f64>, unit: &str) -> String {
     format!("{mean:.2} / {max:.2} {unit}")
 }
 
+/// A table row of a centre of mass from the IMU (m, log frame) against the anchor's, in mm.
+fn com_line(what: &str, got: [f64; 3], anchor: [f64; 3]) -> String {
+    let mm = |v: [f64; 3]| {
+        format!(
+            "({:.2}, {:.2}, {:.2}) mm",
+            v[0] * 1e3,
+            v[1] * 1e3,
+            v[2] * 1e3
+        )
+    };
+    let d = (0..3)
+        .map(|k| (got[k] - anchor[k]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    format!(
+        "| {what} centre of mass from the IMU | {} | {} | {:.2} mm |",
+        mm(got),
+        mm(anchor),
+        d * 1e3
+    )
+}
+
 fn rms(v: &[f64]) -> f64 {
     (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
 }
@@ -448,6 +477,9 @@ fn main() {
         return;
     };
     let truth: serde_json::Value = serde_json::from_str(&truth).expect("truth.json");
+    // The centres of mass and the board's diagonal against the anchor's calibration.
+    let mut geometry: Vec<String> = Vec::new();
+    let mut board_diag: Option<[f64; 3]> = None;
     let calibrated = match run(&args(Vec::new(), 1.0, poles)) {
         Ok(c) => {
             println!(
@@ -463,6 +495,12 @@ fn main() {
             at_rest.sort_by(f64::total_cmp);
             let at_rest = at_rest.get(at_rest.len() / 2).copied().unwrap_or(1.0);
             println!("accelerometer at rest over the calibration throws: median {at_rest:.4} g");
+            geometry.push(com_line(
+                "board",
+                c.board_com_from_imu_m,
+                to_log(BOARD_COM_ANCHOR_M),
+            ));
+            board_diag = Some(std::array::from_fn(|i| c.board_tensor_kg_m2[i][i]));
             (
                 (c.scale_of == ScaleOf::Clock).then_some(Through {
                     j: c.rotor_inertia_kg_m2,
@@ -563,6 +601,20 @@ fn main() {
             &args(throws.clone(), mass, poles),
             &truth_m,
         );
+        if let Some(got) = pooled.as_ref().ok().and_then(|p| p.com) {
+            let anchor = to_log(com.map(|x| x * 1e-3));
+            geometry.push(com_line(&format!("{name} (pooled)"), got, anchor));
+        }
+        if let Some(d) = board_diag {
+            let b = tensor_to_log(&BOARD_ANCHOR);
+            let share: Vec<String> = (0..3)
+                .map(|i| format!("{:+.2} %", 100.0 * (d[i] - b[i][i]) / truth_m[i][i]))
+                .collect();
+            geometry.push(format!(
+                "| the board's diagonal less the anchor's, over {name}'s diagonal | | | {} |",
+                share.join(", ")
+            ));
+        }
         let z: Vec<f64> = ok.iter().flat_map(|r| r.z.iter().copied()).collect();
         let zm: Vec<f64> = ok.iter().flat_map(|r| r.zm.iter().copied()).collect();
         let (pm, pr, pf, pz) = match &pooled {
@@ -625,6 +677,37 @@ fn main() {
         }
         println!();
     }
+    if let Some(d) = board_diag {
+        let b = tensor_to_log(&BOARD_ANCHOR);
+        let fmt = |v: [f64; 3]| {
+            v.iter()
+                .map(|x| format!("{x:.4e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let rel: Vec<String> = (0..3)
+            .map(|i| format!("{:+.2} %", 100.0 * (d[i] / b[i][i] - 1.0)))
+            .collect();
+        geometry.insert(
+            1,
+            format!(
+                "| board tensor diagonal, kg m^2 | {} | {} | {} |",
+                fmt(d),
+                fmt([b[0][0], b[1][1], b[2][2]]),
+                rel.join(", ")
+            ),
+        );
+    }
+    println!(
+        "the calibration's geometry against the anchor's (log frame; the objects' centres are \
+         the anchor's figures in truth.json)"
+    );
+    println!("| what | this product | the anchor's | difference |");
+    println!("|---|---|---|---|");
+    for l in &geometry {
+        println!("{l}");
+    }
+    println!();
     println!("assembly per throw (inertia identify, the anchor's rotor inertia) against the anchor's board plus the object");
     println!("| object | throws | moments mean / max | rotation mean / max | Frobenius mean / max | RMS(error/std): entries, diagonal | pooled (`--input` every throw): moments | Frobenius | RMS(error/std): entries, diagonal |");
     println!("|---|---|---|---|---|---|---|---|---|");
