@@ -19,6 +19,7 @@
 //!
 //! Usage: `cargo run --release -p inertia --example bench-objects [-- --poles 14] [--plot SVG]`
 //! (`scripts/bench-objects.sh`). Skips with a message when `../shared` is absent.
+use plotters::prelude::*;
 use std::path::{Path, PathBuf};
 
 use inertia::calibrate::{
@@ -120,6 +121,7 @@ fn cross3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     ]
 }
 
+#[derive(Clone)]
 struct Row {
     name: String,
     frob: f64,
@@ -531,6 +533,8 @@ fn main() {
     let mut baseline_lines: Vec<Vec<String>> = vec![Vec::new(); baselines.len()];
 
     let mut plotted: Vec<(String, Vec<Row>)> = Vec::new();
+    // Each object's throws by difference, then its pooled result, for the plot's lower panel.
+    let mut plotted_objects: Vec<(String, Vec<Row>)> = Vec::new();
     for name in ["config_empty", "config_a"] {
         let o = &truth[name];
         let mass = o["mass_kg"].as_f64().unwrap_or(1.0);
@@ -601,6 +605,14 @@ fn main() {
             &args(throws.clone(), mass, poles),
             &truth_m,
         );
+        plotted_objects.push((
+            name.to_string(),
+            rows.iter()
+                .filter_map(|r| r.as_ref().ok())
+                .chain(pooled.as_ref().ok())
+                .cloned()
+                .collect(),
+        ));
         if let Some(got) = pooled.as_ref().ok().and_then(|p| p.com) {
             let anchor = to_log(com.map(|x| x * 1e-3));
             geometry.push(com_line(&format!("{name} (pooled)"), got, anchor));
@@ -727,32 +739,61 @@ fn main() {
         }
     }
     if let Some(path) = plot {
-        match draw(&path, &plotted) {
+        match draw(&path, &plotted, &plotted_objects) {
             Ok(()) => println!("\nplot: {}", path.display()),
             Err(e) => eprintln!("plot {}: {e}", path.display()),
         }
     }
 }
 
-/// Each assembly throw's diagonal entries, error relative to the truth with one reported
-/// standard deviation as a bar, object after object.
-fn draw(path: &Path, groups: &[(String, Vec<Row>)]) -> Result<(), Box<dyn std::error::Error>> {
-    use plotters::prelude::*;
-    let n: usize = groups.iter().map(|g| g.1.len()).sum();
-    let root = SVGBackend::new(path, (900, 420)).into_drawing_area();
+/// Two panels, object after object: each assembly throw's diagonal (`inertia identify`) and
+/// each object throw's by difference (`inertia calibrate`) with the pooled result last (a
+/// square), every entry's error relative to the truth with one reported standard deviation as
+/// a bar.
+fn draw(
+    path: &Path,
+    assembly: &[(String, Vec<Row>)],
+    objects: &[(String, Vec<Row>)],
+) -> Result<(), Box<dyn std::error::Error>> {
+    let root = SVGBackend::new(path, (900, 820)).into_drawing_area();
     root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            "assembly per throw (inertia identify): diagonal error against the truth, +- 1 reported std",
-            ("sans-serif", 16),
-        )
+    let (top, bottom) = root.split_vertically(410);
+    panel(
+        &top,
+        "assembly per throw (inertia identify): diagonal error against the truth, +- 1 reported std",
+        assembly,
+        false,
+    )?;
+    panel(
+        &bottom,
+        "object by difference per throw (inertia calibrate), pooled last (square): diagonal error, +- 1 reported std",
+        objects,
+        true,
+    )?;
+    root.present()?;
+    Ok(())
+}
+
+/// One panel of [`draw`]: `groups`' rows in order, each row's three diagonal entries side by
+/// side; with `pooled_last`, each group's last row is drawn as a square.
+fn panel(
+    area: &DrawingArea<SVGBackend, plotters::coord::Shift>,
+    caption: &str,
+    groups: &[(String, Vec<Row>)],
+    pooled_last: bool,
+) -> Result<(), Box<dyn std::error::Error>> {
+    let n: usize = groups.iter().map(|g| g.1.len()).sum();
+    let names: Vec<&str> = groups.iter().map(|g| g.0.as_str()).collect();
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, ("sans-serif", 15))
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(60)
-        .build_cartesian_2d(-0.5f64..n as f64 - 0.5, -10.0f64..10.0)?;
+        // Four throws' width past the last for the legend.
+        .build_cartesian_2d(-0.5f64..n as f64 + 3.5, -10.0f64..10.0)?;
     chart
         .configure_mesh()
-        .x_desc("throw (config_empty, then config_a)")
+        .x_desc(format!("throw ({})", names.join(", then ")))
         .y_desc("error, % of the true moment")
         .draw()?;
     for (k, (colour, label)) in [RED, GREEN, BLUE]
@@ -763,30 +804,43 @@ fn draw(path: &Path, groups: &[(String, Vec<Row>)]) -> Result<(), Box<dyn std::e
         let mut pts = Vec::new();
         let mut x = 0.0;
         for (_, rows) in groups {
-            for r in rows {
+            for (i, r) in rows.iter().enumerate() {
                 let (e, s) = r.rel[k];
-                pts.push((x + (k as f64 - 1.0) * 0.2, e * 100.0, s * 100.0));
+                let last = pooled_last && i + 1 == rows.len();
+                pts.push((x + (k as f64 - 1.0) * 0.2, e * 100.0, s * 100.0, last));
                 x += 1.0;
             }
         }
         chart
-            .draw_series(
-                pts.iter().map(|&(x, e, s)| {
-                    ErrorBar::new_vertical(x, e - s, e, e + s, colour.filled(), 6)
-                }),
-            )?
+            .draw_series(pts.iter().map(|&(x, e, s, _)| {
+                ErrorBar::new_vertical(x, e - s, e, e + s, colour.filled(), 6)
+            }))?
             .label(label)
             .legend(move |(x, y)| Circle::new((x, y), 4, colour.filled()));
+        chart.draw_series(pts.iter().filter(|p| p.3).map(|&(x, e, _, _)| {
+            Rectangle::new(
+                [(x - 0.08, e - 0.35), (x + 0.08, e + 0.35)],
+                colour.filled(),
+            )
+        }))?;
     }
     chart.draw_series(std::iter::once(PathElement::new(
         vec![(-0.5, 0.0), (n as f64 - 0.5, 0.0)],
         BLACK,
     )))?;
+    // A grey line between one object's throws and the next's.
+    let mut edge = 0.0;
+    for (_, rows) in groups.iter().take(groups.len().saturating_sub(1)) {
+        edge += rows.len() as f64;
+        chart.draw_series(std::iter::once(PathElement::new(
+            vec![(edge - 0.5, -10.0), (edge - 0.5, 10.0)],
+            BLACK.mix(0.4),
+        )))?;
+    }
     chart
         .configure_series_labels()
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()?;
-    root.present()?;
     Ok(())
 }
