@@ -481,7 +481,8 @@ fn main() {
     let truth: serde_json::Value = serde_json::from_str(&truth).expect("truth.json");
     // The centres of mass and the board's diagonal against the anchor's calibration.
     let mut geometry: Vec<String> = Vec::new();
-    let mut board_diag: Option<[f64; 3]> = None;
+    // The board's diagonal less the anchor's, kg m^2.
+    let mut board_less_anchor: Option<[f64; 3]> = None;
     let calibrated = match run(&args(Vec::new(), 1.0, poles)) {
         Ok(c) => {
             println!(
@@ -502,7 +503,20 @@ fn main() {
                 c.board_com_from_imu_m,
                 to_log(BOARD_COM_ANCHOR_M),
             ));
-            board_diag = Some(std::array::from_fn(|i| c.board_tensor_kg_m2[i][i]));
+            let d: [f64; 3] = std::array::from_fn(|i| c.board_tensor_kg_m2[i][i]);
+            let b = tensor_to_log(&BOARD_ANCHOR);
+            let b = [b[0][0], b[1][1], b[2][2]];
+            let fmt = |v: [f64; 3]| v.map(|x| format!("{x:.4e}")).join(", ");
+            let rel = (0..3)
+                .map(|i| format!("{:+.2} %", 100.0 * (d[i] / b[i] - 1.0)))
+                .collect::<Vec<_>>()
+                .join(", ");
+            geometry.push(format!(
+                "| board tensor diagonal, kg m^2 | {} | {} | {rel} |",
+                fmt(d),
+                fmt(b)
+            ));
+            board_less_anchor = Some(std::array::from_fn(|i| d[i] - b[i]));
             (
                 (c.scale_of == ScaleOf::Clock).then_some(Through {
                     j: c.rotor_inertia_kg_m2,
@@ -617,10 +631,9 @@ fn main() {
             let anchor = to_log(com.map(|x| x * 1e-3));
             geometry.push(com_line(&format!("{name} (pooled)"), got, anchor));
         }
-        if let Some(d) = board_diag {
-            let b = tensor_to_log(&BOARD_ANCHOR);
+        if let Some(diff) = board_less_anchor {
             let share: Vec<String> = (0..3)
-                .map(|i| format!("{:+.2} %", 100.0 * (d[i] - b[i][i]) / truth_m[i][i]))
+                .map(|i| format!("{:+.2} %", 100.0 * diff[i] / truth_m[i][i]))
                 .collect();
             geometry.push(format!(
                 "| the board's diagonal less the anchor's, over {name}'s diagonal | | | {} |",
@@ -688,27 +701,6 @@ fn main() {
             println!("{l}");
         }
         println!();
-    }
-    if let Some(d) = board_diag {
-        let b = tensor_to_log(&BOARD_ANCHOR);
-        let fmt = |v: [f64; 3]| {
-            v.iter()
-                .map(|x| format!("{x:.4e}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
-        let rel: Vec<String> = (0..3)
-            .map(|i| format!("{:+.2} %", 100.0 * (d[i] / b[i][i] - 1.0)))
-            .collect();
-        geometry.insert(
-            1,
-            format!(
-                "| board tensor diagonal, kg m^2 | {} | {} | {} |",
-                fmt(d),
-                fmt([b[0][0], b[1][1], b[2][2]]),
-                rel.join(", ")
-            ),
-        );
     }
     println!(
         "the calibration's geometry against the anchor's (log frame; the objects' centres are \
