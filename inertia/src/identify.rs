@@ -200,8 +200,13 @@ pub struct Report {
     pub rate_hz: f32,
     /// Gyro white noise used as the floor of the uncertainty, rad/s.
     pub noise_std: f32,
-    /// Gyro bias removed (from the last still window before the last throw), rad/s.
+    /// Gyro bias removed (the mean over the log's longest still run), rad/s; zero when
+    /// none was measured ([`Report::gyro_bias_measured`]).
     pub gyro_bias: [f32; 3],
+    /// Whether a still stretch before the throws gave the bias in [`Report::gyro_bias`]: when
+    /// false nothing was removed, and a constant bias is left to the end-of-flight fits' own
+    /// test (the report warns).
+    pub gyro_bias_measured: bool,
     /// Whether the free flights were found from the accelerometer (else the whole log or the
     /// given segments were taken).
     pub free_flight_detection: bool,
@@ -258,6 +263,14 @@ pub struct Report {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gyro_bias_walk_rad_s_per_sqrt_s: Option<f32>,
 }
+
+/// The warning of a report whose log has no still stretch before its throws (or no
+/// accelerometer to find one with).
+pub const NO_BIAS_WARNING: &str =
+    "no still stretch of the gyro before the throws: no bias was measured or removed \
+     (gyro_bias is zero); a constant bias of a few mrad/s looks like products of inertia the body \
+     need not have, and only the end-of-flight fits' own bias test guards the tensor (hold the \
+     body still for a second before the first throw)";
 
 /// The fit's residual, in counts of the gyro's grid, below which `identify` also fits the
 /// readings moved to their cells' centres ((Q1) of [`crate::grid`]): above it the rounding's
@@ -776,6 +789,9 @@ fn identify_pass(
         }
     }
     warnings.extend(scale_floor_warning(&pooled_json));
+    if pooled.bias.is_none() {
+        warnings.push(NO_BIAS_WARNING.into());
+    }
     // The walk's step is per pipeline sample (the log's rate over the decimation).
     let walk = (pooled.bias_walk > 0.0)
         .then(|| pooled.bias_walk * (settings.rate_hz / f32::from(settings.decimation)).sqrt());
@@ -792,6 +808,7 @@ fn identify_pass(
         rate_hz: rate,
         noise_std: noise,
         gyro_bias: pooled.bias.unwrap_or([0.0; 3]),
+        gyro_bias_measured: pooled.bias.is_some(),
         free_flight_detection: detection,
         rotor_momentum_quantum: (quantum > 0.0).then_some(quantum),
         gravity_gradient: false,

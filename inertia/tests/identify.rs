@@ -615,6 +615,79 @@ fn bench_toss_bench(path: &Path, accel: f64) {
     std::fs::write(path, s).unwrap();
 }
 
+/// A log that is all free flight has no still stretch to measure the gyro's bias on: the
+/// report says so (`gyro_bias_measured` false, a warning), where the same flight between two
+/// still benches has its bias measured and no such warning.
+#[test]
+fn a_log_without_a_still_bench_says_its_bias_was_not_measured() {
+    const G: f64 = 9.80665;
+    let d = out_dir();
+    let rate = 500.0;
+    let bias = [4e-3, -3e-3, 2e-3];
+    let still = toss(MOM, [0.0; 3], rate, 1.0, 2e-3, 31);
+    let free = toss(MOM, [1.0, 1.0, 1.0], rate, 4.0, 2e-3, 32);
+    let after = toss(MOM, [0.0; 3], rate, 1.0, 2e-3, 33);
+    let write = |p: &Path, parts: &[(&Vec<[f64; 4]>, f64)]| {
+        let mut s = String::from("t,wx,wy,wz,ax,ay,az\n");
+        let mut k = 0usize;
+        for (rows, f) in parts {
+            for r in rows.iter() {
+                let t = k as f64 / rate;
+                let (x, y, z) = (r[1] + bias[0], r[2] + bias[1], r[3] + bias[2]);
+                s += &format!("{t},{x},{y},{z},0,0,{f}\n");
+                k += 1;
+            }
+        }
+        std::fs::write(p, s).unwrap();
+    };
+    let warned = |v: &serde_json::Value| {
+        v["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap_or("").contains("no still stretch"))
+    };
+
+    let p = d.join("bias-bench.csv");
+    write(&p, &[(&still, G), (&free, 0.0), (&after, G)]);
+    let (code, v, err) = run(
+        &["--input", p.to_str().unwrap()],
+        &d.join("bias-bench.json"),
+    );
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(v["gyro_bias_measured"], true, "{err}");
+    assert!(!warned(&v), "{:?}", v["warnings"]);
+    let b: Vec<f64> = (0..3)
+        .map(|i| v["gyro_bias"][i].as_f64().unwrap())
+        .collect();
+    for i in 0..3 {
+        assert!((b[i] - bias[i]).abs() < 1e-3, "bias {b:?} against {bias:?}");
+    }
+
+    let p = d.join("bias-none.csv");
+    write(&p, &[(&free, 0.0)]);
+    let (code, v, err) = run(&["--input", p.to_str().unwrap()], &d.join("bias-none.json"));
+    println!("no bench: {} / {:?}", v["pooled"]["status"], v["warnings"]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(v["gyro_bias_measured"], false);
+    assert_eq!(v["gyro_bias"], serde_json::json!([0.0, 0.0, 0.0]));
+    assert!(warned(&v), "{:?}", v["warnings"]);
+    // The end-of-flight fit found the bias itself: whatever its status, `a` is within its std.
+    let (a, sd) = a_of(&v).unwrap();
+    let t = truth();
+    for i in 0..3 {
+        let z = (a[i] - t[i]) / sd[i];
+        println!(
+            "a{} {:.5} truth {:.5} std {:.2e} z {z:.2}",
+            i + 1,
+            a[i],
+            t[i],
+            sd[i]
+        );
+        assert!(z.abs() < 5.0);
+    }
+}
+
 /// An accelerometer in g or milli-g where m/s^2 is expected: the gate's thresholds mean nothing
 /// then (in g a hand's motion would pass for free flight), so the tool says which unit it
 /// looks like and nothing comes out `Converged`; in m/s^2, or declared with `--accel-unit`,

@@ -40,6 +40,7 @@ fn report(tensor: Option<[[f32; 3]; 3]>, status: &str) -> Report {
         rate_hz: 2000.0,
         noise_std: 2e-3,
         gyro_bias: [0.0; 3],
+        gyro_bias_measured: false,
         free_flight_detection: false,
         rotor_momentum_quantum: None,
         gravity_gradient: false,

@@ -218,12 +218,16 @@ pub(super) fn identify(rec: &Recording, opts: &IdentifyOptions) -> Result<Report
         ));
     }
     warnings.extend(super::scale_floor_warning(&pooled));
+    if !bias_measured {
+        warnings.push(super::NO_BIAS_WARNING.into());
+    }
     Ok(Report {
         input: rec.source.clone(),
         log_samples: n,
         rate_hz: rate,
         noise_std: noise,
         gyro_bias: bias,
+        gyro_bias_measured: bias_measured,
         free_flight_detection: detection,
         rotor_momentum_quantum: (quantum > 0.0).then_some(quantum),
         gravity_gradient: false,
