@@ -15,7 +15,9 @@
 //! the calibration throws' median `accel_at_rest_g`). Last, the calibration's geometry against
 //! the anchor's: the board's and each object's centre of mass from the IMU, the board's tensor
 //! diagonal, and what the difference in that diagonal is as a share of each object's (an object
-//! by difference takes the board's error whole).
+//! by difference takes the board's error whole). Then the turn about z each body's principal
+//! axes have against the truth's, from its throws' `xy` entries, and the objects' throws against
+//! the truth turned by their common angle: a diagnosis of the truth's alignment.
 //!
 //! Usage: `cargo run --release -p inertia --example bench-objects [-- --poles 14] [--plot SVG]`
 //! (`scripts/bench-objects.sh`). Skips with a message when `../shared` is absent.
@@ -136,6 +138,9 @@ struct Row {
     rel: [(f64, f64); 3],
     /// The object's centre of mass from the IMU, m, log frame (object by difference only).
     com: Option<[f64; 3]>,
+    /// The tensor and its entries' standard deviations.
+    got: M3,
+    std: M3,
 }
 
 impl Row {
@@ -152,6 +157,8 @@ impl Row {
             zm: Vec::new(),
             rel: relative(got, std, truth),
             com: None,
+            got: *got,
+            std: *std,
         }
     }
 
@@ -281,6 +288,8 @@ fn row(name: String, a: &CalibrateArgs, truth: &M3) -> Result<Row, String> {
         zm,
         rel: relative(&got, &std, truth),
         com: rep.object_com_from_imu_m,
+        got,
+        std,
     })
 }
 
@@ -464,6 +473,37 @@ fn com_line(what: &str, got: [f64; 3], anchor: [f64; 3]) -> String {
     )
 }
 
+/// The turn about z that a tensor's `xy` entry says its principal axes in the xy plane have
+/// against the nearest of the frame's axes, `theta = atan(2 J_xy / (J_xx - J_yy)) / 2` (for
+/// `R_z(theta) D R_z(theta)^T` of a diagonal `D`, `J_xy = sin(2 theta) (D_xx - D_yy) / 2`),
+/// with its standard deviation from the `xy` entry's, both in degrees.
+fn yaw_deg(r: &Row) -> (f64, f64) {
+    let (j, s) = (&r.got, &r.std);
+    let d = j[0][0] - j[1][1];
+    let theta = 0.5 * (2.0 * j[0][1] / d).atan();
+    (theta.to_degrees(), (s[0][1] / d.abs()).to_degrees())
+}
+
+/// `truth` turned about z by `deg`: `R_z T R_z^T`.
+fn turned_about_z(truth: &M3, deg: f64) -> M3 {
+    let (s, c) = deg.to_radians().sin_cos();
+    let r = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]];
+    std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            (0..3)
+                .map(|k| (0..3).map(|l| r[i][k] * truth[k][l] * r[j][l]).sum::<f64>())
+                .sum()
+        })
+    })
+}
+
+/// Inverse-variance mean of `(value, std)` pairs and its standard deviation.
+fn weighted_mean(v: &[(f64, f64)]) -> (f64, f64) {
+    let w: f64 = v.iter().map(|(_, s)| 1.0 / (s * s)).sum();
+    let m: f64 = v.iter().map(|(x, s)| x / (s * s)).sum::<f64>() / w;
+    (m, w.sqrt().recip())
+}
+
 fn rms(v: &[f64]) -> f64 {
     (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
 }
@@ -549,6 +589,8 @@ fn main() {
     let mut plotted: Vec<(String, Vec<Row>)> = Vec::new();
     // Each object's throws by difference, then its pooled result, for the plot's lower panel.
     let mut plotted_objects: Vec<(String, Vec<Row>)> = Vec::new();
+    // Each object's truth and its throws by difference, for the axes' turn about z.
+    let mut yawed: Vec<(String, M3, Vec<Row>)> = Vec::new();
     for name in ["config_empty", "config_a"] {
         let o = &truth[name];
         let mass = o["mass_kg"].as_f64().unwrap_or(1.0);
@@ -626,6 +668,11 @@ fn main() {
                 .chain(pooled.as_ref().ok())
                 .cloned()
                 .collect(),
+        ));
+        yawed.push((
+            name.to_string(),
+            truth_m,
+            ok.iter().map(|r| (*r).clone()).collect(),
         ));
         if let Some(got) = pooled.as_ref().ok().and_then(|p| p.com) {
             let anchor = to_log(com.map(|x| x * 1e-3));
@@ -730,11 +777,74 @@ fn main() {
             println!("{l}");
         }
     }
+    yaw_table(&yawed, poles);
     if let Some(path) = plot {
         match draw(&path, &plotted, &plotted_objects) {
             Ok(()) => println!("\nplot: {}", path.display()),
             Err(e) => eprintln!("plot {}: {e}", path.display()),
         }
+    }
+}
+
+/// The objects' axes about z: the turn each throw's `xy` entry implies ([`yaw_deg`]), its
+/// inverse-variance mean per object and over both (the objects share their base plate), the
+/// proof body's (its throws by difference, against its cuboid) beside them, and every object
+/// throw's RMS(error/std) and rotation with the truth turned by the common angle. A diagnosis
+/// of the truth's alignment, not a result: the product is never given the angle.
+fn yaw_table(yawed: &[(String, M3, Vec<Row>)], poles: u32) {
+    println!();
+    println!(
+        "the principal axes' turn about z each body's xy entry implies (by difference, \
+         inverse-variance mean of its throws)"
+    );
+    println!("| body | throws | turn about z, deg | spread of the throws' turns, deg |");
+    println!("|---|---|---|---|");
+    let mut all = Vec::new();
+    let line = |name: &str, v: &[(f64, f64)]| {
+        let (m, s) = weighted_mean(v);
+        let spread = rms(&v.iter().map(|(x, _)| x - m).collect::<Vec<_>>());
+        println!("| {name} | {} | {m:+.2} +- {s:.2} | {spread:.2} |", v.len());
+    };
+    for (name, _, rows) in yawed {
+        let v: Vec<(f64, f64)> = rows.iter().map(yaw_deg).collect();
+        line(name, &v);
+        all.extend(v);
+    }
+    let proof = proof_log_frame();
+    let proof_truth: M3 =
+        std::array::from_fn(|r| std::array::from_fn(|c| if r == c { proof[r] } else { 0.0 }));
+    let proof_rows = object_rows(&logs("proof_body"), 0.346, poles, DEFAULT, &proof_truth);
+    let pv: Vec<(f64, f64)> = proof_rows
+        .iter()
+        .filter_map(|r| r.as_ref().ok())
+        .map(yaw_deg)
+        .collect();
+    line("proof body (its own throws)", &pv);
+    if all.is_empty() {
+        return;
+    }
+    let (common, _) = weighted_mean(&all);
+    println!(
+        "objects by difference per throw against the truth turned {common:+.2} deg about z (both \
+         objects' common turn; every other figure above is against the truth as given)"
+    );
+    println!("| object | RMS(error/std): entries, as given / turned | rotation mean, as given / turned |");
+    println!("|---|---|---|");
+    for (name, truth, rows) in yawed {
+        let t = turned_about_z(truth, common);
+        let z0: Vec<f64> = rows.iter().flat_map(|r| r.z.iter().copied()).collect();
+        let z1: Vec<f64> = rows
+            .iter()
+            .flat_map(|r| z_scores(&r.got, &r.std, &t))
+            .collect();
+        let n = rows.len().max(1) as f64;
+        let r0 = rows.iter().map(|r| r.rotation).sum::<f64>() / n;
+        let r1 = rows.iter().map(|r| rotation_error(&r.got, &t)).sum::<f64>() / n;
+        println!(
+            "| {name} | {:.2} / {:.2} | {r0:.2} / {r1:.2} deg |",
+            rms(&z0),
+            rms(&z1)
+        );
     }
 }
 
