@@ -132,6 +132,8 @@ p = json.load(open(f"{d}/identify.json"))["pooled"]
 diffs = []
 if p["status"] != fw["status"]: diffs.append(f"status {p['status']} / {fw['status']}")
 if p["samples"] != fw["samples_fed"]: diffs.append(f"samples {p['samples']} / {fw['samples_fed']}")
+for k in ("tensor_uncertainty", "tensor_usable"):
+    if p[k] != fw[k]: diffs.append(f"{k} {p[k]} / {fw[k]}")
 for k_id, k_fw in (("a", "a"), ("std_a", "std_a"), ("tensor_kg_m2", "tensor_kg_m2")):
     if bits(p[k_id]) != bits(fw[k_fw]): diffs.append(f"{k_id} {p[k_id]} / {fw[k_fw]}")
 # UART telemetry == defmt (the firmware's final tensor lines carry the bits).
@@ -151,12 +153,14 @@ if not st or st[-1][0] != fw["status"] or int(st[-1][1]) != fw["throws_detected"
 verdict = "equal" if not diffs else "different"
 a = fw["a"]
 astr = "none" if a is None else "[" + ", ".join(f"{v:.4f}" for v in a) + "]"
-print(f"{verdict}: {fw['throws_detected']} free flights on board, {fw['samples_fed']} samples fed, {fw['status']}, a={astr}; UART=defmt: {'yes' if not tel else '; '.join(tel)}" + ("" if not diffs else " | " + "; ".join(diffs)))
+use = ", usable" if fw["tensor_usable"] else ""
+print(f"{verdict}: {fw['throws_detected']} free flights on board, {fw['samples_fed']} samples fed, {fw['status']}{use}, a={astr}; UART=defmt: {'yes' if not tel else '; '.join(tel)}" + ("" if not diffs else " | " + "; ".join(diffs)))
 PY
 )"
     case "$line" in equal*"UART=defmt: yes"*) ;; equal*"no free flight"*) ;; *) fail=1 ;; esac
     case "$name" in bad_*)
-        case "$line" in *Converged,*) line="$line  <- a bad log came out Converged"; fail=1 ;; esac ;;
+        case "$line" in *Converged,*) line="$line  <- a bad log came out Converged"; fail=1 ;; esac
+        case "$line" in *", usable,"*) line="$line  <- a bad log came out usable"; fail=1 ;; esac ;;
     esac
     results+=("$(printf '%-18s %s' "$name" "$line")")
     echo "$(printf '%-18s %s' "$name" "$line")"

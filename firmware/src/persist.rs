@@ -186,6 +186,8 @@ mod tests {
                 fed: 1000 * k,
                 not_fed: 0,
                 in_free_flight: false,
+                uncertainty: 0,
+                usable: true,
             }),
         }
     }

@@ -3,7 +3,7 @@
 //! under QEMU (USART1 of `netduinoplus2`, captured with `-serial file:...`). The host decodes a
 //! capture with `inertia telemetry --input FILE`.
 
-use identifier_core::{Convergence, Status};
+use identifier_core::{Convergence, Status, Uncertainty};
 
 use crate::app::{LoopCounters, Report, SensorStatus};
 
@@ -26,6 +26,15 @@ pub fn tensor_status_code(s: Status) -> u8 {
         Status::Converging => 6,
         Status::Converged => 7,
         Status::NoInformation => 8,
+    }
+}
+
+/// The code of an uncertainty in [`telemetry::TENSOR_UNCERTAINTY`].
+pub fn uncertainty_code(u: Uncertainty) -> u8 {
+    match u {
+        Uncertainty::Noise => 0,
+        Uncertainty::Residual => 1,
+        Uncertainty::Unaccounted => 2,
     }
 }
 
@@ -88,6 +97,8 @@ pub fn tensor(t: &crate::app::TensorReport) -> telemetry::Tensor {
         fed: t.fed,
         not_fed: t.not_fed,
         in_free_flight: t.in_free_flight,
+        uncertainty: uncertainty_code(t.uncertainty),
+        usable: t.usable,
     }
 }
 
@@ -172,5 +183,16 @@ mod tests {
             assert_eq!(name, std::format!("{s:?}"));
         }
         assert_eq!(telemetry::TENSOR_STATUS.len(), all.len());
+        let all = [
+            Uncertainty::Noise,
+            Uncertainty::Residual,
+            Uncertainty::Unaccounted,
+        ];
+        for (code, u) in all.into_iter().enumerate() {
+            assert_eq!(usize::from(uncertainty_code(u)), code, "{u:?}");
+            let name = telemetry::TENSOR_UNCERTAINTY[code];
+            assert_eq!(name, std::format!("{u:?}"));
+        }
+        assert_eq!(telemetry::TENSOR_UNCERTAINTY.len(), all.len());
     }
 }

@@ -9,6 +9,7 @@ use host_tests::crb_tensor::a_of_tensor;
 use host_tests::throw_sim::{board_throw_config, simulate};
 use identifier_core::{
     FlightPipeline, PipelineSettings, RatioSource, Status, StretchOutcome, TensorMethod,
+    Uncertainty,
 };
 
 const IDX: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)];
@@ -226,6 +227,9 @@ fn a_rotor_telemetry_wrong_before_the_spin_up_is_flagged_with_its_error_covered(
             "seed {seed}: no bias fitted"
         );
         assert_eq!(e.status, Status::ModelMismatch, "seed {seed}");
+        // Its standard deviations come from the residual seen: usable with them.
+        assert_eq!(e.uncertainty, Uncertainty::Residual, "seed {seed}");
+        assert!(e.uncertainty.usable(e.status), "seed {seed}");
         worst = worst.max(err);
         worst_z = worst_z.max(z);
     }

@@ -129,6 +129,6 @@ pub use status::{Counters, Estimate, SampleStatus};
 pub use status::{Exposure, Status, Verdict};
 pub use tensor::{
     TensorCounters, TensorEstimate, TensorEstimator, TensorMethod, TensorModel, TensorSettings,
-    MAX_STEP_TURN_RAD,
+    Uncertainty, MAX_STEP_TURN_RAD,
 };
 pub use tensor_fit::{FlightTensorFit, TensorFit, TensorFitEstimate};

@@ -23,6 +23,7 @@ use crate::refined_bias::RefinedBias;
 use crate::status::{physically_possible, precise, SampleStatus, Status};
 use crate::tensor::{
     products_wald, TensorEstimate, TensorEstimator, TensorMethod, TensorModel, TensorSettings,
+    Uncertainty,
 };
 use crate::tensor_fit::{FlightTensorFit, TensorFit};
 
@@ -526,6 +527,7 @@ impl<const N: usize> Pipeline<N> {
         let principal = self.principal_axes(&own);
         if (self.torque_suspected(principal) || self.not_rigid(principal)) && converged(t.status) {
             t.status = Status::ModelMismatch;
+            t.uncertainty = Uncertainty::Unaccounted;
         }
         if self.bias_unknown(&t) && t.status == Status::Converged {
             t.status = Status::Converging;
@@ -541,6 +543,7 @@ impl<const N: usize> Pipeline<N> {
             r.source == RatioSource::RefinedBias && t.method == TensorMethod::EquationError;
         if unmodelled_bias && converged(t.status) {
             t.status = Status::ModelMismatch;
+            t.uncertainty = Uncertainty::Unaccounted;
         }
         // An accelerometer not in m/s^2 (`AccelUnits`): the gate's free flights and bias
         // mean nothing, so neither does what was fitted to them.

@@ -258,6 +258,56 @@ pub struct TensorEstimate {
     pub stretches: u32,
     /// Which estimator gave the tensor.
     pub method: TensorMethod,
+    /// Where the standard deviations come from, and so whether they count what the residual
+    /// shows.
+    pub uncertainty: Uncertainty,
+}
+
+/// Where a [`TensorEstimate`]'s standard deviations come from. With the status it says how
+/// far the estimate is to be used: `Converged` with [`Uncertainty::Noise`] fits to the gyro's
+/// noise; `ModelMismatch` with [`Uncertainty::Residual`] fits to its stated uncertainty (the
+/// model lacks an effect, and the standard deviations count the error it leaves); any other
+/// `ModelMismatch` is indicative only.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Uncertainty {
+    /// The gyro's white noise: the residual is the noise's, and the covariance is the inverse
+    /// information times its variance (the Cramer-Rao bound of white noise).
+    Noise,
+    /// The residual actually seen, its level and its correlation: the output-error fit's
+    /// covariance inflated by the sandwich of its scores ((F10) of [`crate::TensorFit`]),
+    /// multiple shooting's over its segments ((F11)), never below the walk of the output's
+    /// ((F14)).
+    Residual,
+    /// An error the standard deviations do not count: the per-sample equation error scaled by
+    /// its residual's level alone (a coloured residual claims more information than the
+    /// flight holds), or a model error another test found (a torque, a body that is not
+    /// rigid, a gyro bias the model lacks).
+    Unaccounted,
+}
+
+impl Uncertainty {
+    /// Whether an estimate of status `status` and this uncertainty is to be used with its
+    /// standard deviations: `Converged`, or `ModelMismatch` with [`Uncertainty::Residual`].
+    ///
+    /// ```
+    /// use identifier_core::{Status, Uncertainty};
+    /// // A flight the model does not explain, its covariance from the residual seen.
+    /// assert!(Uncertainty::Residual.usable(Status::ModelMismatch));
+    /// // The same status where the standard deviations do not count the mismatch.
+    /// assert!(!Uncertainty::Unaccounted.usable(Status::ModelMismatch));
+    /// assert!(!Uncertainty::Noise.usable(Status::ModelMismatch));
+    /// // Whatever the uncertainty, a clipped throw or one still converging is not.
+    /// assert!(!Uncertainty::Residual.usable(Status::Saturated));
+    /// assert!(!Uncertainty::Residual.usable(Status::Converging));
+    /// assert!(Uncertainty::Noise.usable(Status::Converged));
+    /// ```
+    pub const fn usable(self, status: Status) -> bool {
+        matches!(
+            (status, self),
+            (Status::Converged, _) | (Status::ModelMismatch, Uncertainty::Residual)
+        )
+    }
 }
 
 /// Which estimator gave a [`TensorEstimate`]'s tensor.
@@ -902,6 +952,7 @@ impl TensorEstimator {
             samples,
             stretches,
             method: TensorMethod::EquationError,
+            uncertainty: Uncertainty::Noise,
         };
         let c = &self.counters;
         if c.implausible > 0 || c.gaps.saturating_mul(10) > c.used {
@@ -1071,6 +1122,13 @@ impl TensorEstimator {
         if !fits && matches!(out.status, Status::Converged | Status::Converging) {
             out.status = Status::ModelMismatch;
         }
+        // Beyond the noise (or coloured) the fit's covariance is the residual's ((F10),
+        // (F11), (F14) of the fit), whatever the momentum's reading.
+        out.uncertainty = if residual_ratio <= OUTPUT_ERROR_FIT_RATIO && !coloured {
+            Uncertainty::Noise
+        } else {
+            Uncertainty::Residual
+        };
         out
     }
 
@@ -1185,6 +1243,13 @@ impl TensorEstimator {
             } else {
                 Status::Converging
             }
+        };
+        // The covariance above is scaled by the residual's level alone: beyond the mismatch
+        // ratio the residual is no white noise, and that level does not count its correlation.
+        out.uncertainty = if out.residual_ratio > self.settings.mismatch_ratio {
+            Uncertainty::Unaccounted
+        } else {
+            Uncertainty::Noise
         };
         out
     }

@@ -135,6 +135,15 @@ pub struct EstimateJson {
     /// Which estimator gave the tensor: `OutputError` (the trajectory fitted once the flight
     /// ended, when it fits to the noise) or `EquationError` (the per-sample estimator).
     pub tensor_method: String,
+    /// Where the tensor's standard deviations come from (`identifier_core::Uncertainty`):
+    /// `Noise` (the gyro's white noise: the model fits to it), `Residual` (the residual seen,
+    /// its level and its correlation: the estimate fits to its stated uncertainty) or
+    /// `Unaccounted` (an error they do not count: indicative only).
+    pub tensor_uncertainty: String,
+    /// Whether the tensor is to be used with its standard deviations: `tensor_status`
+    /// `Converged`, or `ModelMismatch` with `tensor_uncertainty` `Residual`
+    /// (`identifier_core::Uncertainty::usable`).
+    pub tensor_usable: bool,
     /// `Full` or `Principal` (products of inertia insignificant and set to zero).
     pub model: String,
     /// `J`, kg m^2, when a rotor momentum fixes the scale; else null.
@@ -173,6 +182,8 @@ impl EstimateJson {
             a_source: format!("{:?}", r.source),
             tensor_status: format!("{:?}", e.status),
             tensor_method: format!("{:?}", e.method),
+            tensor_uncertainty: format!("{:?}", e.uncertainty),
+            tensor_usable: e.uncertainty.usable(e.status),
             model: format!("{:?}", e.model),
             tensor_kg_m2: e.tensor,
             tensor_std_kg_m2: e.tensor_std,
@@ -768,6 +779,7 @@ fn identify_pass(
         for j in throws.iter_mut().map(|(_, j)| j).chain([&mut pooled_json]) {
             j.status.clone_from(&wrong);
             j.tensor_status.clone_from(&wrong);
+            j.tensor_usable = false;
         }
     }
     if status != Status::Converged {

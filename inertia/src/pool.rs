@@ -272,6 +272,26 @@ fn pooled_estimate(
     if tensor_status == "Converged" && !consistent {
         tensor_status = "ModelMismatch".into();
     }
+    // The pooled covariance is the logs' (scaled up when they scatter, floored by what they
+    // share where they do not fit to the noise): the residual's unless some log's
+    // standard deviations leave an error uncounted.
+    let uncertainty = if reports
+        .iter()
+        .any(|r| r.pooled.tensor_uncertainty == "Unaccounted")
+    {
+        "Unaccounted"
+    } else if reports
+        .iter()
+        .all(|r| r.pooled.tensor_uncertainty == "Noise")
+        && consistent
+    {
+        "Noise"
+    } else {
+        "Residual"
+    };
+    let usable = (tensor_status == "Converged"
+        || (tensor_status == "ModelMismatch" && uncertainty == "Residual"))
+        && reports.iter().all(|r| r.pooled.tensor_usable);
     let first = &reports[0].pooled;
     let last = &reports[reports.len() - 1].pooled;
     EstimateJson {
@@ -282,6 +302,8 @@ fn pooled_estimate(
         a_source: "Tensor".into(),
         tensor_status,
         tensor_method: first.tensor_method.clone(),
+        tensor_uncertainty: uncertainty.into(),
+        tensor_usable: usable,
         model: first.model.clone(),
         tensor_kg_m2: Some(t32),
         tensor_std_kg_m2: Some(std),

@@ -22,6 +22,11 @@ pub struct ReportLine<'a> {
 pub struct FinalEstimate {
     /// The tensor estimate's status (`Converged` only when it is to be trusted).
     pub status: &'static str,
+    /// Where the tensor's standard deviations come from (`Noise`, `Residual`, `Unaccounted`:
+    /// identifier-core's `Uncertainty`).
+    pub tensor_uncertainty: &'static str,
+    /// The tensor is to be used with its standard deviations (`Uncertainty::usable`).
+    pub tensor_usable: bool,
     /// The paper's ratios from the tensor.
     pub a: Option<[f32; 3]>,
     /// Their standard deviations.
@@ -49,6 +54,8 @@ pub fn final_estimate(r: &::telemetry::Report) -> FinalEstimate {
     let t = &r.tensor;
     FinalEstimate {
         status: t.status_name(),
+        tensor_uncertainty: t.uncertainty_name(),
+        tensor_usable: t.usable,
         a: t.a,
         std_a: t.std_a,
         tensor_kg_m2: t.tensor,

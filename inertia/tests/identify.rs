@@ -235,6 +235,7 @@ fn declared_units_are_honoured_and_undeclared_mistakes_are_not_trusted() {
     let (_, v, _) = run(&["--input", deg.to_str().unwrap()], &d.join("deg.json"));
     println!("deg/s undeclared: {}", v["pooled"]["status"]);
     assert_ne!(v["pooled"]["status"], "Converged");
+    assert_eq!(v["pooled"]["tensor_usable"], false, "{}", v["pooled"]);
     let (code, v, err) = run(
         &["--input", deg.to_str().unwrap(), "--gyro-unit", "deg/s"],
         &d.join("deg2.json"),
@@ -247,6 +248,7 @@ fn declared_units_are_honoured_and_undeclared_mistakes_are_not_trusted() {
     let (_, v, _) = run(&["--input", ms.to_str().unwrap()], &d.join("ms.json"));
     println!("ms undeclared: {}", v["pooled"]["status"]);
     assert_ne!(v["pooled"]["status"], "Converged");
+    assert_eq!(v["pooled"]["tensor_usable"], false, "{}", v["pooled"]);
     let (code, v, err) = run(
         &["--input", ms.to_str().unwrap(), "--time-unit", "ms"],
         &d.join("ms2.json"),
@@ -260,6 +262,7 @@ fn declared_units_are_honoured_and_undeclared_mistakes_are_not_trusted() {
     let (_, v, _) = run(&["--input", fast.to_str().unwrap()], &d.join("fast.json"));
     println!("dt/10: {}", v["pooled"]["status"]);
     assert_ne!(v["pooled"]["status"], "Converged");
+    assert_eq!(v["pooled"]["tensor_usable"], false, "{}", v["pooled"]);
 }
 
 #[test]
@@ -307,6 +310,7 @@ fn still_and_clipped_are_not_trusted() {
     let (_, v, _) = run(&["--input", p.to_str().unwrap()], &d.join("clipped.json"));
     println!("clipped: {}", v["pooled"]["status"]);
     assert_ne!(v["pooled"]["status"], "Converged");
+    assert_eq!(v["pooled"]["tensor_usable"], false, "{}", v["pooled"]);
 }
 
 /// The nine entries of a 3x3 JSON array, row by row.
@@ -581,6 +585,9 @@ fn racquet_tosses_whose_fit_fails_report_the_refined_identifier() {
     for (k, t) in throws.iter().enumerate() {
         assert_eq!(t["status"], "ModelMismatch", "toss {k}");
         assert_eq!(t["a_source"], "Refined", "toss {k}");
+        // The per-sample tensor under that mismatch: its standard deviations do not count it.
+        assert_eq!(t["tensor_uncertainty"], "Unaccounted", "toss {k}");
+        assert_eq!(t["tensor_usable"], false, "toss {k}");
         a2.push(t["a"][1].as_f64().expect("an a"));
     }
     let mut sorted = a2.clone();

@@ -112,6 +112,9 @@ fn a_residual_dipole_or_a_truncating_walking_gyro_is_never_converged_and_says_ho
             rep.pooled.tensor_status, rep.pooled.residual_ratio
         );
         assert_ne!(rep.pooled.tensor_status, "Converged", "{name}");
+        // Fits to its stated uncertainty, and says so.
+        assert_eq!(rep.pooled.tensor_uncertainty, "Residual", "{name}");
+        assert!(rep.pooled.tensor_usable, "{name}");
         // Their residuals are near the noise's level but coloured ((F10') of the tensor fit), or
         // the gyro's bias walks ((F12)):
         // the standard deviations grow with the residual seen, so the error stays within them

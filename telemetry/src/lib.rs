@@ -22,7 +22,7 @@ extern crate std;
 use serde::{Deserialize, Serialize};
 
 /// Format version carried in every report; bumped on any change of [`Report`].
-pub const VERSION: u8 = 3;
+pub const VERSION: u8 = 4;
 
 /// Longest frame: the largest serialised [`Report`] (varints at their longest) plus COBS
 /// overhead and the terminating zero.
@@ -75,6 +75,10 @@ pub const TENSOR_STATUS: [&str; 9] = [
     "NoInformation",
 ];
 
+/// Names of the codes of where the tensor's standard deviations come from
+/// ([`Tensor::uncertainty`]), in code order: identifier-core's `Uncertainty`.
+pub const TENSOR_UNCERTAINTY: [&str; 3] = ["Noise", "Residual", "Unaccounted"];
+
 /// The free-flight pipeline's tensor estimate (identifier-core's `FlightPipeline`).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Tensor {
@@ -94,9 +98,23 @@ pub struct Tensor {
     pub not_fed: u32,
     /// The gate holds free flight now.
     pub in_free_flight: bool,
+    /// Where the tensor's standard deviations come from, an index into
+    /// [`TENSOR_UNCERTAINTY`].
+    pub uncertainty: u8,
+    /// The tensor is to be used with its standard deviations (identifier-core's
+    /// `Uncertainty::usable` of the tensor's own status).
+    pub usable: bool,
 }
 
 impl Tensor {
+    /// The uncertainty's name (`"?"` for an unknown code).
+    pub fn uncertainty_name(&self) -> &'static str {
+        TENSOR_UNCERTAINTY
+            .get(usize::from(self.uncertainty))
+            .copied()
+            .unwrap_or("?")
+    }
+
     /// The status's name (`"?"` for an unknown code).
     pub fn status_name(&self) -> &'static str {
         TENSOR_STATUS
@@ -265,6 +283,8 @@ mod tests {
                 fed: 1000 * k,
                 not_fed: 7,
                 in_free_flight: k == 3,
+                uncertainty: (k % 3) as u8,
+                usable: k == 1,
             },
         }
     }
@@ -340,6 +360,8 @@ mod tests {
             fed: u32::MAX,
             not_fed: u32::MAX,
             in_free_flight: true,
+            uncertainty: 2,
+            usable: true,
         };
         r.estimate.tensor = Some(big);
         r.restored = Some(r.estimate);
@@ -352,6 +374,8 @@ mod tests {
             fed: u32::MAX,
             not_fed: u32::MAX,
             in_free_flight: true,
+            uncertainty: 2,
+            usable: true,
         };
         let mut buf = [0u8; MAX_FRAME];
         let n = encode(&r, &mut buf).unwrap().len();

@@ -60,12 +60,14 @@ pub fn log_report(r: &Report) {
 pub fn log_tensor(r: &Report, bits: bool) {
     let t = &r.tensor;
     defmt::info!(
-        "tensor status={} throws={=u32} fed={=u32} not_fed={=u32} in_free_flight={=bool}",
+        "tensor status={} throws={=u32} fed={=u32} not_fed={=u32} in_free_flight={=bool} uncertainty={} usable={=bool}",
         t.status,
         t.throws,
         t.fed,
         t.not_fed,
-        t.in_free_flight
+        t.in_free_flight,
+        t.uncertainty,
+        t.usable
     );
     match (t.a, t.std_a) {
         (Some(a), Some(s)) => {

@@ -3,7 +3,7 @@
 //! ([`crate::uplink::to_telemetry`]) are each made from it by one function.
 
 use icm42688::Config;
-use identifier_core::{Convergence, InertiaRatios, Status};
+use identifier_core::{Convergence, InertiaRatios, Status, Uncertainty};
 
 use super::SensorStatus;
 
@@ -38,6 +38,12 @@ pub struct TensorReport {
     pub not_fed: u32,
     /// The gate holds free flight now.
     pub in_free_flight: bool,
+    /// Where the tensor's standard deviations come from
+    /// ([`TensorEstimate::uncertainty`](identifier_core::TensorEstimate::uncertainty)).
+    pub uncertainty: Uncertainty,
+    /// The tensor is to be used with its standard deviations
+    /// ([`Uncertainty::usable`] of the tensor's status).
+    pub usable: bool,
 }
 
 impl TensorReport {
@@ -54,6 +60,8 @@ impl TensorReport {
             fed: pipeline.fed_inputs(),
             not_fed,
             in_free_flight: pipeline.in_free_flight(),
+            uncertainty: e.uncertainty,
+            usable: e.uncertainty.usable(e.status),
         }
     }
 }

@@ -17,6 +17,8 @@ fn estimate(tensor: Option<[[f32; 3]; 3]>, status: &str) -> EstimateJson {
         status: status.into(),
         a_source: "Tensor".into(),
         tensor_status: status.into(),
+        tensor_uncertainty: "Noise".into(),
+        tensor_usable: status == "Converged",
         tensor_method: "OutputError".into(),
         model: "Full".into(),
         tensor_kg_m2: tensor,
