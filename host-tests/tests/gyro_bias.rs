@@ -105,7 +105,7 @@ fn a_bias_detected_in_flight_keeps_the_tensor_from_converging() {
                 );
                 assert_eq!(t.status, Status::ModelMismatch, "bias {bias} seed {seed}");
                 // The equation error's standard deviations do not count the bias.
-                assert!(!t.uncertainty.usable(t.status), "bias {bias} seed {seed}");
+                assert!(!t.usable(), "bias {bias} seed {seed}");
             }
             p.end_stretch();
             assert_eq!(

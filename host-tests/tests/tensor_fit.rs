@@ -229,7 +229,7 @@ fn a_rotor_telemetry_wrong_before_the_spin_up_is_flagged_with_its_error_covered(
         assert_eq!(e.status, Status::ModelMismatch, "seed {seed}");
         // Its standard deviations come from the residual seen: usable with them.
         assert_eq!(e.uncertainty, Uncertainty::Residual, "seed {seed}");
-        assert!(e.uncertainty.usable(e.status), "seed {seed}");
+        assert!(e.usable(), "seed {seed}");
         worst = worst.max(err);
         worst_z = worst_z.max(z);
     }

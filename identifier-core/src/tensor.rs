@@ -310,6 +310,20 @@ impl Uncertainty {
     }
 }
 
+impl TensorEstimate {
+    /// Whether the tensor is to be used with its standard deviations:
+    /// [`Uncertainty::usable`] of its status, and its principal moments a rigid body's,
+    /// `0 < l0` and `l2 <= l0 + l1` (ascending; `Converged` asks it to three standard
+    /// deviations, and a fit that does not fit to the noise can follow a hand's motion to a
+    /// tensor that is no body's, its standard deviation as large as its error).
+    pub fn usable(&self) -> bool {
+        let body = self
+            .principal_moments
+            .is_some_and(|[l0, l1, l2]| l0 > 0.0 && l2 <= l0 + l1);
+        self.uncertainty.usable(self.status) && body
+    }
+}
+
 /// Which estimator gave a [`TensorEstimate`]'s tensor.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -1,7 +1,9 @@
 //! The tensor estimator against an f64 RK4 simulation of Euler's equation with a rotor
 //! (a non-diagonal body with a flywheel spin-up; a principal-axis body without rotor; a still
 //! gyro; a pure spin).
-use identifier_core::{Status, TensorEstimator, TensorModel, TensorSettings};
+use identifier_core::{
+    Status, TensorEstimate, TensorEstimator, TensorModel, TensorSettings, Uncertainty,
+};
 
 type V = [f64; 3];
 type M = [[f64; 3]; 3];
@@ -242,5 +244,36 @@ fn scratch_noise_free_norotor() {
             "{rate} row 0: {:?}",
             [0, 1, 2].map(|c| t[0][c] as f64 - BOARD[0][c] / tr)
         );
+    }
+}
+
+/// `TensorEstimate::usable`: a `Converged` estimate is; a `ModelMismatch` one only with its
+/// standard deviations from the residual seen and principal moments that are a body's; no
+/// other status is.
+#[test]
+fn usable_asks_the_residuals_uncertainty_and_a_body() {
+    let s = simulate(&BOARD, 1.689e-6, [10.0, -6.0, 12.0], 4000.0, 0.6, 2e-3, 1);
+    let good = run(&s, 4000.0, 2e-3);
+    assert_eq!(good.status, Status::Converged);
+    assert!(good.usable());
+    let mismatch = |u: Uncertainty, moments: [f32; 3]| TensorEstimate {
+        status: Status::ModelMismatch,
+        uncertainty: u,
+        principal_moments: Some(moments),
+        ..good
+    };
+    let body = [2.2e-5, 7.6e-5, 8.9e-5];
+    assert!(mismatch(Uncertainty::Residual, body).usable());
+    assert!(!mismatch(Uncertainty::Unaccounted, body).usable());
+    assert!(!mismatch(Uncertainty::Noise, body).usable());
+    // A hand's motion fitted: the largest moment beyond the sum of the other two.
+    assert!(!mismatch(Uncertainty::Residual, [1.0e-6, 3.1e-6, 1.1e-4]).usable());
+    for status in [
+        Status::Converging,
+        Status::Saturated,
+        Status::UnitsLookWrong,
+    ] {
+        let e = TensorEstimate { status, ..good };
+        assert!(!e.usable(), "{status:?}");
     }
 }

@@ -141,8 +141,8 @@ pub struct EstimateJson {
     /// `Unaccounted` (an error they do not count: indicative only).
     pub tensor_uncertainty: String,
     /// Whether the tensor is to be used with its standard deviations: `tensor_status`
-    /// `Converged`, or `ModelMismatch` with `tensor_uncertainty` `Residual`
-    /// (`identifier_core::Uncertainty::usable`).
+    /// `Converged`, or `ModelMismatch` with `tensor_uncertainty` `Residual` and principal
+    /// moments that are a rigid body's (`identifier_core::TensorEstimate::usable`).
     pub tensor_usable: bool,
     /// `Full` or `Principal` (products of inertia insignificant and set to zero).
     pub model: String,
@@ -183,7 +183,7 @@ impl EstimateJson {
             tensor_status: format!("{:?}", e.status),
             tensor_method: format!("{:?}", e.method),
             tensor_uncertainty: format!("{:?}", e.uncertainty),
-            tensor_usable: e.uncertainty.usable(e.status),
+            tensor_usable: e.usable(),
             model: format!("{:?}", e.model),
             tensor_kg_m2: e.tensor,
             tensor_std_kg_m2: e.tensor_std,

@@ -25,7 +25,7 @@ pub struct FinalEstimate {
     /// Where the tensor's standard deviations come from (`Noise`, `Residual`, `Unaccounted`:
     /// identifier-core's `Uncertainty`).
     pub tensor_uncertainty: &'static str,
-    /// The tensor is to be used with its standard deviations (`Uncertainty::usable`).
+    /// The tensor is to be used with its standard deviations (`TensorEstimate::usable`).
     pub tensor_usable: bool,
     /// The paper's ratios from the tensor.
     pub a: Option<[f32; 3]>,

@@ -102,7 +102,7 @@ pub struct Tensor {
     /// [`TENSOR_UNCERTAINTY`].
     pub uncertainty: u8,
     /// The tensor is to be used with its standard deviations (identifier-core's
-    /// `Uncertainty::usable` of the tensor's own status).
+    /// `TensorEstimate::usable`).
     pub usable: bool,
 }
 

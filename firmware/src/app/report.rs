@@ -42,7 +42,7 @@ pub struct TensorReport {
     /// ([`TensorEstimate::uncertainty`](identifier_core::TensorEstimate::uncertainty)).
     pub uncertainty: Uncertainty,
     /// The tensor is to be used with its standard deviations
-    /// ([`Uncertainty::usable`] of the tensor's status).
+    /// ([`TensorEstimate::usable`](identifier_core::TensorEstimate::usable)).
     pub usable: bool,
 }
 
@@ -61,7 +61,7 @@ impl TensorReport {
             not_fed,
             in_free_flight: pipeline.in_free_flight(),
             uncertainty: e.uncertainty,
-            usable: e.uncertainty.usable(e.status),
+            usable: e.usable(),
         }
     }
 }
