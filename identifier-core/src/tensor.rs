@@ -261,6 +261,12 @@ pub struct TensorEstimate {
     /// Where the standard deviations come from, and so whether they count what the residual
     /// shows.
     pub uncertainty: Uncertainty,
+    /// The tensor determines a rigid body's inertia: every principal moment more than three
+    /// of its standard deviations above zero, and `l0 + l1 - l2` (ascending) not below minus
+    /// three of its own, the test of [`Status::PhysicallyImpossible`] made whatever the
+    /// status says (a residual beyond the noise says `ModelMismatch` first). False before
+    /// there is a tensor.
+    pub determined: bool,
 }
 
 /// Where a [`TensorEstimate`]'s standard deviations come from. With the status it says how
@@ -312,15 +318,11 @@ impl Uncertainty {
 
 impl TensorEstimate {
     /// Whether the tensor is to be used with its standard deviations:
-    /// [`Uncertainty::usable`] of its status, and its principal moments a rigid body's,
-    /// `0 < l0` and `l2 <= l0 + l1` (ascending; `Converged` asks it to three standard
-    /// deviations, and a fit that does not fit to the noise can follow a hand's motion to a
-    /// tensor that is no body's, its standard deviation as large as its error).
+    /// [`Uncertainty::usable`] of its status, and a rigid body's inertia determined
+    /// ([`TensorEstimate::determined`]: a fit that does not fit to the noise can follow a
+    /// hand's motion to a tensor its standard deviations say nothing about).
     pub fn usable(&self) -> bool {
-        let body = self
-            .principal_moments
-            .is_some_and(|[l0, l1, l2]| l0 > 0.0 && l2 <= l0 + l1);
-        self.uncertainty.usable(self.status) && body
+        self.uncertainty.usable(self.status) && self.determined
     }
 }
 
@@ -967,6 +969,7 @@ impl TensorEstimator {
             stretches,
             method: TensorMethod::EquationError,
             uncertainty: Uncertainty::Noise,
+            determined: false,
         };
         let c = &self.counters;
         if c.implausible > 0 || c.gaps.saturating_mul(10) > c.used {
@@ -1230,6 +1233,12 @@ impl TensorEstimator {
         });
         let sd_slack = sqrt(quad(&cov_n, &g_slack));
         let impossible = l0 < -3.0 * sd0 || slack < -3.0 * sd_slack;
+        let positive = eig
+            .values
+            .iter()
+            .zip(var_l.iter())
+            .all(|(&l, &v)| l > 3.0 * sqrt(v));
+        out.determined = positive && !impossible;
         let valid = l0 > 0.0 && slack >= 0.0;
 
         let c = &self.counters;

@@ -248,26 +248,26 @@ fn scratch_noise_free_norotor() {
 }
 
 /// `TensorEstimate::usable`: a `Converged` estimate is; a `ModelMismatch` one only with its
-/// standard deviations from the residual seen and principal moments that are a body's; no
-/// other status is.
+/// standard deviations from the residual seen and a body's inertia determined beyond three of
+/// them; no other status is.
 #[test]
 fn usable_asks_the_residuals_uncertainty_and_a_body() {
     let s = simulate(&BOARD, 1.689e-6, [10.0, -6.0, 12.0], 4000.0, 0.6, 2e-3, 1);
     let good = run(&s, 4000.0, 2e-3);
     assert_eq!(good.status, Status::Converged);
     assert!(good.usable());
-    let mismatch = |u: Uncertainty, moments: [f32; 3]| TensorEstimate {
+    assert!(good.determined);
+    let mismatch = |u: Uncertainty, determined: bool| TensorEstimate {
         status: Status::ModelMismatch,
         uncertainty: u,
-        principal_moments: Some(moments),
+        determined,
         ..good
     };
-    let body = [2.2e-5, 7.6e-5, 8.9e-5];
-    assert!(mismatch(Uncertainty::Residual, body).usable());
-    assert!(!mismatch(Uncertainty::Unaccounted, body).usable());
-    assert!(!mismatch(Uncertainty::Noise, body).usable());
-    // A hand's motion fitted: the largest moment beyond the sum of the other two.
-    assert!(!mismatch(Uncertainty::Residual, [1.0e-6, 3.1e-6, 1.1e-4]).usable());
+    assert!(mismatch(Uncertainty::Residual, true).usable());
+    assert!(!mismatch(Uncertainty::Unaccounted, true).usable());
+    assert!(!mismatch(Uncertainty::Noise, true).usable());
+    // A tensor its standard deviations say nothing about (a fit that followed a hand).
+    assert!(!mismatch(Uncertainty::Residual, false).usable());
     for status in [
         Status::Converging,
         Status::Saturated,

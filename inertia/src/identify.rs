@@ -141,8 +141,9 @@ pub struct EstimateJson {
     /// `Unaccounted` (an error they do not count: indicative only).
     pub tensor_uncertainty: String,
     /// Whether the tensor is to be used with its standard deviations: `tensor_status`
-    /// `Converged`, or `ModelMismatch` with `tensor_uncertainty` `Residual` and principal
-    /// moments that are a rigid body's (`identifier_core::TensorEstimate::usable`).
+    /// `Converged`, or `ModelMismatch` with `tensor_uncertainty` `Residual` and a rigid body's
+    /// inertia determined beyond three standard deviations
+    /// (`identifier_core::TensorEstimate::usable`).
     pub tensor_usable: bool,
     /// `Full` or `Principal` (products of inertia insignificant and set to zero).
     pub model: String,

@@ -289,11 +289,10 @@ fn pooled_estimate(
     } else {
         "Residual"
     };
-    // `identifier_core::TensorEstimate::usable` of the pooled tensor, every log usable.
-    let body = moments[0] > 0.0 && moments[2] <= moments[0] + moments[1];
+    // `identifier_core::TensorEstimate::usable` of the pooled tensor: every log usable (each
+    // a body's inertia determined, and so the pooled one).
     let usable = (tensor_status == "Converged"
         || (tensor_status == "ModelMismatch" && uncertainty == "Residual"))
-        && body
         && reports.iter().all(|r| r.pooled.tensor_usable);
     let first = &reports[0].pooled;
     let last = &reports[reports.len() - 1].pooled;
