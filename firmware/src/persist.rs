@@ -69,8 +69,10 @@ impl<S: NorFlash> EstimateStore<S> {
     }
 }
 
-/// Saves the report's estimate when it is worth keeping: the tensor estimate `Converged` and
-/// fed with samples not yet saved. Returns `true` when it saved.
+/// Saves the report's estimate when it is worth keeping: `Converged`, or a tensor to be used
+/// with its standard deviations ([`TensorReport::usable`](crate::app::TensorReport::usable):
+/// a real throw's `ModelMismatch` with the residual's uncertainty), fed with samples not yet
+/// saved.
 pub struct SavePolicy {
     saved_fed: u32,
 }
@@ -83,8 +85,13 @@ impl SavePolicy {
 
     /// Whether the report's estimate should be committed now.
     pub fn due(&mut self, r: &crate::app::Report) -> bool {
-        let t = &r.tensor;
-        if t.status == identifier_core::Status::Converged && t.fed != self.saved_fed {
+        self.due_for(&r.tensor)
+    }
+
+    /// [`SavePolicy::due`] of the report's tensor estimate.
+    fn due_for(&mut self, t: &crate::app::TensorReport) -> bool {
+        let good = t.status == identifier_core::Status::Converged || t.usable;
+        if good && t.fed != self.saved_fed {
             self.saved_fed = t.fed;
             true
         } else {
@@ -204,6 +211,29 @@ mod tests {
         // The map owns the flash: take it back.
         let EstimateStore { map } = s;
         map.destroy().0.mem
+    }
+
+    #[test]
+    fn the_policy_saves_a_usable_estimate_once_per_new_samples() {
+        use identifier_core::{Status, Uncertainty};
+        let t = |status, usable, fed| crate::app::TensorReport {
+            status,
+            a: None,
+            std_a: None,
+            tensor: None,
+            throws: 1,
+            fed,
+            not_fed: 0,
+            in_free_flight: false,
+            uncertainty: Uncertainty::Residual,
+            usable,
+        };
+        let mut p = SavePolicy::new();
+        assert!(!p.due_for(&t(Status::ModelMismatch, false, 100)));
+        assert!(!p.due_for(&t(Status::Converging, false, 100)));
+        assert!(p.due_for(&t(Status::ModelMismatch, true, 100)));
+        assert!(!p.due_for(&t(Status::ModelMismatch, true, 100)));
+        assert!(p.due_for(&t(Status::Converged, true, 200)));
     }
 
     #[test]

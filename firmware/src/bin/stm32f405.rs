@@ -7,7 +7,7 @@
 //! (about 1.3 ms for a frame of 120 bytes, 10 times a second), which the sample interrupt
 //! preempts.
 //!
-//! The last good estimate (tensor `Converged`, new samples since the last save) is saved to
+//! The last good estimate (`Converged` or usable, new samples since the last save) is saved to
 //! flash sectors 10-11 (`firmware::persist`, a sequential-storage map) and restored at boot;
 //! every report then carries it as `restored`. A sector erase (up to 2 s) stalls the core's
 //! fetches from flash, the sample interrupt's too: the watchdog is stretched meanwhile, and the
