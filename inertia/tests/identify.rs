@@ -115,6 +115,32 @@ fn truth() -> [f64; 3] {
     ]
 }
 
+/// Whether any of the report's warnings contains `text`.
+fn warned(v: &serde_json::Value, text: &str) -> bool {
+    v["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|w| w.as_str().unwrap_or("").contains(text))
+}
+
+/// Asserts every pooled `a_i` within `limit` of its std from [`truth`], printing each.
+fn assert_a_within_std(v: &serde_json::Value, limit: f64) {
+    let (a, s) = a_of(v).unwrap();
+    let t = truth();
+    for i in 0..3 {
+        let z = (a[i] - t[i]) / s[i];
+        println!(
+            "a{} {:.5} truth {:.5} std {:.2e} z {z:.2}",
+            i + 1,
+            a[i],
+            t[i],
+            s[i]
+        );
+        assert!(z.abs() < limit, "a{}: {z:.2} std off", i + 1);
+    }
+}
+
 fn a_of(v: &serde_json::Value) -> Option<([f64; 3], [f64; 3])> {
     let a = v["pooled"]["a"].as_array()?;
     let s = v["pooled"]["std_a"].as_array()?;
@@ -135,25 +161,8 @@ fn csv_toss_converges_to_the_truth() {
     assert_eq!(v["pooled"]["status"], "Converged", "{err}");
     // 10 s of a well-excited body: the noise's std is far below what the gyro's scale factors
     // allow, and the tool says so.
-    let warned = v["warnings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .any(|w| w.as_str().unwrap_or("").contains("scale factors"));
-    assert!(warned, "{:?}", v["warnings"]);
-    let (a, s) = a_of(&v).unwrap();
-    let t = truth();
-    for i in 0..3 {
-        let z = (a[i] - t[i]) / s[i];
-        println!(
-            "a{} {:.5} truth {:.5} std {:.2e} z {z:.2}",
-            i + 1,
-            a[i],
-            t[i],
-            s[i]
-        );
-        assert!(z.abs() < 5.0);
-    }
+    assert!(warned(&v, "scale factors"), "{:?}", v["warnings"]);
+    assert_a_within_std(&v, 5.0);
 }
 
 /// `--segments` takes a phyphox export's `meta/segments.csv` (named `start`, `end`, `keep`
@@ -541,15 +550,7 @@ fn the_gyro_scale_tolerance_covers_a_scale_factor_error() {
         worst_noise > 5.0,
         "the scale error should be far beyond the noise's std"
     );
-    assert!(
-        v["warnings"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .any(|w| w.as_str().unwrap_or("").contains("gyro scale tolerance")),
-        "{:?}",
-        v["warnings"]
-    );
+    assert!(warned(&v, "gyro scale tolerance"), "{:?}", v["warnings"]);
     assert!(g["std_tensor"].is_array());
 }
 
@@ -647,13 +648,6 @@ fn a_log_without_a_still_bench_says_its_bias_was_not_measured() {
         }
         std::fs::write(p, s).unwrap();
     };
-    let warned = |v: &serde_json::Value| {
-        v["warnings"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .any(|w| w.as_str().unwrap_or("").contains("no still stretch"))
-    };
 
     let p = d.join("bias-bench.csv");
     write(&p, &[(&still, G), (&free, 0.0), (&after, G)]);
@@ -663,7 +657,7 @@ fn a_log_without_a_still_bench_says_its_bias_was_not_measured() {
     );
     assert_eq!(code, 0, "{err}");
     assert_eq!(v["gyro_bias_measured"], true, "{err}");
-    assert!(!warned(&v), "{:?}", v["warnings"]);
+    assert!(!warned(&v, "no still stretch"), "{:?}", v["warnings"]);
     let b: Vec<f64> = (0..3)
         .map(|i| v["gyro_bias"][i].as_f64().unwrap())
         .collect();
@@ -678,21 +672,9 @@ fn a_log_without_a_still_bench_says_its_bias_was_not_measured() {
     assert_eq!(code, 0, "{err}");
     assert_eq!(v["gyro_bias_measured"], false);
     assert_eq!(v["gyro_bias"], serde_json::json!([0.0, 0.0, 0.0]));
-    assert!(warned(&v), "{:?}", v["warnings"]);
+    assert!(warned(&v, "no still stretch"), "{:?}", v["warnings"]);
     // The end-of-flight fit found the bias itself: whatever its status, `a` is within its std.
-    let (a, sd) = a_of(&v).unwrap();
-    let t = truth();
-    for i in 0..3 {
-        let z = (a[i] - t[i]) / sd[i];
-        println!(
-            "a{} {:.5} truth {:.5} std {:.2e} z {z:.2}",
-            i + 1,
-            a[i],
-            t[i],
-            sd[i]
-        );
-        assert!(z.abs() < 5.0);
-    }
+    assert_a_within_std(&v, 5.0);
 }
 
 /// An accelerometer in g or milli-g where m/s^2 is expected: the gate's thresholds mean nothing
