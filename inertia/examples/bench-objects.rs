@@ -311,7 +311,11 @@ fn to_log(v: [f64; 3]) -> [f64; 3] {
 }
 
 fn tensor_to_log(a: &M3) -> M3 {
-    let r = [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]];
+    rotated(&[[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]], a)
+}
+
+/// `R A R^T`.
+fn rotated(r: &M3, a: &M3) -> M3 {
     std::array::from_fn(|i| {
         std::array::from_fn(|j| {
             (0..3)
@@ -487,14 +491,7 @@ fn yaw_deg(r: &Row) -> (f64, f64) {
 /// `truth` turned about z by `deg`: `R_z T R_z^T`.
 fn turned_about_z(truth: &M3, deg: f64) -> M3 {
     let (s, c) = deg.to_radians().sin_cos();
-    let r = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]];
-    std::array::from_fn(|i| {
-        std::array::from_fn(|j| {
-            (0..3)
-                .map(|k| (0..3).map(|l| r[i][k] * truth[k][l] * r[j][l]).sum::<f64>())
-                .sum()
-        })
-    })
+    rotated(&[[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]], truth)
 }
 
 /// Inverse-variance mean of `(value, std)` pairs and its standard deviation.
