@@ -215,7 +215,7 @@ pub struct Report {
     /// Gyro bias removed (the mean over the log's longest still run), rad/s; zero when
     /// none was measured ([`Report::gyro_bias_measured`]).
     pub gyro_bias: [f32; 3],
-    /// Whether a still stretch before the throws gave the bias in [`Report::gyro_bias`]: when
+    /// Whether a still stretch of the log gave the bias in [`Report::gyro_bias`]: when
     /// false nothing was removed, and a constant bias is left to the end-of-flight fits' own
     /// test (the report warns).
     pub gyro_bias_measured: bool,
@@ -276,10 +276,10 @@ pub struct Report {
     pub gyro_bias_walk_rad_s_per_sqrt_s: Option<f32>,
 }
 
-/// The warning of a report whose log has no still stretch before its throws (or no
-/// accelerometer to find one with).
+/// The warning of a report whose log has no still stretch (or no accelerometer to find one
+/// with).
 pub const NO_BIAS_WARNING: &str =
-    "no still stretch of the gyro before the throws: no bias was measured or removed \
+    "no still stretch of the gyro in the log: no bias was measured or removed \
      (gyro_bias is zero); a constant bias of a few mrad/s looks like products of inertia the body \
      need not have, and only the end-of-flight fits' own bias test guards the tensor (hold the \
      body still for a second before the first throw)";

@@ -289,11 +289,11 @@ fn pooled_estimate(
     } else {
         "Residual"
     };
-    // `identifier_core::TensorEstimate::usable` of the pooled tensor: every log usable (each
-    // a body's inertia determined, and so the pooled one).
-    let usable = (tensor_status == "Converged"
-        || (tensor_status == "ModelMismatch" && uncertainty == "Residual"))
-        && reports.iter().all(|r| r.pooled.tensor_usable);
+    // `identifier_core::TensorEstimate::usable` of the pooled tensor: every log usable. Each
+    // log is then `Converged` with `Noise` or `ModelMismatch` with `Residual`, so the pooled
+    // status is `Converged` (all logs, consistent: `Noise`) or `ModelMismatch` (a log's, or an
+    // inconsistent spread: `Residual` either way), the rule's two usable cases.
+    let usable = reports.iter().all(|r| r.pooled.tensor_usable);
     let first = &reports[0].pooled;
     let last = &reports[reports.len() - 1].pooled;
     EstimateJson {
